@@ -46,8 +46,9 @@ class FluidState:
         """The fluid state at a subset of points (same indexing as numpy)."""
         return FluidState(self.nu[index], self.rho[index])
 
-    def broadcast_to(self, shape) -> "FluidState":
-        return FluidState(np.broadcast_to(self.nu, shape), np.broadcast_to(self.rho, shape))
+    def ravel(self) -> "FluidState":
+        """The same states as flat arrays."""
+        return FluidState(self.nu.ravel(), self.rho.ravel())
 
 
 @dataclass(frozen=True)

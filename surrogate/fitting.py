@@ -1,0 +1,173 @@
+"""Least-squares fitting of a valve model's free parameters, in the manner of lmfit.
+
+Any residual works: a model's pressure drop against a median line, or a replay against every
+sample of a bench log. The fit varies the free parameters of the model's effects within their
+bounds (:class:`scipy.optimize.least_squares`, trust-region reflective) and reports the values with
+standard errors, their correlations, χ², AIC and BIC.
+
+Standard errors assume independent residuals. Bench samples are correlated in time, so they are
+optimistic; compare models by BIC or by held-out error, not by these alone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .effects import Effect, Parameter
+from .errors import InputError
+from .model import ValveModel
+from .units import from_si, to_si
+
+#: residual of a solver failure, so that a fit is steered away from it [Pa]
+FAILURE_RESIDUAL = 1000e5
+
+
+@dataclass
+class FitResult:
+    """The outcome of :func:`fit`.
+
+    Attributes
+    ----------
+    model : ValveModel
+        A copy of the model with the fitted values (and their standard errors) set.
+    names : list of str
+        ``"effect.parameter"`` for each fitted parameter.
+    rms : float
+        Root-mean-square residual at the optimum [residual units, Pa for pressures].
+    count : int
+        Number of residuals.
+    aic, bic : float
+        Akaike and Bayesian information criteria, n·ln(RSS/n) + 2k and n·ln(RSS/n) + k·ln n.
+    correlation : numpy.ndarray
+        Correlation matrix of the fitted parameters.
+    success : bool
+    message : str
+    evaluations : int
+    """
+
+    model: ValveModel
+    names: list[str]
+    rms: float
+    count: int
+    aic: float
+    bic: float
+    correlation: np.ndarray
+    success: bool
+    message: str
+    evaluations: int
+    parameters: list[Parameter] = field(default_factory=list)
+
+    def report(self) -> str:
+        """A readable summary, like lmfit's ``fit_report``."""
+        lines = [f"fit of {self.model.name}: {len(self.names)} parameter(s), {self.count} residuals,"
+                 f" {self.evaluations} evaluations, {'converged' if self.success else 'NOT converged'}",
+                 f"  rms {from_si(self.rms, 'bar'):.4g} bar, AIC {self.aic:.1f}, BIC {self.bic:.1f}"]
+        lines += [f"  {name:<32} {parameter}" for name, parameter in
+                  zip(self.names, self.parameters)]
+        for i in range(len(self.names)):
+            for j in range(i + 1, len(self.names)):
+                if abs(self.correlation[i, j]) > 0.5:
+                    lines.append(f"  correlation({self.names[i]}, {self.names[j]}) = "
+                                 f"{self.correlation[i, j]:+.3f}")
+        return "\n".join(lines)
+
+
+def information_criteria(residuals: np.ndarray, parameter_count: int) -> tuple[float, float]:
+    """(AIC, BIC) of a least-squares fit with Gaussian errors of unknown variance."""
+    count = len(residuals)
+    rss = max(float(np.sum(residuals**2)), 1e-300)
+    base = count * np.log(rss / count)
+    return base + 2 * parameter_count, base + parameter_count * np.log(count)
+
+
+def free_parameters(model: ValveModel, names: Sequence[str] | None = None
+                    ) -> list[tuple[str, Effect, Parameter]]:
+    """The parameters a fit varies: ``names`` (``"effect.parameter"``) or all with vary=True."""
+    available = {f"{effect.name}.{p.name}": (effect, p) for effect, p in model.parameters()}
+    if names is None:
+        return [(name, e, p) for name, (e, p) in available.items() if p.vary]
+    missing = [name for name in names if name not in available]
+    if missing:
+        raise InputError(f"model {model.name!r} has no parameter(s) {', '.join(missing)}; it has "
+                         f"{', '.join(available) or 'none'}")
+    return [(name, *available[name]) for name in names]
+
+
+def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
+        names: Sequence[str] | None = None, *, max_evaluations: int = 200) -> FitResult:
+    """Fit the free parameters of ``model`` to minimise the sum of squared ``residuals``.
+
+    Parameters
+    ----------
+    model : ValveModel
+        Not modified; the result holds a fitted copy.
+    residuals : callable
+        ``residuals(model)`` returns an array of residuals; NaN entries (failed points) count as
+        :data:`FAILURE_RESIDUAL`.
+    names : sequence of str, optional
+        ``"effect.parameter"`` names to fit; default every parameter with ``vary=True``.
+    max_evaluations : int
+        Limit on residual evaluations.
+    """
+    fitted = model.copy()
+    chosen = free_parameters(fitted, names)
+
+    def evaluate(candidate: ValveModel) -> np.ndarray:
+        values = np.asarray(residuals(candidate), float)
+        return np.where(np.isfinite(values), values, FAILURE_RESIDUAL)
+
+    if not chosen:
+        values = evaluate(fitted)
+        aic, bic = information_criteria(values, 0)
+        return FitResult(fitted, [], _rms(values), len(values), aic, bic, np.zeros((0, 0)), True,
+                         "nothing to fit", 1, [])
+
+    # optimise in display units, where the parameters are of order one
+    units = [p.unit for _, _, p in chosen]
+    start = np.array([p.display_value for _, _, p in chosen])
+    lower = np.array([from_si(p.min, p.unit) if np.isfinite(p.min) else -np.inf
+                      for _, _, p in chosen])
+    upper = np.array([from_si(p.max, p.unit) if np.isfinite(p.max) else np.inf
+                      for _, _, p in chosen])
+    start = np.clip(start, lower, upper)
+
+    def assign(x):
+        for (_, _, parameter), unit, value in zip(chosen, units, x):
+            parameter.value = float(to_si(value, unit))
+
+    def objective(x):
+        assign(x)
+        return evaluate(fitted)
+
+    result = least_squares(objective, start, bounds=(lower, upper), x_scale="jac",
+                           max_nfev=max_evaluations, diff_step=1e-4)
+    assign(result.x)
+    final = evaluate(fitted)
+    covariance = _covariance(result.jac, final, len(chosen))
+    scales = np.array([to_si(1.0, unit) - to_si(0.0, unit) for unit in units])
+    errors = np.sqrt(np.clip(np.diag(covariance), 0, None))
+    for (_, _, parameter), error, scale in zip(chosen, errors, scales):
+        parameter.stderr = float(error * scale) if np.isfinite(error) else None
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = covariance / np.outer(errors, errors)
+    aic, bic = information_criteria(final, len(chosen))
+    return FitResult(fitted, [name for name, _, _ in chosen], _rms(final), len(final), aic, bic,
+                     correlation, bool(result.success), str(result.message), int(result.nfev),
+                     [p for _, _, p in chosen])
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(values**2))) if len(values) else 0.0
+
+
+def _covariance(jacobian: np.ndarray, residuals: np.ndarray, parameter_count: int) -> np.ndarray:
+    dof = max(len(residuals) - parameter_count, 1)
+    variance = float(np.sum(residuals**2)) / dof
+    try:
+        return np.linalg.pinv(jacobian.T @ jacobian) * variance
+    except np.linalg.LinAlgError:
+        return np.full((parameter_count, parameter_count), np.nan)

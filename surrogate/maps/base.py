@@ -1,0 +1,139 @@
+"""The map interface every flow and force map implements, whatever is behind it.
+
+A *flow map* is the paper's q_sim(p_L, p_B, u) (eq. 5) or the orifice equation (eq. 4): the flow
+through the main restriction at a given pressure drop and opening, and its inverse, the pressure
+drop a given flow needs. A *force map* is f_sim(p_L, p_B, u) (eq. 7): the axial fluid force on the
+piston surfaces inside the CFD domain, i.e. everything except the pilot chamber (p_P·A_P) and the
+main spring chamber (−p_B·A_s3).
+
+All arguments are numpy arrays (broadcast together) in SI units, with the fluid given as a
+:class:`~surrogate.fluid.FluidState`, never as a temperature, so a map can serve another oil.
+
+A subclass implements one direction of the flow map, :meth:`FlowMap.flow` or
+:meth:`FlowMap.pressure_drop`; the base class inverts it for the other, because both are monotone.
+Every map says where a query lies outside the data it was built from (``extrapolating``); maps
+with a predictive uncertainty (Gaussian processes) also return a standard deviation.
+"""
+
+from __future__ import annotations
+
+from abc import ABC
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fluid import FluidState
+from ..roots import invert_increasing
+from ..units import BAR, LPM
+
+
+@dataclass(frozen=True)
+class MapResult:
+    """A map's answer at a batch of query points.
+
+    Attributes
+    ----------
+    value : numpy.ndarray
+        Flow [m^3/s] or force [N].
+    extrapolating : numpy.ndarray of bool
+        True where the query lies outside the data the map was built from.
+    std : numpy.ndarray or None
+        Predictive standard deviation in the units of ``value``, for maps that have one.
+    """
+
+    value: np.ndarray
+    extrapolating: np.ndarray
+    std: np.ndarray | None = None
+
+
+def broadcast(*arrays) -> tuple[np.ndarray, ...]:
+    """Float arrays of one common shape."""
+    return np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in arrays))
+
+
+def broadcast_query(a, b, u, fluid: FluidState):
+    """(a, b, u, fluid) broadcast to one shape, fluid included."""
+    a, b, u, nu, rho = broadcast(a, b, u, fluid.nu, fluid.rho)
+    return a, b, u, FluidState(nu, rho)
+
+
+class FlowMap(ABC):
+    """Flow through the main restriction, q(p_L, p_B, u, fluid), and its inverse Δp(q, ...).
+
+    Subclasses implement :meth:`flow` or :meth:`pressure_drop` (or both); the other is found by
+    inverting it. q must be non-decreasing in p_L at fixed p_B, u and fluid.
+    """
+
+    #: short name used in reports and files
+    kind = "flow map"
+
+    def flow(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        """Flow [m^3/s] at load pressure ``p_L`` [Pa], back pressure ``p_B`` [Pa], opening ``u`` [m].
+
+        No flow where p_L <= p_B: in its relief mode the valve passes flow from load to back port
+        only.
+        """
+        self._require_implemented("pressure_drop")
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        shape = p_L.shape
+        dp, p_B, u, fluid = np.maximum(p_L - p_B, 0.0).ravel(), p_B.ravel(), u.ravel(), fluid.ravel()
+        roots = invert_increasing(lambda q, i: self.pressure_drop(q, p_B[i], u[i], fluid[i]),
+                                  dp, np.full(dp.shape, 1.0 * LPM), xatol=1e-15)
+        return np.where(dp > 0, roots.x, 0.0).reshape(shape)
+
+    def pressure_drop(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+        """Pressure drop Δp = p_L − p_B [Pa] that pushes flow ``q`` [m^3/s] through opening ``u`` [m]."""
+        self._require_implemented("flow")
+        q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
+        shape = q.shape
+        q, p_B, u, fluid = np.maximum(q, 0.0).ravel(), p_B.ravel(), u.ravel(), fluid.ravel()
+        roots = invert_increasing(lambda dp, i: self.flow(p_B[i] + dp, p_B[i], u[i], fluid[i]),
+                                  q, np.full(q.shape, 10.0 * BAR), xatol=1e-6)
+        return np.where(q > 0, roots.x, 0.0).reshape(shape)
+
+    def _require_implemented(self, method: str) -> None:
+        if getattr(type(self), method) is getattr(FlowMap, method):
+            raise NotImplementedError(f"{type(self).__name__} must implement flow() or "
+                                      "pressure_drop()")
+
+    def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        """True where the query lies outside the map's data. Maps without data: never."""
+        p_L, _, _, _ = broadcast_query(p_L, p_B, u, fluid)
+        return np.zeros(p_L.shape, dtype=bool)
+
+    def extrapolating_at_flow(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+        """:meth:`extrapolating` for a query given by its flow ``q`` [m^3/s] instead of p_L."""
+        return self.extrapolating(p_B + self.pressure_drop(q, p_B, u, fluid), p_B, u, fluid)
+
+    def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
+        """Predictive standard deviation of the flow [m^3/s], or None if the map has none."""
+        return None
+
+    def query(self, p_L, p_B, u, fluid: FluidState) -> MapResult:
+        """Flow, extrapolation flags and (if any) standard deviation at the query points."""
+        return MapResult(self.flow(p_L, p_B, u, fluid), self.extrapolating(p_L, p_B, u, fluid),
+                         self.flow_std(p_L, p_B, u, fluid))
+
+
+class ForceMap(ABC):
+    """Fluid force f_sim(p_L, p_B, u, fluid) [N] on the piston surfaces inside the CFD domain."""
+
+    kind = "force map"
+
+    def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        """f_sim [N], positive in the opening direction."""
+        raise NotImplementedError
+
+    def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        """True where the query lies outside the map's data. Maps without data: never."""
+        p_L, _, _, _ = broadcast_query(p_L, p_B, u, fluid)
+        return np.zeros(p_L.shape, dtype=bool)
+
+    def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
+        """Predictive standard deviation of f_sim [N], or None if the map has none."""
+        return None
+
+    def query(self, p_L, p_B, u, fluid: FluidState) -> MapResult:
+        """Force, extrapolation flags and (if any) standard deviation at the query points."""
+        return MapResult(self.force(p_L, p_B, u, fluid), self.extrapolating(p_L, p_B, u, fluid),
+                         self.force_std(p_L, p_B, u, fluid))

@@ -1,0 +1,321 @@
+"""Grid interpolation of the CFD samples: the paper's q_sim and f_sim maps.
+
+The samples are sweeps: for each fluid state (oil temperature) and each piston opening u, the CFD
+was run at several flows q. Each sweep becomes one smooth curve; a query interpolates between the
+curves of the neighbouring openings and fluid states. The grid need not be rectangular: each sweep
+has its own flow range (the shipped samples lack the high flows at small openings, whose pressure
+drop would exceed 400 bar), and each fluid state may have its own openings.
+
+Interpolation and extrapolation rules
+-------------------------------------
+Flow map, stored as ln Δp(ln q) per sweep:
+
+* **in q** (and so in Δp): monotone cubic (PCHIP) in ln q–ln Δp; beyond a sweep's flows, the
+  curve continues along its end tangent, i.e. as the power law Δp ∝ q^n the last samples show.
+* **in u**: ln Δp linear in ln u between neighbouring openings at the same flow; equivalently the
+  discharge coefficient C_d is a power law of u between them. The same rule bridges the wide gap
+  between 0.20 and 0.63 mm. Below the smallest opening and above the largest, C_d is held at its
+  value there (Δp ∝ u⁻² at fixed flow), which keeps Δp → ∞ as u → 0, as a closing valve needs.
+* **in temperature**: linear in ln ν between the sampled fluid states (plain interpolation), held
+  at the nearest one outside their range. Temperature enters only through the viscosity, so the
+  map serves any oil given its ν (density differences are not rescaled).
+* **in p_B**: the map is built from the samples at one reference back pressure (the most common
+  one: 5 bar in the shipped set); p_B enters only through Δp = p_L − p_B. The back-pressure set
+  shows that this is an approximation once the flow cavitates; those samples are left out of the
+  grid and serve to check it.
+
+Force map, stored as α = f_ff/(A_L·Δp) per sweep, where f_ff = f_sim − p_L·A_L − p_B·(A_s3 − A_B)
+is the flow force (the part of f_sim a uniform pressure would not give):
+
+* **in Δp**: PCHIP in ln Δp, α held beyond a sweep's range (flow force proportional to Δp);
+* **in u**: linear in ln u, α held outside the sampled openings;
+* **in temperature and p_B**: as the flow map.
+
+Every query outside a sweep's range, outside the sampled openings or fluid states, or at a back
+pressure more than ``back_pressure_tolerance`` from the reference is reported as extrapolating.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data.loaders import CfdSamples
+from ..errors import InputError
+from ..fluid import FluidState
+from ..units import BAR, from_si
+from ..valve import ValveParameters
+from .base import FlowMap, ForceMap, broadcast_query
+from .curves import CurveSet
+
+_TINY_OPENING = 1e-12  # [m] openings below this are treated as this, to keep logarithms finite
+_SAME_RTOL = 1e-6  # relative tolerance for "same value" when grouping samples into sweeps
+
+
+@dataclass(frozen=True)
+class _FluidLevel:
+    """The sweeps of one fluid state: an increasing set of openings, one curve each."""
+
+    nu: float
+    log_u: np.ndarray
+    curve: np.ndarray
+
+
+class _SweepGrid:
+    """Sweeps over fluid levels × openings; interpolation common to the flow and force grids.
+
+    ``excess_slope`` continues the value linearly in ln u beyond the sampled openings (−2 for
+    ln Δp at constant C_d; 0 to hold). A query touches at most four sweeps: two openings at each
+    of two fluid levels; all four are evaluated in one vectorised call.
+    """
+
+    excess_slope = 0.0
+
+    def __init__(self, levels: list[_FluidLevel], curves: CurveSet, reference_back_pressure: float,
+                 back_pressure_tolerance: float, excluded: int):
+        self.levels = sorted(levels, key=lambda level: level.nu)
+        self.log_nu = np.log([level.nu for level in self.levels])
+        self.curves = curves
+        self.reference_back_pressure = reference_back_pressure
+        self.back_pressure_tolerance = back_pressure_tolerance
+        self.excluded_samples = excluded
+        # openings and their curves per level, padded to a rectangle (+inf: never reached)
+        widest = max(len(level.log_u) for level in self.levels)
+        self._log_u = np.full((len(self.levels), widest), np.inf)
+        self._curve = np.zeros((len(self.levels), widest), dtype=np.intp)
+        self._count = np.array([len(level.log_u) for level in self.levels])
+        for k, level in enumerate(self.levels):
+            self._log_u[k, : len(level.log_u)] = level.log_u
+            self._curve[k, : len(level.log_u)] = level.curve
+
+    def _interpolate(self, x, log_u, log_nu) -> tuple[np.ndarray, np.ndarray]:
+        """Value at (x, ln u, ln ν) and whether the point lies inside the sampled sweeps."""
+        levels = len(self.levels)
+        k0, k1, t, nu_excess = _bracket(np.broadcast_to(self.log_nu, (len(x), levels)),
+                                        np.full(len(x), levels), log_nu)
+        inside = np.abs(nu_excess) <= 1e-6
+        j00, j01, s0, excess0 = _bracket(self._log_u[k0], self._count[k0], log_u)
+        j10, j11, s1, excess1 = _bracket(self._log_u[k1], self._count[k1], log_u)
+        curve = np.concatenate([self._curve[k0, j00], self._curve[k0, j01],
+                                self._curve[k1, j10], self._curve[k1, j11]])
+        xs = np.concatenate([x, x, x, x])
+        values = self.curves(curve, xs).reshape(4, -1)
+        within = self.curves.inside(curve, xs).reshape(4, -1)
+        level0 = (1.0 - s0) * values[0] + s0 * values[1] + self.excess_slope * excess0
+        level1 = (1.0 - s1) * values[2] + s1 * values[3] + self.excess_slope * excess1
+        value = (1.0 - t) * level0 + t * level1
+        inside &= ((t >= 1.0) | ((np.abs(excess0) <= 1e-9) & (within[0] | (s0 >= 1.0))
+                                 & (within[1] | (s0 <= 0.0))))
+        inside &= ((t <= 0.0) | ((np.abs(excess1) <= 1e-9) & (within[2] | (s1 >= 1.0))
+                                 & (within[3] | (s1 <= 0.0))))
+        return value, inside
+
+    def _back_pressure_ok(self, p_B) -> np.ndarray:
+        return np.abs(p_B - self.reference_back_pressure) <= self.back_pressure_tolerance
+
+    def describe(self) -> str:
+        """The sweeps the grid holds, in display units."""
+        lines = [f"{type(self).__name__}: {len(self.curves)} sweeps at p_B = "
+                 f"{from_si(self.reference_back_pressure, 'bar'):g} bar "
+                 f"({self.excluded_samples} samples at other back pressures left out)"]
+        for level in self.levels:
+            openings = ", ".join(f"{from_si(u, 'mm'):g}" for u in np.exp(level.log_u))
+            lines.append(f"  ν = {from_si(level.nu, 'cSt'):.4g} cSt: u = {openings} mm")
+        return "\n".join(lines)
+
+
+def _bracket(knots: np.ndarray, count: np.ndarray, value: np.ndarray):
+    """Neighbouring knots of each value, per row.
+
+    ``knots`` holds one ascending row per value, padded with +inf beyond ``count`` entries.
+    Returns the lower and upper knot index, the weight of the upper one (values outside the knots
+    are clamped to the nearest) and the excess beyond the knots (value − clamped value).
+    """
+    rows = np.arange(len(value))
+    clamped = np.minimum(np.maximum(value, knots[:, 0]), knots[rows, count - 1])
+    excess = value - clamped
+    lower = np.minimum(np.sum(clamped[:, None] >= knots[:, 1:], axis=1), np.maximum(count - 2, 0))
+    upper = np.minimum(lower + 1, count - 1)
+    low, high = knots[rows, lower], knots[rows, upper]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        weight = np.where(high > low, (clamped - low) / (high - low), 0.0)
+    return lower, upper, _snap(weight), excess
+
+
+def _snap(weight: np.ndarray) -> np.ndarray:
+    """Interpolation weights within 1e-9 of 0 or 1 made exact, so that a query on a sampled
+    opening or fluid state uses (and is judged by) that sweep alone."""
+    return np.where(weight < 1e-9, 0.0, np.where(weight > 1.0 - 1e-9, 1.0, weight))
+
+
+def _sweeps(samples: CfdSamples, reference_back_pressure: float | None):
+    """Group the samples at the reference back pressure into sweeps.
+
+    Returns (reference p_B, number of samples left out, {ν: {u: frame sorted by q}}).
+    """
+    frame = samples.frame[samples.frame["q"] > 0]
+    if frame.empty:
+        raise InputError(f"{samples.source}: no samples with flow > 0 to build a grid from")
+    if reference_back_pressure is None:
+        levels, counts = np.unique(np.round(frame["p_B"].to_numpy(), 0), return_counts=True)
+        reference_back_pressure = float(levels[np.argmax(counts)])
+    at_reference = np.isclose(frame["p_B"], reference_back_pressure, rtol=0, atol=1e-3 * BAR)
+    used = frame[at_reference]
+    if used.empty:
+        raise InputError(f"{samples.source}: no samples at the reference back pressure "
+                         f"{from_si(reference_back_pressure, 'bar'):g} bar")
+    groups: dict[float, dict[float, object]] = {}
+    nu_keys = _group_keys(used["nu"].to_numpy())
+    u_keys = _group_keys(used["u"].to_numpy())
+    for (nu, u), sweep in used.groupby([nu_keys, u_keys]):
+        sweep = sweep.sort_values("q")
+        if len(sweep) < 2 or np.any(np.diff(sweep["q"]) <= 0):
+            raise InputError(
+                f"{samples.source}: the sweep at u = {from_si(u, 'mm'):g} mm, "
+                f"ν = {from_si(nu, 'cSt'):.4g} cSt needs at least two distinct flows "
+                f"(lines {', '.join(map(str, sweep['line']))})")
+        dp = (sweep["p_L"] - sweep["p_B"]).to_numpy()
+        if np.any(np.diff(dp) <= 0):
+            raise InputError(
+                f"{samples.source}: in the sweep at u = {from_si(u, 'mm'):g} mm, "
+                f"ν = {from_si(nu, 'cSt'):.4g} cSt the pressure drop does not rise with the flow "
+                f"(lines {', '.join(map(str, sweep['line']))}); a grid map needs monotone sweeps")
+        groups.setdefault(nu, {})[u] = sweep
+    return reference_back_pressure, int(len(frame) - len(used)), groups
+
+
+def _group_keys(values: np.ndarray) -> np.ndarray:
+    """Values that agree to a relative 1e-6 mapped onto one representative each."""
+    keys = np.empty_like(values)
+    order = np.argsort(values)
+    current = values[order[0]]
+    for i in order:
+        if abs(values[i] - current) > _SAME_RTOL * abs(current):
+            current = values[i]
+        keys[i] = current
+    return keys
+
+
+def _build(groups, curve_of_sweep) -> tuple[list[_FluidLevel], list]:
+    levels, curves = [], []
+    for nu, by_opening in groups.items():
+        openings = sorted(by_opening)
+        ids = []
+        for u in openings:
+            ids.append(len(curves))
+            curves.append(curve_of_sweep(by_opening[u]))
+        levels.append(_FluidLevel(nu, np.log(openings), np.asarray(ids, np.intp)))
+    return levels, curves
+
+
+class GridFlowMap(_SweepGrid, FlowMap):
+    """q_sim by interpolating the CFD sweeps (rules in the module docstring).
+
+    Build it with :meth:`from_samples`.
+    """
+
+    kind = "grid"
+    excess_slope = -2.0  # ln Δp per ln u at constant C_d
+
+    @classmethod
+    def from_samples(cls, samples: CfdSamples, *, reference_back_pressure: float | None = None,
+                     back_pressure_tolerance: float = 1.0 * BAR) -> "GridFlowMap":
+        """Build from CFD samples.
+
+        Parameters
+        ----------
+        samples : CfdSamples
+            Validated samples.
+        reference_back_pressure : float, optional
+            Back pressure [Pa] of the samples to use; default the most common one.
+        back_pressure_tolerance : float
+            Queries whose p_B differs from the reference by more than this [Pa] are flagged as
+            extrapolating.
+        """
+        reference, excluded, groups = _sweeps(samples, reference_back_pressure)
+
+        def curve(sweep):
+            return np.log(sweep["q"].to_numpy()), np.log((sweep["p_L"] - sweep["p_B"]).to_numpy())
+
+        levels, curves = _build(groups, curve)
+        return cls(levels, CurveSet(curves, outside="tangent"), reference,
+                   back_pressure_tolerance, excluded)
+
+    def __repr__(self) -> str:
+        return f"GridFlowMap({len(self.curves)} sweeps)"
+
+    def pressure_drop(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+        q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
+        shape = q.shape
+        q, u, nu = q.ravel(), u.ravel(), fluid.nu.ravel()
+        flowing = q > 0
+        log_dp, _ = self._interpolate(np.log(np.where(flowing, q, 1.0)),
+                                      np.log(np.maximum(u, _TINY_OPENING)), np.log(nu))
+        dp = np.where(flowing, np.exp(log_dp), 0.0)
+        dp = np.where(flowing & (u <= 0), np.inf, dp)
+        return dp.reshape(shape)
+
+    def extrapolating_at_flow(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+        q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
+        shape = q.shape
+        _, inside = self._interpolate(np.log(np.maximum(q.ravel(), 1e-300)),
+                                      np.log(np.maximum(u.ravel(), _TINY_OPENING)),
+                                      np.log(fluid.nu.ravel()))
+        inside &= self._back_pressure_ok(p_B.ravel()) & (q.ravel() > 0)
+        return ~inside.reshape(shape)
+
+    def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        return self.extrapolating_at_flow(self.flow(p_L, p_B, u, fluid), p_B, u, fluid)
+
+
+class GridForceMap(_SweepGrid, ForceMap):
+    """f_sim by interpolating the flow-force fraction of the CFD sweeps (rules in the module
+    docstring). Build it with :meth:`from_samples`."""
+
+    kind = "grid"
+
+    def __init__(self, *args, A_L: float, back_area: float, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.A_L = A_L
+        self.back_area = back_area
+
+    @classmethod
+    def from_samples(cls, samples: CfdSamples, valve: ValveParameters, *,
+                     reference_back_pressure: float | None = None,
+                     back_pressure_tolerance: float = 1.0 * BAR) -> "GridForceMap":
+        """Build from CFD samples and the valve's areas (to separate the flow force).
+
+        Parameters as :meth:`GridFlowMap.from_samples`.
+        """
+        reference, excluded, groups = _sweeps(samples, reference_back_pressure)
+        back_area = valve.A_s3 - valve.A_B
+
+        def curve(sweep):
+            dp = (sweep["p_L"] - sweep["p_B"]).to_numpy()
+            flow_force = (sweep["f_sim"] - sweep["p_L"] * valve.A_L
+                          - sweep["p_B"] * back_area).to_numpy()
+            return np.log(dp), flow_force / (valve.A_L * dp)
+
+        levels, curves = _build(groups, curve)
+        return cls(levels, CurveSet(curves, outside="hold"), reference, back_pressure_tolerance,
+                   excluded, A_L=valve.A_L, back_area=back_area)
+
+    def __repr__(self) -> str:
+        return f"GridForceMap({len(self.curves)} sweeps)"
+
+    def _fraction(self, p_L, p_B, u, fluid):
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        dp = np.maximum(p_L - p_B, 0.0)
+        fraction, inside = self._interpolate(np.log(np.maximum(dp.ravel(), 1e-300)),
+                                             np.log(np.maximum(u.ravel(), _TINY_OPENING)),
+                                             np.log(fluid.nu.ravel()))
+        return p_L, p_B, dp, fraction.reshape(dp.shape), inside.reshape(dp.shape)
+
+    def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        p_L, p_B, dp, fraction, _ = self._fraction(p_L, p_B, u, fluid)
+        return p_L * self.A_L + p_B * self.back_area + fraction * self.A_L * dp
+
+    def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        _, p_B, dp, _, inside = self._fraction(p_L, p_B, u, fluid)
+        return ~(inside & self._back_pressure_ok(p_B) & (dp > 0))

@@ -1,0 +1,89 @@
+"""Vectorised root finding for monotone functions of one variable, one root per point.
+
+Both the valve solver (u for each operating point) and the maps (Δp for a flow, or the flow for a
+Δp) need thousands of independent one-dimensional roots. They are found together with Chandrupatla's
+bracketing method from :func:`scipy.optimize.elementwise.find_root`, which keeps the guarantee of
+bisection and converges superlinearly, and only evaluates the points that are still iterating.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize.elementwise import find_root
+
+# find_root's status codes, in words
+_STATUS_WORDS = {0: "converged", -1: "no sign change in the bracket",
+                 -2: "iteration limit reached", -3: "non-finite function value",
+                 -4: "stopped"}
+
+
+@dataclass(frozen=True)
+class Roots:
+    """Roots of many functions. ``x`` is NaN where ``converged`` is False; ``status`` says why."""
+
+    x: np.ndarray
+    converged: np.ndarray
+    status: np.ndarray
+    iterations: np.ndarray
+
+    def reason(self, index: int) -> str:
+        return _STATUS_WORDS.get(int(self.status[index]), f"status {self.status[index]}")
+
+
+def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper, *,
+               xatol: float, xrtol: float = 1e-13, fatol: float = 0.0,
+               maxiter: int = 200) -> Roots:
+    """Solve ``fn(x, index) = 0`` for every point, with the root bracketed by [lower, upper].
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(x, index)`` returns the function values at ``x`` for the points ``index`` (an integer
+        array into the caller's per-point data); ``x`` and ``index`` have the same length.
+    lower, upper : numpy.ndarray
+        Bracket ends, one per point, with ``fn`` of opposite signs at them.
+    xatol, xrtol, fatol : float
+        Absolute and relative tolerance on the root, absolute tolerance on the function value.
+    maxiter : int
+        Iteration limit; points that reach it are reported as not converged.
+    """
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    if lower.ndim != 1 or lower.shape != upper.shape:
+        raise ValueError("find_roots needs one-dimensional brackets of equal length, one per point")
+    if lower.size == 0:
+        empty = np.empty(0)
+        return Roots(empty, empty.astype(bool), empty.astype(int), empty.astype(int))
+    index = np.arange(lower.size, dtype=float)
+
+    def wrapped(x, point):
+        return fn(x, point.astype(np.intp))
+
+    result = find_root(wrapped, (lower, upper), args=(index,), maxiter=maxiter,
+                       tolerances={"xatol": xatol, "xrtol": xrtol, "fatol": fatol, "frtol": 0.0})
+    converged = np.asarray(result.success)
+    x = np.where(converged, result.x, np.nan)
+    return Roots(x, converged, np.asarray(result.status), np.asarray(result.nit))
+
+
+def invert_increasing(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], target: np.ndarray,
+                      start: np.ndarray, *, xatol: float, xrtol: float = 1e-12,
+                      growth: float = 4.0, max_growths: int = 60) -> Roots:
+    """Solve ``fn(x, index) = target`` for x >= 0, ``fn`` non-decreasing in x with fn(0) <= target.
+
+    The upper bracket end starts at ``start`` and grows geometrically until it passes the target,
+    so no a-priori bound on x is needed (used to turn a flow into a pressure drop and back).
+    """
+    target = np.asarray(target, float)
+    upper = np.broadcast_to(np.asarray(start, float), target.shape).copy()
+    pending = np.arange(target.size)
+    for _ in range(max_growths):
+        below = fn(upper[pending], pending) < target[pending]
+        pending = pending[below]
+        if pending.size == 0:
+            break
+        upper[pending] *= growth
+    lower = np.zeros_like(upper)
+    return find_roots(lambda x, i: fn(x, i) - target[i], lower, upper, xatol=xatol, xrtol=xrtol)

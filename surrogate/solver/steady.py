@@ -1,0 +1,236 @@
+"""Batch steady-state solver: the piston position and load pressure for each operating point.
+
+For a point (q, p_P, p_B, temperature, direction) the piston sits where the force balance of eq. 2
+closes,
+
+    h(u) = net_force(u) − s·friction(u) = 0,      0 < u <= U_max,
+
+with the load pressure p_L(u) = p_B + Δp(q, u) from the flow map, and s = +1 while the piston opens
+(friction holds it back), −1 while it closes, 0 without friction. h falls with u: a wider opening
+needs less pressure for the same flow, and the spring pushes harder. As u → 0 with flow passing,
+Δp and hence h grow without bound, so the root is bracketed by a vanishing opening and the stop.
+All points are solved together (:func:`surrogate.roots.find_roots`).
+
+Edge cases get a status instead of a number that looks valid:
+
+* **at the stop**: h(U_max) >= 0, the piston rests on its stop, u = U_max;
+* **closed**: no flow and the pilot cannot open the valve: u = 0 and p_L is the crack load
+  pressure, the highest load pressure the closed valve holds;
+* **no flow, held open**: the pilot alone opens the valve: p_L = p_B and u from the spring;
+* **failures** (flagged, values NaN): invalid input, no equilibrium inside the stroke, a map that
+  returns non-finite values, or no convergence.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+import pandas as pd
+
+from ..model import ValveModel
+from ..points import OperatingPoints
+from ..roots import find_roots, invert_increasing
+from ..units import BAR, from_si
+
+_OPENING_FLOOR = 1e-7  # smallest opening tried, as a fraction of the stroke
+_U_RTOL = 1e-14  # relative tolerance on u: near closing eq. 15 amplifies u errors ~1e4-fold
+
+
+class Status(IntEnum):
+    """Outcome per point. Non-negative values are solutions, negative ones failures."""
+
+    OK = 0
+    AT_STOP = 1
+    CLOSED = 2
+    INVALID_INPUT = -1
+    NO_EQUILIBRIUM = -2
+    MAP_FAILURE = -3
+    NOT_CONVERGED = -4
+
+
+REASONS = {
+    Status.OK: "equilibrium inside the stroke",
+    Status.AT_STOP: "piston on its mechanical stop (u = U_max)",
+    Status.CLOSED: "no flow: valve closed, p_L is the crack load pressure",
+    Status.INVALID_INPUT: "invalid input: non-finite value, negative flow or temperature",
+    Status.NO_EQUILIBRIUM: "no equilibrium: the net force closes the valve even at a vanishing "
+                           "opening (the flow map gives too little pressure drop there)",
+    Status.MAP_FAILURE: "a map returned a non-finite value",
+    Status.NOT_CONVERGED: "root finding did not converge",
+}
+
+
+@dataclass(frozen=True)
+class SteadyState:
+    """Solutions at a batch of points; see :class:`Status` for ``status``.
+
+    Attributes
+    ----------
+    points : OperatingPoints
+    u : numpy.ndarray
+        Piston position [m]; NaN where the point failed.
+    dp : numpy.ndarray
+        Pressure drop p_L − p_B [Pa]; NaN where the point failed.
+    status : numpy.ndarray of int
+    extrapolating : numpy.ndarray of bool
+        True where the solution queries a map outside its data.
+    """
+
+    points: OperatingPoints
+    u: np.ndarray
+    dp: np.ndarray
+    status: np.ndarray
+    extrapolating: np.ndarray
+
+    @property
+    def p_L(self) -> np.ndarray:
+        """Load pressure [Pa]."""
+        return self.points.p_B + self.dp
+
+    @property
+    def ok(self) -> np.ndarray:
+        """True where the point has a solution (possibly at the stop or closed)."""
+        return self.status >= 0
+
+    def reasons(self) -> list[str]:
+        """The status of each point in words."""
+        return [REASONS[Status(code)] for code in self.status]
+
+    def failure_summary(self) -> str:
+        """How many points failed, and why; empty if none did."""
+        codes, counts = np.unique(self.status[self.status < 0], return_counts=True)
+        return "; ".join(f"{count} point(s): {REASONS[Status(code)]}"
+                         for code, count in zip(codes, counts))
+
+    def to_frame(self) -> pd.DataFrame:
+        """The solutions in display units, one row per point, with status and reason."""
+        return pd.DataFrame({
+            "q_lpm": from_si(self.points.q, "L/min"),
+            "p_P_bar": from_si(self.points.p_P, "bar"),
+            "p_B_bar": from_si(self.points.p_B, "bar"),
+            "temperature_C": from_si(self.points.temperature, "degC"),
+            "u_mm": from_si(self.u, "mm"),
+            "p_L_bar": from_si(self.p_L, "bar"),
+            "dp_bar": from_si(self.dp, "bar"),
+            "status": [Status(code).name.lower() for code in self.status],
+            "extrapolating": self.extrapolating,
+            "reason": self.reasons(),
+        })
+
+
+def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool = True
+                 ) -> SteadyState:
+    """Solve the force balance at every point.
+
+    Parameters
+    ----------
+    model : ValveModel
+    points : OperatingPoints
+        Their ``direction`` selects the friction side (+1 opening, −1 closing, 0 none).
+    friction : bool
+        False leaves friction out whatever the direction (the paper's median-line comparison).
+    """
+    count = len(points)
+    u = np.full(count, np.nan)
+    dp = np.full(count, np.nan)
+    status = np.full(count, Status.NOT_CONVERGED, dtype=np.int8)
+    invalid = points.invalid()
+    status[invalid] = Status.INVALID_INPUT
+    sign = points.direction.astype(float) if friction else np.zeros(count)
+
+    flowing = np.flatnonzero(~invalid & (points.q > 0))
+    if flowing.size:
+        _solve_flowing(model, points[flowing], sign[flowing], flowing, u, dp, status)
+    still = np.flatnonzero(~invalid & (points.q == 0))
+    if still.size:
+        _solve_still(model, points[still], sign[still], still, u, dp, status)
+
+    extrapolating = np.zeros(count, dtype=bool)
+    solved = np.flatnonzero(status >= 0)
+    if solved.size:
+        sub = points[solved]
+        extrapolating[solved] = model.extrapolating(u[solved], sub.p_B + dp[solved], sub,
+                                                    model.fluid(sub))
+    return SteadyState(points, u, dp, status, extrapolating)
+
+
+def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out) -> None:
+    fluid = model.fluid(points)
+    stroke = model.valve.U_max
+
+    def residual(u, i):
+        balance = model.balance(u, points[i], fluid[i])
+        return balance.net_force - sign[i] * balance.friction
+
+    everyone = np.arange(len(points))
+    at_top = residual(np.full(len(points), stroke), everyone)
+    floor = stroke * _OPENING_FLOOR
+    at_floor = residual(np.full(len(points), floor), everyone)
+
+    broken = ~np.isfinite(at_top) | ~np.isfinite(at_floor)
+    at_stop = ~broken & (at_top >= 0)
+    no_equilibrium = ~broken & ~at_stop & (at_floor <= 0)
+    inside = np.flatnonzero(~broken & ~at_stop & ~no_equilibrium)
+
+    u = np.full(len(points), np.nan)
+    status = np.full(len(points), Status.NOT_CONVERGED, dtype=np.int8)
+    status[broken] = Status.MAP_FAILURE
+    status[no_equilibrium] = Status.NO_EQUILIBRIUM
+    u[at_stop], status[at_stop] = stroke, Status.AT_STOP
+
+    roots = find_roots(lambda x, i: residual(x, inside[i]), np.full(inside.size, floor),
+                       np.full(inside.size, stroke), xatol=stroke * 1e-30, xrtol=_U_RTOL)
+    u[inside] = roots.x
+    status[inside] = np.where(roots.converged, Status.OK,
+                              np.where(roots.status == -3, Status.MAP_FAILURE,
+                                       Status.NOT_CONVERGED))
+    solved = np.flatnonzero(status >= 0)
+    dp = np.full(len(points), np.nan)
+    dp[solved] = model.balance(u[solved], points[solved], fluid[solved]).dp
+    u_out[where], dp_out[where], status_out[where] = u, dp, status
+
+
+def _solve_still(model, points, sign, where, u_out, dp_out, status_out) -> None:
+    """Points without flow: closed (crack load pressure) or held open by the pilot alone."""
+    fluid = model.fluid(points)
+    stroke = model.valve.U_max
+
+    def residual(u, p_L, i):
+        balance = model.balance_without_flow(u, p_L, points[i], fluid[i])
+        return balance.net_force - sign[i] * balance.friction
+
+    everyone = np.arange(len(points))
+    closed_at_zero_dp = residual(np.zeros(len(points)), points.p_B, everyone)
+    held_open = np.flatnonzero(closed_at_zero_dp > 0)
+    closed = np.flatnonzero(closed_at_zero_dp <= 0)
+    u = np.full(len(points), np.nan)
+    dp = np.full(len(points), np.nan)
+    status = np.full(len(points), Status.NOT_CONVERGED, dtype=np.int8)
+
+    if held_open.size:
+        p_B = points.p_B[held_open]
+        top = residual(np.full(held_open.size, stroke), p_B, held_open)
+        on_stop = top >= 0
+        u[held_open[on_stop]], status[held_open[on_stop]] = stroke, Status.AT_STOP
+        between = held_open[~on_stop]
+        roots = find_roots(lambda x, i: residual(x, points.p_B[between[i]], between[i]),
+                           np.zeros(between.size), np.full(between.size, stroke),
+                           xatol=stroke * 1e-30, xrtol=_U_RTOL)
+        u[between] = roots.x
+        status[between] = np.where(roots.converged, Status.OK, Status.NOT_CONVERGED)
+        dp[held_open] = 0.0
+
+    if closed.size:
+        base = points.p_B[closed]
+        roots = invert_increasing(
+            lambda dp, i: residual(np.zeros(i.size), base[i] + dp, closed[i]),
+            np.zeros(closed.size), np.full(closed.size, 100.0 * BAR), xatol=1e-6)
+        u[closed] = 0.0
+        dp[closed] = roots.x
+        status[closed] = np.where(roots.converged, Status.CLOSED, Status.NOT_CONVERGED)
+    bad = status < 0
+    u[bad] = np.nan
+    dp[bad] = np.nan
+    u_out[where], dp_out[where], status_out[where] = u, dp, status

@@ -1,0 +1,105 @@
+"""Orifice and grid maps: the contract, the samples reproduced, the documented rules."""
+
+import numpy as np
+import pytest
+
+from surrogate.fluid import FluidState
+from surrogate.maps import OrificeFlowMap, UniformPressureForceMap
+from surrogate.testing import check_flow_map, check_force_map
+from surrogate.units import BAR, LPM, MM, ZERO_CELSIUS
+
+
+def test_orifice_and_uniform_maps_meet_the_contract(valve):
+    orifice = OrificeFlowMap(0.4, valve.w)
+    check_flow_map(orifice, valve.oil)
+    check_force_map(UniformPressureForceMap(valve), orifice, valve.oil)
+
+
+def test_grid_maps_meet_the_contract(grid_maps, valve):
+    flow_map, force_map = grid_maps
+    check_flow_map(flow_map, valve.oil)
+    check_force_map(force_map, flow_map, valve.oil)
+
+
+def test_orifice_equation(valve):
+    orifice = OrificeFlowMap(0.4, valve.w)
+    fluid = FluidState(46e-6, 860.0)
+    q = orifice.flow(105 * BAR, 5 * BAR, 0.1 * MM, fluid)
+    assert q == pytest.approx(0.4 * valve.w * 0.1 * MM * np.sqrt(2 * 100 * BAR / 860.0))
+
+
+def test_uniform_force_is_the_basic_models_fluid_force(valve):
+    force = UniformPressureForceMap(valve).force(100 * BAR, 5 * BAR, 0.1 * MM, FluidState(4e-5, 860))
+    p_P = 60 * BAR
+    total = force - 5 * BAR * valve.A_s3 + p_P * valve.A_P  # paper eq. 7
+    assert total == pytest.approx(100 * BAR * valve.A_L + p_P * valve.A_P - 5 * BAR * valve.A_B)
+
+
+def test_grid_reproduces_its_samples(grid_maps, cfd_samples):
+    flow_map, force_map = grid_maps
+    main = cfd_samples.subset(cfd_samples.frame["case"].str.startswith("C")).frame
+    fluid = FluidState(main["nu"].to_numpy(), main["rho"].to_numpy())
+    dp = flow_map.pressure_drop(main["q"], main["p_B"], main["u"], fluid)
+    np.testing.assert_allclose(dp, main["p_L"] - main["p_B"], rtol=1e-12)
+    force = force_map.force(main["p_L"], main["p_B"], main["u"], fluid)
+    np.testing.assert_allclose(force, main["f_sim"], rtol=1e-12)
+    assert not flow_map.extrapolating(main["p_L"], main["p_B"], main["u"], fluid).any()
+    assert not force_map.extrapolating(main["p_L"], main["p_B"], main["u"], fluid).any()
+
+
+def test_grid_leaves_back_pressure_set_out_and_flags_it(grid_maps, cfd_samples):
+    flow_map, _ = grid_maps
+    assert flow_map.excluded_samples == 16
+    assert flow_map.reference_back_pressure == pytest.approx(5 * BAR)
+    other = cfd_samples.subset(cfd_samples.frame["case"].str.startswith("P")).frame
+    fluid = FluidState(other["nu"].to_numpy(), other["rho"].to_numpy())
+    assert flow_map.extrapolating(other["p_L"], other["p_B"], other["u"], fluid).all()
+
+
+def _fluid(valve, celsius, n=1):
+    return valve.oil.state(np.full(n, celsius + ZERO_CELSIUS))
+
+
+def test_grid_holds_discharge_coefficient_below_smallest_opening(grid_maps, valve):
+    flow_map, _ = grid_maps
+    fluid = _fluid(valve, 40.0)
+    at_min = flow_map.pressure_drop(3 * LPM, 5 * BAR, 0.05 * MM, fluid)
+    below = flow_map.pressure_drop(3 * LPM, 5 * BAR, 0.025 * MM, fluid)
+    assert below == pytest.approx(4.0 * at_min)  # Δp ∝ u⁻² at constant C_d
+    assert flow_map.extrapolating_at_flow(3 * LPM, 5 * BAR, 0.025 * MM, fluid)[0]
+    assert not flow_map.extrapolating_at_flow(3 * LPM, 5 * BAR, 0.05 * MM, fluid)[0]
+
+
+def test_grid_bridges_the_gap_log_linearly_and_flags_truncated_sweeps(grid_maps, valve):
+    flow_map, _ = grid_maps
+    fluid = _fluid(valve, 40.0)
+    low, high = (flow_map.pressure_drop(6 * LPM, 5 * BAR, u * MM, fluid)[0] for u in (0.2, 0.63))
+    u = np.sqrt(0.2 * 0.63)  # halfway in ln u
+    middle = flow_map.pressure_drop(6 * LPM, 5 * BAR, u * MM, fluid)[0]
+    assert middle == pytest.approx(np.sqrt(low * high))
+    # 9 L/min was not run at u = 0.05 mm (Δp > 400 bar): between 0.05 and 0.08 it extrapolates
+    assert flow_map.extrapolating_at_flow(9 * LPM, 5 * BAR, 0.06 * MM, fluid)[0]
+    assert not flow_map.extrapolating_at_flow(6 * LPM, 5 * BAR, 0.06 * MM, fluid)[0]
+
+
+def test_grid_holds_outside_sampled_temperatures_and_flags_it(grid_maps, valve):
+    flow_map, force_map = grid_maps
+    args = (6 * LPM, 5 * BAR, 0.1 * MM)
+    hot = flow_map.pressure_drop(*args, _fluid(valve, 90.0))
+    edge = flow_map.pressure_drop(*args, _fluid(valve, 60.0))
+    assert hot == pytest.approx(edge, rel=1e-5)  # the CSV rounds ν to 0.001 cSt
+    assert flow_map.extrapolating_at_flow(*args, _fluid(valve, 90.0))[0]
+    assert force_map.extrapolating(5 * BAR + edge, 5 * BAR, 0.1 * MM, _fluid(valve, 90.0))[0]
+    between = flow_map.pressure_drop(*args, _fluid(valve, 50.0))[0]
+    assert min(edge[0], flow_map.pressure_drop(*args, _fluid(valve, 40.0))[0]) < between
+    assert not flow_map.extrapolating_at_flow(*args, _fluid(valve, 50.0))[0]
+
+
+def test_grid_pressure_drop_is_smooth_in_flow(grid_maps, valve):
+    """C¹ along q: no kinks at the sampled flows for a Newton-like solver to stall on."""
+    flow_map, _ = grid_maps
+    q = np.linspace(1.0, 12.0, 2001) * LPM
+    dp = flow_map.pressure_drop(q, 5 * BAR, 0.13 * MM, _fluid(valve, 40.0, len(q)))
+    slope = np.diff(dp) / np.diff(q)
+    assert np.all(slope > 0)
+    assert np.max(np.abs(np.diff(slope)) / slope[1:]) < 0.01  # no jump in slope

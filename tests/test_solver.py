@@ -1,0 +1,203 @@
+"""The steady solver and the replay: analytic cases, invariants, edge cases and failure flags."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from surrogate.effects import CoulombFriction
+from surrogate.maps import OrificeFlowMap, UniformPressureForceMap
+from surrogate.maps.base import FlowMap
+from surrogate.model import ValveModel
+from surrogate.points import OperatingPoints
+from surrogate.solver import Status, replay, solve_steady
+from surrogate.units import BAR, LPM
+
+
+def basic_model(valve, discharge_coefficient=0.4, effects=()):
+    return ValveModel(valve, OrificeFlowMap(discharge_coefficient, valve.w),
+                      UniformPressureForceMap(valve), list(effects), name="BM")
+
+
+def eq15_flow(valve, dp, p_L, p_P, p_B, rho, discharge_coefficient=0.4, crack_force=None):
+    """Paper eq. 15: q = C_V/K_δ·sqrt(Δp)·(p_L + α_P·p_P − (α_P + 1)·p_B − P_cr)."""
+    crack_force = valve.F_cr if crack_force is None else crack_force
+    c_v = discharge_coefficient * valve.w * valve.U_max * np.sqrt(2.0 / rho)  # eq. 13
+    k_delta = valve.K_f * valve.U_max / valve.A_L  # eq. 14
+    return c_v / k_delta * np.sqrt(dp) * (p_L + valve.alpha_P * p_P - (valve.alpha_P + 1) * p_B
+                                          - crack_force / valve.A_L)
+
+
+def eq15_pressure_drop(valve, q, p_Pe, rho, crack_force, discharge_coefficient=0.4):
+    """Eq. 15 solved for Δp: x³ + (α_P·p_Pe − F/A_L)·x − q·K_δ/C_V = 0 with x = sqrt(Δp)."""
+    c_v = discharge_coefficient * valve.w * valve.U_max * np.sqrt(2.0 / rho)
+    k_delta = valve.K_f * valve.U_max / valve.A_L
+    out = []
+    for flow, pe in np.broadcast(q, p_Pe):
+        roots = np.roots([1.0, 0.0, valve.alpha_P * pe - crack_force / valve.A_L,
+                          -flow * k_delta / c_v])
+        real = roots[(abs(roots.imag) < 1e-9 * abs(roots).max()) & (roots.real > 0)].real
+        out.append(real.max() ** 2)
+    return np.array(out)
+
+
+def test_basic_model_reproduces_eq15_including_stop_and_near_closing(valve):
+    grid = np.array(np.meshgrid([0.001, 0.05, 0.2, 1, 3, 6, 9, 12, 20],  # q [L/min]
+                                [20, 35, 50, 65, 80, 100, 120, 150],  # p_Pe [bar]
+                                [1.0, 5.0], [20.0, 60.0])).reshape(4, -1)  # p_B [bar], T [°C]
+    q, p_Pe, p_B, temperature = grid
+    points = OperatingPoints.from_display(q, p_Pe + p_B, p_B, temperature)
+    solution = solve_steady(basic_model(valve), points)
+    status = solution.status
+    assert set(np.unique(status)) == {Status.OK, Status.AT_STOP}
+    rho = valve.oil.density(points.temperature)
+    inside = status == Status.OK
+    q_eq15 = eq15_flow(valve, solution.dp, solution.p_L, points.p_P, points.p_B, rho)
+    np.testing.assert_allclose(q_eq15[inside], points.q[inside], rtol=1e-9)
+    assert np.min(solution.u[inside]) < 1e-4 * valve.U_max  # points near closing are covered
+    # on the stop: the orifice at full stroke passes the flow, and the net force still opens
+    stop = status == Status.AT_STOP
+    q_stop = 0.4 * valve.w * valve.U_max * np.sqrt(2 * solution.dp[stop] / rho[stop])
+    np.testing.assert_allclose(q_stop, points.q[stop], rtol=1e-9)  # Δp = p_L − p_B of ~1e-4 Pa
+    assert np.all(solution.u[stop] == valve.U_max)
+
+
+def test_play_gives_the_hand_computed_hysteresis_loop(valve):
+    """Linear spring, constant friction K1: the up-ramp is the basic model with crack force
+    F_cr + K1, the down-ramp the one with F_cr − K1, joined by a stretch where the piston sticks."""
+    K1 = 12.0
+    model = basic_model(valve, effects=[CoulombFriction(K1=K1, K2=0.0)])
+    q = np.concatenate([np.linspace(1, 12, 300), np.linspace(12, 1, 300)]) * LPM
+    p_B, p_Pe = 3 * BAR, 50 * BAR
+    points = OperatingPoints.create(q, p_Pe + p_B, p_B, 313.15)
+    played = replay(model, points)
+    assert played.ok.all()
+    rho = valve.oil.density(313.15)
+    up = eq15_pressure_drop(valve, q, p_Pe, rho, valve.F_cr + K1)
+    down = eq15_pressure_drop(valve, q, p_Pe, rho, valve.F_cr - K1)
+    rising = slice(0, 300)
+    np.testing.assert_allclose(played.dp[rising], up[rising], rtol=1e-9)
+    falling = np.arange(300, 600)
+    stuck = falling[~played.moving[falling]]
+    sliding = falling[played.moving[falling]]
+    assert 5 < len(stuck) < 295 and stuck.max() < sliding.min()  # stick first, then slide
+    np.testing.assert_allclose(played.u[stuck], played.u[299])
+    np.testing.assert_allclose(played.dp[sliding], down[sliding], rtol=1e-9)
+    # loop width at low flow tends to the friction band 2·K1/A_L
+    tiny = OperatingPoints.create(np.full(2, 1e-4 * LPM), p_Pe + p_B, p_B, 313.15, [1, -1])
+    width = np.diff(solve_steady(model, tiny).dp[::-1])[0]
+    assert width == pytest.approx(2 * K1 / valve.A_L, rel=1e-3)
+
+
+def test_replay_without_friction_is_the_steady_solution(valve, grid_maps):
+    flow_map, force_map = grid_maps
+    model = ValveModel(valve, flow_map, force_map)
+    points = OperatingPoints.from_display(np.linspace(1, 12, 50), 68.0, 3.0, 40.0)
+    played = replay(model, points)
+    steady = solve_steady(model, points)
+    np.testing.assert_allclose(played.dp, steady.dp, rtol=1e-12)
+
+
+def cfda_model(valve, grid_maps, K1=0.0, K2=0.0):
+    flow_map, force_map = grid_maps
+    return ValveModel(valve, flow_map, force_map, [CoulombFriction(K1=K1, K2=K2)])
+
+
+@settings(max_examples=40, deadline=None)
+@given(q=st.lists(st.floats(0.2, 15.0), min_size=1, max_size=30),
+       p_Pe=st.floats(20.0, 150.0), p_B=st.floats(1.0, 8.0), temperature=st.floats(10.0, 70.0),
+       direction=st.sampled_from([-1, 0, 1]))
+def test_solutions_stay_within_the_stroke(valve, grid_maps, q, p_Pe, p_B, temperature,
+                                          direction):
+    model = cfda_model(valve, grid_maps, K1=8.0, K2=5e-7)
+    points = OperatingPoints.from_display(q, p_Pe + p_B, p_B, temperature, direction)
+    solution = solve_steady(model, points)
+    assert solution.ok.all(), solution.failure_summary()
+    assert np.all((solution.u >= 0) & (solution.u <= valve.U_max))
+
+
+@settings(max_examples=40, deadline=None)
+@given(p_Pe=st.floats(20.0, 150.0), p_B=st.floats(1.0, 8.0), temperature=st.floats(10.0, 70.0))
+def test_pressure_drop_rises_with_flow_without_friction(valve, grid_maps, p_Pe, p_B,
+                                                        temperature):
+    points = OperatingPoints.from_display(np.linspace(0.5, 14.0, 60), p_Pe + p_B, p_B,
+                                          temperature)
+    solution = solve_steady(cfda_model(valve, grid_maps), points)
+    assert solution.ok.all()
+    assert np.all(np.diff(solution.dp) > 0)
+
+
+def test_closed_valve_holds_up_to_its_crack_pressure(valve):
+    p_P, p_B = 40 * BAR, 4 * BAR
+    points = OperatingPoints.create(0.0, p_P, p_B, 313.15)
+    solution = solve_steady(basic_model(valve), points)
+    assert solution.status[0] == Status.CLOSED and solution.u[0] == 0.0
+    crack = (valve.F_cr - p_P * valve.A_P + p_B * valve.A_B) / valve.A_L
+    assert solution.p_L[0] == pytest.approx(crack, rel=1e-9)
+
+
+def test_pilot_alone_can_hold_the_valve_open_without_flow(valve):
+    p_B = 2 * BAR
+    points = OperatingPoints.create(0.0, [p_B + 82 * BAR, p_B + 150 * BAR], p_B, 313.15)
+    solution = solve_steady(basic_model(valve), points)
+    assert list(solution.status) == [Status.OK, Status.AT_STOP]
+    np.testing.assert_allclose(solution.p_L, p_B)
+    opening = (points.p_P[0] * valve.A_P + p_B * valve.A_L - p_B * valve.A_B - valve.F_cr)
+    assert solution.u[0] == pytest.approx(opening / valve.K_f, rel=1e-9)
+
+
+class _BrokenFlowMap(FlowMap):
+    """Returns NaN beyond half the stroke, like a surrogate that failed to load."""
+
+    def __init__(self, valve):
+        self.inner = OrificeFlowMap(0.4, valve.w)
+        self.half = valve.U_max / 2
+
+    def pressure_drop(self, q, p_B, u, fluid):
+        dp = self.inner.pressure_drop(q, p_B, u, fluid)
+        return np.where(np.asarray(u) > self.half, np.nan, dp)
+
+
+class _LeakyFlowMap(FlowMap):
+    """Almost no pressure drop at any opening: the valve can never build up its crack force."""
+
+    def pressure_drop(self, q, p_B, u, fluid):
+        return np.broadcast_to(1.0, np.broadcast(q, u).shape).astype(float)
+
+
+def test_failures_are_flagged_with_a_reason_never_silent(valve):
+    points = OperatingPoints.from_display([np.nan, -1.0, 6.0, 6.0], 60.0, 3.0,
+                                          [40.0, 40.0, np.nan, 40.0])
+    solution = solve_steady(basic_model(valve), points)
+    assert list(solution.status[:3]) == [Status.INVALID_INPUT] * 3
+    assert solution.status[3] == Status.OK
+
+    broken = ValveModel(valve, _BrokenFlowMap(valve), UniformPressureForceMap(valve))
+    solution = solve_steady(broken, OperatingPoints.from_display([3.0, 3.0], [60, 150], 3, 40))
+    assert solution.status[1] == Status.MAP_FAILURE
+
+    leaky = ValveModel(valve, _LeakyFlowMap(), UniformPressureForceMap(valve))
+    solution = solve_steady(leaky, OperatingPoints.from_display(6.0, 40.0, 3.0, 40.0))
+    assert solution.status[0] == Status.NO_EQUILIBRIUM
+    assert "no equilibrium" in solution.reasons()[0]
+    assert "1 point(s): no equilibrium" in solution.failure_summary()
+
+
+@settings(max_examples=30, deadline=None)
+@given(q=st.lists(st.one_of(st.floats(-5, 20), st.just(float("nan")), st.just(0.0)),
+                  min_size=1, max_size=20),
+       p_Pe=st.floats(0.0, 200.0), temperature=st.floats(-30.0, 150.0))
+def test_no_silent_nan(valve, grid_maps, q, p_Pe, temperature):
+    solution = solve_steady(cfda_model(valve, grid_maps, K1=5.0),
+                            OperatingPoints.from_display(q, p_Pe + 3.0, 3.0, temperature, 1))
+    nan = np.isnan(solution.u) | np.isnan(solution.p_L)
+    assert np.array_equal(nan, solution.status < 0)
+
+
+def test_extrapolating_solutions_are_reported(valve, grid_maps):
+    model = cfda_model(valve, grid_maps)
+    points = OperatingPoints.from_display([6.0, 6.0, 1.0], [65 + 5, 65 + 5, 20 + 5], 5.0,
+                                          [40.0, 95.0, 40.0])
+    solution = solve_steady(model, points)
+    assert list(solution.extrapolating) == [False, True, True]  # inside; too hot; u < 0.05 mm
+    assert solution.u[2] < 0.05e-3
