@@ -151,7 +151,9 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
     scales = np.array([to_si(1.0, unit) - to_si(0.0, unit) for unit in units])
     errors = np.sqrt(np.clip(np.diag(covariance), 0, None))
     for (_, _, parameter), error, scale in zip(chosen, errors, scales):
-        parameter.stderr = float(error * scale) if np.isfinite(error) else None
+        # on a bound the curvature says nothing about the uncertainty: report none
+        usable = np.isfinite(error) and not parameter.at_bound
+        parameter.stderr = float(error * scale) if usable else None
     with np.errstate(invalid="ignore", divide="ignore"):
         correlation = covariance / np.outer(errors, errors)
     aic, bic = information_criteria(final, len(chosen))

@@ -67,6 +67,14 @@ class Parameter:
             return None
         return float(abs(from_si(self.stderr, self.unit) - from_si(0.0, self.unit)))
 
+    @property
+    def at_bound(self) -> bool:
+        """True when the value sits on a bound, within a millionth of the allowed range (a fit
+        pushed it there, and its curvature then says nothing about the uncertainty)."""
+        span = self.max - self.min
+        slack = 1e-6 * span if np.isfinite(span) else 1e-12 * max(abs(self.value), 1.0)
+        return self.value <= self.min + slack or self.value >= self.max - slack
+
     def set_display(self, value: float) -> None:
         """Set the value from :attr:`unit`."""
         self.value = float(to_si(value, self.unit))
@@ -75,7 +83,8 @@ class Parameter:
         text = f"{self.name} = {self.display_value:.5g}"
         if self.stderr is not None:
             text += f" ± {self.display_stderr:.2g}"
-        return f"{text} {label(self.unit)}".rstrip()
+        text = f"{text} {label(self.unit)}".rstrip()
+        return text + " (at bound)" if self.at_bound else text
 
 
 @dataclass(frozen=True)

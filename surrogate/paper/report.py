@@ -39,10 +39,10 @@ def table6_markdown(records: list[dict]) -> str:
             "|---|---|---|---|---|"]
     for r in records:
         k1 = f"{r['K1_N']:.2f}" + (f" ± {r['K1_stderr_N']:.2f}" if r["K1_stderr_N"] is not None
-                                   else "")
+                                   else " (bound)")
         k2 = f"{100 * r['K2_N_per_bar']:.2f}" + (
             f" ± {100 * r['K2_stderr_N_per_bar']:.2f}" if r["K2_stderr_N_per_bar"] is not None
-            else "")
+            else " (bound)")
         rows.append(f"| {r['temperature_C']:g} °C | {r['fitted_on_p_Pe_bar']:g} bar | {k1} | {k2} "
                     f"| {r['rms_bar']:.2f} |")
     return "\n".join(rows)
