@@ -1,5 +1,5 @@
 """The subcommands of ``python -m surrogate``, one module each."""
 
-from . import check_data, paper
+from . import check_data, paper, predict
 
-COMMANDS = (check_data, paper)
+COMMANDS = (check_data, paper, predict)

@@ -176,7 +176,7 @@ def _header_problems(table: RawTable, schema: FileSchema) -> list[Problem]:
                                     "it is missing from the header"))
     known = set(schema.names)
     for name in table.header:
-        if name not in known:
+        if name not in known and not schema.allow_extra:
             close = difflib.get_close_matches(name, schema.names, n=1)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
             problems.append(Problem(table.file, 1, name, name,

@@ -72,6 +72,7 @@ class FileSchema:
     columns: tuple[Column, ...]
     description: str
     identifying: frozenset[str] = field(default_factory=frozenset)
+    allow_extra: bool = False  # other columns are kept as they are instead of rejected
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -124,6 +125,25 @@ BENCH_SCHEMA = FileSchema(
 )
 
 SCHEMAS = (CFD_SCHEMA, BENCH_SCHEMA)
+
+_QUERY_STATE = (
+    Column("u_mm", "u", "piston position", "mm", lower=0.0),
+    _pressure("p_L_bar", "p_L", "load pressure (gauge)"),
+    _pressure("p_B_bar", "p_B", "back pressure (gauge)"),
+)
+
+#: map queries with the valve's own oil at a temperature
+QUERY_AT_TEMPERATURE = FileSchema(
+    kind="map query file", description="one row per query, oil given by its temperature",
+    columns=(*_QUERY_STATE, _TEMPERATURE), allow_extra=True)
+
+#: map queries with any oil, given by its viscosity and density
+QUERY_WITH_FLUID = FileSchema(
+    kind="map query file", description="one row per query, fluid given by ν and ρ",
+    columns=(*_QUERY_STATE,
+             Column("nu_cSt", "nu", "kinematic viscosity", "cSt", lower=0.0, lower_strict=True),
+             Column("rho_kg_m3", "rho", "density", "kg/m^3", 600.0, 1200.0)),
+    allow_extra=True)
 
 
 def schema_table(schema: FileSchema) -> str:

@@ -10,8 +10,15 @@ from ..paths import SHIPPED_CFD_SAMPLES, shipped
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
 from .grid import GridFlowMap, GridForceMap
+from .learned import load_learned_maps
 
-MAP_KINDS = ("grid",)
+MAP_KINDS = ("grid", "nn", "gp")
+TRAINED = Path(__file__).resolve().parents[1] / "trained"
+
+
+def trained_folder(kind: str) -> Path:
+    """Folder of the committed surrogate of a learned kind ("nn" or "gp")."""
+    return TRAINED / kind
 
 
 def build_maps(kind: str, valve: ValveParameters, cfd_samples: str | Path | None = None
@@ -21,7 +28,9 @@ def build_maps(kind: str, valve: ValveParameters, cfd_samples: str | Path | None
     Parameters
     ----------
     kind : str
-        ``"grid"``: interpolation of the CFD samples.
+        ``"grid"``: interpolation of the CFD samples; ``"nn"`` or ``"gp"``: the committed learned
+        surrogates (``surrogate/trained/``); or the path of a surrogate folder written by
+        ``training/train.py``.
     valve : ValveParameters
     cfd_samples : path, optional
         CFD-sample file for the grid; default the shipped one.
@@ -29,4 +38,9 @@ def build_maps(kind: str, valve: ValveParameters, cfd_samples: str | Path | None
     if kind == "grid":
         samples = load_cfd_samples(cfd_samples or shipped(SHIPPED_CFD_SAMPLES))
         return GridFlowMap.from_samples(samples), GridForceMap.from_samples(samples, valve)
-    raise InputError(f"unknown map kind {kind!r}; choose one of {', '.join(MAP_KINDS)}")
+    if kind in ("nn", "gp"):
+        return load_learned_maps(trained_folder(kind))
+    if Path(kind).is_dir():
+        return load_learned_maps(kind)
+    raise InputError(f"unknown map kind {kind!r}: choose one of {', '.join(MAP_KINDS)} or give "
+                     "the folder of a trained surrogate")

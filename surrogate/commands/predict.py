@@ -1,0 +1,65 @@
+"""``predict``: evaluate a flow and a force map at the states of a query file."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..data.queries import load_queries
+from ..maps.registry import MAP_KINDS, build_maps
+from ..units import from_si
+from ..valve import load_valve
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "predict", help="evaluate q_sim and f_sim maps at given states",
+        description="Read states (u_mm, p_L_bar, p_B_bar and temperature_C, or nu_cSt and "
+                    "rho_kg_m3 for another oil), evaluate the flow and force map, and write the "
+                    "input with q_lpm_pred, f_sim_N_pred (GP: also q_lpm_std, f_sim_N_std) and "
+                    "extrapolating.")
+    parser.add_argument("--model", required=True,
+                        help=f"map kind ({', '.join(MAP_KINDS)}) or a trained surrogate folder")
+    parser.add_argument("--input", required=True, help="query CSV")
+    parser.add_argument("--output", required=True, help="output CSV")
+    parser.add_argument("--valve", help="valve file (default: the shipped valve)")
+    parser.add_argument("--cfd", help="CFD samples for grid maps (default: the shipped ones)")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    queries = load_queries(args.input)
+    valve = load_valve(args.valve)
+    flow_map, force_map = build_maps(args.model, valve, args.cfd)
+    fluid = queries.fluid(valve.oil)
+    state = (queries.p_L, queries.p_B, queries.u, fluid)
+    output = queries.raw.copy()
+    output["q_lpm_pred"] = from_si(flow_map.flow(*state), "L/min")
+    output["f_sim_N_pred"] = force_map.force(*state)
+    q_std, f_std = flow_map.flow_std(*state), force_map.force_std(*state)
+    if q_std is not None:
+        output["q_lpm_std"] = from_si(q_std, "L/min")
+    if f_std is not None:
+        output["f_sim_N_std"] = f_std
+    output["extrapolating"] = np.asarray(flow_map.extrapolating(*state)
+                                         | force_map.extrapolating(*state))
+    _write_whole(output, Path(args.output))
+    print(f"wrote {len(output)} predictions ({int(output['extrapolating'].sum())} extrapolating) "
+          f"with {args.model} maps to {args.output}")
+    return 0
+
+
+def _write_whole(frame, path: Path) -> None:
+    """Write a CSV through a temporary file, so a failure leaves no half-written output."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
+    try:
+        with os.fdopen(handle, "w", newline="") as stream:
+            frame.to_csv(stream, index=False, float_format="%.10g")
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise

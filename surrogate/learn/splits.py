@@ -1,0 +1,74 @@
+"""How the CFD samples are divided between training and evaluation.
+
+All splits are deterministic, so figures can be reproduced and the committed surrogates checked.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+HOLDOUT_FRACTION = 0.2
+HOLDOUT_SEED = 20201  # fixed: the committed surrogates are trained without these samples
+
+
+def sweep_keys(frame: pd.DataFrame) -> pd.Series:
+    """A label per sample naming its sweep: temperature, opening and back pressure."""
+    return (frame["temperature"].round(1).astype(str) + "|" + (frame["u"] * 1e6).round(1).astype(str)
+            + "|" + (frame["p_B"] / 1e3).round(0).astype(str))
+
+
+def holdout_mask(frame: pd.DataFrame, fraction: float = HOLDOUT_FRACTION,
+                 seed: int = HOLDOUT_SEED) -> np.ndarray:
+    """True for the held-out samples: ``fraction`` of each sweep (rounded), drawn at random with a
+    fixed seed, so every temperature, opening and back pressure is represented."""
+    rng = np.random.default_rng(seed)
+    held = np.zeros(len(frame), dtype=bool)
+    for _, rows in frame.groupby(sweep_keys(frame), sort=True).indices.items():
+        count = int(round(fraction * len(rows)))
+        if count:
+            held[rng.choice(rows, size=count, replace=False)] = True
+    return held
+
+
+def reference_back_pressure(frame: pd.DataFrame) -> float:
+    """The most common back pressure [Pa]: that of the main set."""
+    levels, counts = np.unique(frame["p_B"].round(0), return_counts=True)
+    return float(levels[np.argmax(counts)])
+
+
+def main_set(frame: pd.DataFrame) -> np.ndarray:
+    """True for the samples at the reference back pressure."""
+    return np.isclose(frame["p_B"], reference_back_pressure(frame), rtol=0, atol=1e2)
+
+
+def leave_one_opening_out(frame: pd.DataFrame) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(label, training mask, test mask) for each interior opening of the main set in turn."""
+    main = main_set(frame)
+    splits = []
+    for u in np.unique(frame.loc[main, "u"].round(9))[1:-1]:
+        at = np.isclose(frame["u"], u, rtol=0, atol=1e-9)
+        splits.append((f"u = {u * 1e3:.2f} mm", ~at, at & main))
+    return splits
+
+
+def temperature_mask(frame: pd.DataFrame, temperature: float) -> np.ndarray:
+    """True for the samples at ``temperature`` [K]."""
+    return np.isclose(frame["temperature"], temperature, rtol=0, atol=0.01)
+
+
+def leave_one_temperature_out(frame: pd.DataFrame) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(label, training mask, test mask) for each temperature in turn: training leaves out every
+    sample at that temperature; the test uses its main-set samples (the back-pressure question is
+    asked separately)."""
+    main = main_set(frame)
+    splits = []
+    for t in np.unique(frame["temperature"].round(2)):
+        at = temperature_mask(frame, t)
+        splits.append((f"{t - 273.15:.0f} °C", ~at, at & main))
+    return splits
+
+
+def back_pressure_set(frame: pd.DataFrame) -> np.ndarray:
+    """True for the samples away from the reference back pressure."""
+    return ~main_set(frame)

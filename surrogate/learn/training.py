@@ -1,0 +1,164 @@
+"""Training the learned maps (NN and GP) from CFD samples, and saving them as folders."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..data.loaders import CfdSamples
+from ..features import ADDITIVE_GROUPS, FEATURE_NAMES, FeatureSpec, Targets, targets
+from ..maps.gp import GaussianProcessPredictor, save_predictor
+from ..maps.learned import LearnedFlowMap, LearnedForceMap, write_manifest
+from ..maps.nn import NetworkEnsemble, save_ensemble
+from ..outputs import atomic_directory
+from ..valve import ValveParameters
+from .domain import FeatureDomain
+from .gaussian_process import fit_gp
+
+KINDS = ("nn", "gp")
+
+# Network settings: small (a few hundred weights per member), three members averaged.
+NN_WIDTH = 16
+NN_MEMBERS = 3
+NN_EPOCHS = 2500
+FLOW_SIGNS, FLOW_BOUNDS = (0, 0, 1), (0.8, 0.98, None)  # see surrogate/learn/monotone_nn.py
+FLOW_TRANSITION = 0  # laminar-turbulent blend on ln Re_q, depth 1/2
+FORCE_SIGNS, FORCE_BOUNDS = (1, 0, -1), (None, None, None)
+GP_RESTARTS = 10
+
+CONSTRAINTS = {
+    "nn": {"flow": "q non-decreasing in p_L and in u by construction: |dlnCd/dlnRe_q| <= 0.98, "
+                   "|dlnCd/dln(u/U)| <= 0.98, dlnCd/dln(sigma_q) >= 0",
+           "force": "f_sim non-decreasing in p_L by construction: d ln(1+alpha)/dlnRe >= 0, "
+                    "d ln(1+alpha)/dln(sigma) <= 0; alpha kept in (-1, 0) when every training "
+                    "sample's flow force closes the valve"},
+    "gp": {"flow": "none (monotonicity measured, not guaranteed)",
+           "force": "none (monotonicity measured, not guaranteed)"},
+}
+
+
+@dataclass
+class TrainedSurrogate:
+    """A flow map and a force map learned together, with what describes them."""
+
+    kind: str
+    flow_map: LearnedFlowMap
+    force_map: LearnedForceMap
+    seconds: float
+    details: dict = field(default_factory=dict)
+
+    def save(self, folder: str | Path, training: dict, metrics: dict) -> None:
+        """Write the folder (weights plus ``surrogate.json``), all at once or not at all."""
+        with atomic_directory(folder) as staging:
+            if self.kind == "nn":
+                flow_entry = save_ensemble(staging, "flow", self.flow_map.predictor)
+                force_entry = save_ensemble(staging, "force", self.force_map.predictor)
+            else:
+                flow_entry = save_predictor(staging, "flow", self.flow_map.predictor)
+                force_entry = save_predictor(staging, "force", self.force_map.predictor)
+            write_manifest(staging, {
+                "kind": self.kind,
+                "feature_names": list(FEATURE_NAMES),
+                "features": self.flow_map.spec.to_dict(),
+                "flow": {"target": "ln C_d from (ln Re_q, ln(u/U), ln sigma_q)",
+                         "constraints": CONSTRAINTS[self.kind]["flow"],
+                         "predictor": flow_entry, "domain": self.flow_map.domain.to_dict()},
+                "force": {"target": "alpha = f_ff/(A_L*dp) from (ln Re, ln(u/U), ln sigma)",
+                          "constraints": CONSTRAINTS[self.kind]["force"],
+                          "predictor": force_entry, "domain": self.force_map.domain.to_dict()},
+                "training": {**training, "seconds": round(self.seconds, 2), **self.details},
+                "metrics": metrics,
+            })
+
+
+def train_surrogate(kind: str, samples: CfdSamples, valve: ValveParameters,
+                    train: np.ndarray | None = None,
+                    progress: Callable[[str], None] = lambda message: None, *,
+                    constrained: bool = True) -> TrainedSurrogate:
+    """Train the flow and force map of ``kind`` ("nn" or "gp") on the ``train`` samples.
+
+    ``constrained=False`` drops the network's sign and slope constraints (same architecture
+    otherwise): an ablation that shows what the constraints buy; never used for shipped maps.
+    """
+    if kind not in KINDS:
+        raise ValueError(f"unknown surrogate kind {kind!r}; choose from {', '.join(KINDS)}")
+    frame = samples.frame if train is None else samples.frame[np.asarray(train, bool)]
+    spec = FeatureSpec.for_valve(valve)
+    data = targets(spec, frame)
+    started = time.perf_counter()
+    if kind == "nn":
+        flow_predictor, force_predictor = _train_networks(data, progress, constrained)
+    else:
+        flow_predictor, force_predictor = _train_processes(data, progress)
+    seconds = time.perf_counter() - started
+    flow_map = LearnedFlowMap(spec, flow_predictor, FeatureDomain.fit(data.flow_features), kind)
+    force_map = LearnedForceMap(spec, force_predictor, FeatureDomain.fit(data.force_features),
+                                kind)
+    return TrainedSurrogate(kind, flow_map, force_map, seconds,
+                            {"training_samples": int(len(frame))})
+
+
+def _train_networks(data: Targets, progress, constrained: bool = True
+                    ) -> tuple[NetworkEnsemble, NetworkEnsemble]:
+    import torch
+    from torch.nn.functional import softplus
+
+    from .monotone_nn import Architecture, SignConstrainedNet, train
+
+    def ensemble(features, signs, bounds, loss, offset, output, name, transition=None,
+                 linear=True):
+        if not constrained:
+            signs, bounds = (0,) * len(signs), (None,) * len(bounds)
+        mean, std = features.mean(axis=0), features.std(axis=0)
+        architecture = Architecture(ADDITIVE_GROUPS, NN_WIDTH, signs, bounds, tuple(std),
+                                    transition, linear=linear)
+        states = []
+        for member in range(NN_MEMBERS):
+            network = SignConstrainedNet(architecture)
+            final = train(network, (features - mean) / std, loss, offset=offset, seed=member,
+                          epochs=NN_EPOCHS)
+            progress(f"NN {name}: member {member + 1}/{NN_MEMBERS} trained, loss {final:.3e}")
+            states.append({k: v.detach().numpy().copy() for k, v in network.state_dict().items()})
+        return NetworkEnsemble(architecture, states, mean, std, output)
+
+    log_cd = torch.as_tensor(data.log_discharge)
+    flow = ensemble(data.flow_features, FLOW_SIGNS, FLOW_BOUNDS,
+                    lambda r: torch.mean((r - log_cd) ** 2), float(log_cd.mean()),
+                    "log_discharge", "flow (ln C_d)", FLOW_TRANSITION)
+    alpha = torch.as_tensor(data.flow_force_fraction)
+    if bool(torch.all(alpha < 0)):
+        # every sample's flow force closes the valve, so the map's does too: 1 + α = e^(−softplus(−R))
+        # keeps α in (−1, 0) however far it extrapolates (softplus rises, so the signs still hold)
+        output, to_fraction = "closing_fraction", lambda r: torch.expm1(-softplus(-r))
+        offset = float(-torch.log(torch.expm1(-torch.log1p(alpha))).mean())
+    else:
+        output, to_fraction = "fraction", torch.expm1
+        offset = float(torch.log1p(alpha).mean())
+    # relative error of the flow force itself, the quantity that is evaluated
+    force = ensemble(data.force_features, FORCE_SIGNS, FORCE_BOUNDS,
+                     lambda r: torch.mean((to_fraction(r) / alpha - 1.0) ** 2), offset, output,
+                     f"force ({output.replace('_', ' ')})")
+    return flow, force
+
+
+def _train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, ...]:
+    flow = GaussianProcessPredictor(
+        fit_gp(data.flow_features, data.log_discharge, ADDITIVE_GROUPS, linear_mean=False,
+               restarts=GP_RESTARTS), "log_discharge")
+    progress(f"GP flow (ln C_d): fitted, condition number {flow.arrays.condition_number:.1e}")
+    alpha = data.flow_force_fraction
+    if np.all(alpha < 0):  # flow forces that close the valve: model ln(−α), relative errors
+        force = GaussianProcessPredictor(
+            fit_gp(data.force_features, np.log(-alpha), ADDITIVE_GROUPS, linear_mean=False,
+                   restarts=GP_RESTARTS), "log_negative_fraction")
+    else:
+        force = GaussianProcessPredictor(
+            fit_gp(data.force_features, alpha, ADDITIVE_GROUPS, linear_mean=True,
+                   restarts=GP_RESTARTS), "fraction")
+    progress(f"GP force ({force.target}): fitted, condition number "
+             f"{force.arrays.condition_number:.1e}")
+    return flow, force
