@@ -67,7 +67,8 @@ def test_network_has_no_monotonicity_violations_in_or_out_of_range(learned_maps)
 def test_constraints_hold_for_any_weights_not_just_trained_ones(seed, spread):
     """The slope bounds and signs are properties of the architecture: random weights obey them."""
     architecture = Architecture(((0, 1), (1, 2)), 8, (0, 0, 1), (0.8, 0.98, None),
-                                (1.3, 0.7, 2.1), transition=0)
+                                (1.3, 0.7, 2.1), transition=0, knee_features=(1, 2),
+                                held={0: (-1.5, 2.0)})
     network = SignConstrainedNet(architecture)
     generator = torch.Generator().manual_seed(seed)
     with torch.no_grad():
@@ -133,6 +134,7 @@ def test_domain_flags_holes_and_far_points():
     assert not sparse.contains(np.array([[3.5, 3.5]]))[0]
 
 
+@pytest.mark.filterwarnings("ignore:Detected pickle protocol")
 def test_loading_refuses_pickled_code(tmp_path, valve):
     folder = tmp_path / "nn"
     folder.mkdir()

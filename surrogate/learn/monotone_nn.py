@@ -22,9 +22,14 @@ structure of :mod:`surrogate.features`), a linear term, and optionally a *transi
 Reynolds feature r: the laminar–turbulent blend of orifice flow,
 ln C_d = ln C_∞ − s·ln(1 + Re_t/Re), with the knee Re_t free to move with the other features (the
 opening) and the depth s fixed by physics: s = 1/2 for C_d(Re_q), whose laminar limit is
-C_d ∝ Re_q^½ (Δp ∝ q). Below the samples' Reynolds numbers tanh units flatten, while the
-transition term keeps C_d falling the way laminar flow does; that is what lets the map extrapolate
-to colder oil.
+C_d ∝ Re_q^½ (Δp ∝ q). Below the samples' Reynolds numbers the transition term keeps C_d falling
+the way laminar flow does, and the tanh parts see the Reynolds number through a smooth clamp to
+the training range (``held``), so their correction holds its edge value there instead of bending
+the trend: physics extrapolates, corrections do not. That is what lets the map reach colder oil.
+
+The flow networks are trained in two stages (:mod:`surrogate.learn.training`): first the physics
+alone (C_d = C_∞(u, σ)·(1 + Re_t(u)/Re)^(−½)), then, starting from that solution (:func:`widen`),
+with the Reynolds number added to the first tanh part to learn what the blend misses.
 All v >= 0. Each input column k has a *sign*: +1 or −1 forces W_jk and β_k to that sign (through a
 softplus), 0 leaves them free; and optionally a *slope bound* B_k on |∂R/∂f_k| in raw feature units.
 The bound is enforced by the column scale κ_k = min(1, B_k·sd_k/S_k), recomputed from the weights at
@@ -58,7 +63,7 @@ the architecture, not of training. tanh keeps the maps C^∞, so the solver neve
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -86,9 +91,19 @@ class Architecture:
         Index of the Reynolds feature of the transition term; None for no such term.
     transition_depth : float
         Its depth s: the slope of R in ln Re far below the knee (1/2 for C_d(Re_q)).
+    knee_features : tuple of int
+        Features the transition's knee may move with (the opening: Re_t(u)); the others do not
+        enter it.
     linear : bool
         Whether R has the linear term β·z. Without it R saturates beyond the data (it holds its
         edge values), which suits a quantity that must stay bounded, like a force fraction.
+    linear_features : tuple of int or None
+        Features of the linear term; None for all.
+    held : dict
+        Feature -> (low, high) in standardised units: the tanh parts see that feature through a
+        smooth clamp to [low, high], so beyond the training data their correction holds its edge
+        value while the transition and linear terms carry the trend. The clamp rises with slope
+        in (0, 1), so signs and slope bounds are kept.
     """
 
     groups: tuple[tuple[int, ...], ...]
@@ -98,7 +113,10 @@ class Architecture:
     scales: tuple[float, ...]
     transition: int | None = None
     transition_depth: float = 0.5
+    knee_features: tuple[int, ...] = ()
     linear: bool = True
+    linear_features: tuple[int, ...] | None = None
+    held: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self):
         if self.transition is not None and self.signs[self.transition] == -1:
@@ -109,7 +127,11 @@ class Architecture:
         return {"groups": [list(g) for g in self.groups], "width": self.width,
                 "signs": list(self.signs), "bounds": list(self.bounds),
                 "scales": list(self.scales), "transition": self.transition,
-                "transition_depth": self.transition_depth, "linear": self.linear}
+                "transition_depth": self.transition_depth,
+                "knee_features": list(self.knee_features), "linear": self.linear,
+                "linear_features": None if self.linear_features is None
+                else list(self.linear_features),
+                "held": {str(k): list(v) for k, v in self.held.items()}}
 
     @classmethod
     def from_dict(cls, data: dict) -> "Architecture":
@@ -117,7 +139,12 @@ class Architecture:
                    tuple(int(s) for s in data["signs"]),
                    tuple(None if b is None else float(b) for b in data["bounds"]),
                    tuple(float(s) for s in data["scales"]), data.get("transition"),
-                   float(data.get("transition_depth", 0.5)), bool(data.get("linear", True)))
+                   float(data.get("transition_depth", 0.5)),
+                   tuple(int(k) for k in data.get("knee_features", ())),
+                   bool(data.get("linear", True)),
+                   None if data.get("linear_features") is None
+                   else tuple(int(k) for k in data["linear_features"]),
+                   {int(k): (float(v[0]), float(v[1])) for k, v in data.get("held", {}).items()})
 
     @property
     def features(self) -> int:
@@ -126,7 +153,7 @@ class Architecture:
     @property
     def parameter_count(self) -> int:
         per_part = [len(g) * self.width + 2 * self.width for g in self.groups]
-        knee = 0 if self.transition is None else self.features  # θ0 and θ (θ_r unused)
+        knee = 0 if self.transition is None else 1 + len(self.knee_features)  # θ0 and θ
         return sum(per_part) + self.features + 1 + knee
 
 
@@ -165,8 +192,10 @@ class SignConstrainedNet(nn.Module):
             return weights
         raw = self.knee[1:]
         weights = torch.where(self.signs == 0, raw, -self.signs * softplus(raw))
-        return weights.index_put((torch.tensor(r),),
-                                 torch.tensor(-self.architecture.scales[r], dtype=torch.float64))
+        moving = torch.zeros(self.architecture.features, dtype=torch.float64)
+        moving[list(self.architecture.knee_features)] = 1.0
+        return (weights * moving).index_put(
+            (torch.tensor(r),), torch.tensor(-self.architecture.scales[r], dtype=torch.float64))
 
     def effective(self) -> tuple[list, list, list, torch.Tensor, torch.Tensor]:
         """The weights actually used: (W per part, biases, v per part, β, column scales κ)."""
@@ -176,6 +205,10 @@ class SignConstrainedNet(nn.Module):
         linear = self._signed(self.linear, range(self.architecture.features))
         if not self.architecture.linear:
             linear = torch.zeros_like(linear)
+        elif self.architecture.linear_features is not None:
+            keep = torch.zeros_like(linear)
+            keep[list(self.architecture.linear_features)] = 1.0
+            linear = linear * keep
         depth = 0.0 if self.architecture.transition is None else self.architecture.transition_depth
         bound = linear.abs() + depth * self.knee_weights().abs()
         for weight, output, group in zip(weights, outputs, self.architecture.groups):
@@ -192,10 +225,11 @@ class SignConstrainedNet(nn.Module):
     def forward(self, z: torch.Tensor) -> torch.Tensor:
         weights, biases, outputs, linear, scale = self.effective()
         scaled = z * scale
+        held = _hold(z, self.architecture.held, torch) * scale
         total = self.offset + scaled @ linear
         for weight, bias, output, group in zip(weights, biases, outputs,
                                                self.architecture.groups):
-            total = total + torch.tanh(scaled[:, list(group)] @ weight.T + bias) @ output
+            total = total + torch.tanh(held[:, list(group)] @ weight.T + bias) @ output
         if self.architecture.transition is not None:
             total = total - self.architecture.transition_depth * softplus(
                 self.knee[0] + scaled @ self.knee_weights())
@@ -215,6 +249,22 @@ class SignConstrainedNet(nn.Module):
             self.knee.zero_()
 
 
+_HOLD_SHARPNESS = 4.0
+
+
+def _hold(z, held: dict, lib):
+    """z with the held columns smoothly clamped to their (low, high) range (torch or numpy)."""
+    if not held:
+        return z
+    softplus_ = (lambda x: torch.nn.functional.softplus(x)) if lib is torch else (
+        lambda x: np.logaddexp(0.0, x))
+    columns = [z[:, k] for k in range(z.shape[1])]
+    for k, (low, high) in held.items():
+        c = _HOLD_SHARPNESS
+        columns[k] = low + (softplus_(c * (z[:, k] - low)) - softplus_(c * (z[:, k] - high))) / c
+    return lib.stack(columns, 1) if lib is torch else np.column_stack(columns)
+
+
 class NumpyNet:
     """A trained :class:`SignConstrainedNet` evaluated with numpy (fast for small batches)."""
 
@@ -225,6 +275,8 @@ class NumpyNet:
             weights, biases, outputs, linear, scale = network.effective()
             self.offset = float(network.offset)
             self.linear = (linear * scale).numpy()
+            self.held = architecture.held
+            self.scale = scale.numpy()
             self.transition = architecture.transition is not None
             self.depth = architecture.transition_depth
             self.knee_start = float(network.knee[0])
@@ -236,8 +288,9 @@ class NumpyNet:
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
         total = self.offset + z @ self.linear
+        held = _hold(z, self.held, np)
         for group, weight, bias, output in self.parts:
-            total = total + np.tanh(z[:, group] @ weight.T + bias) @ output
+            total = total + np.tanh(held[:, group] @ weight.T + bias) @ output
         if self.transition:
             total = total - self.depth * np.logaddexp(0.0, self.knee_start + z @ self.knee)
         return total
@@ -245,9 +298,15 @@ class NumpyNet:
     def gradient(self, z: np.ndarray) -> np.ndarray:
         """∂R/∂z at each row of z, shape (n, features)."""
         gradient = np.tile(self.linear, (len(z), 1))
+        held = _hold(z, self.held, np)
+        hold_slope = np.ones_like(z)
+        for k, (low, high) in self.held.items():
+            c = _HOLD_SHARPNESS
+            hold_slope[:, k] = (1.0 / (1.0 + np.exp(-c * (z[:, k] - low)))
+                                - 1.0 / (1.0 + np.exp(-c * (z[:, k] - high))))
         for group, weight, bias, output in self.parts:
-            slope = 1.0 - np.tanh(z[:, group] @ weight.T + bias) ** 2
-            gradient[:, group] += (slope * output) @ weight
+            slope = 1.0 - np.tanh(held[:, group] @ weight.T + bias) ** 2
+            gradient[:, group] += ((slope * output) @ weight) * hold_slope[:, group]
         if self.transition:
             sigmoid = 1.0 / (1.0 + np.exp(-(self.knee_start + z @ self.knee)))
             gradient -= self.depth * sigmoid[:, None] * self.knee
@@ -256,17 +315,22 @@ class NumpyNet:
 
 def train(network: SignConstrainedNet, z: np.ndarray, loss_of_output, *, offset: float,
           seed: int = 0, epochs: int = 2500, polish: int = 500, learning_rate: float = 2e-2,
-          weight_decay: float = 1e-7, progress=None) -> float:
+          weight_decay: float = 1e-7, output_decay: float = 0.0, initialise: bool = True,
+          progress=None) -> float:
     """Fit the network: Adam with a cosine schedule, then L-BFGS to polish.
 
     ``loss_of_output(R)`` maps the network's output to a scalar loss. Returns the final loss.
+    ``initialise=False`` continues from the network's current weights.
     """
-    network.initialise(seed, offset)
+    if initialise:
+        network.initialise(seed, offset)
     inputs = torch.as_tensor(z, dtype=torch.float64)
 
     def objective():
         penalty = sum(torch.sum(weight**2) for weight in network.hidden)
-        return loss_of_output(network(inputs)) + weight_decay * penalty
+        amplitude = sum(torch.sum(softplus(raw)) for raw in network.output)
+        return (loss_of_output(network(inputs)) + weight_decay * penalty
+                + output_decay * amplitude)
 
     adam = torch.optim.Adam(network.parameters(), lr=learning_rate)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(adam, epochs)
@@ -291,3 +355,26 @@ def train(network: SignConstrainedNet, z: np.ndarray, loss_of_output, *, offset:
     lbfgs.step(closure)
     with torch.no_grad():
         return float(objective())
+
+
+def widen(narrow: SignConstrainedNet, wide: Architecture, seed: int) -> SignConstrainedNet:
+    """A network of architecture ``wide`` that computes exactly what ``narrow`` computes.
+
+    Each part of ``wide`` must contain the features of the corresponding part of ``narrow``; the
+    extra input columns start at zero weight (small random for free columns would change the
+    function), so training the wide network starts from the narrow one's solution.
+    """
+    network = SignConstrainedNet(wide)
+    network.initialise(seed, float(narrow.offset.detach()))
+    with torch.no_grad():
+        for part, (small, big) in enumerate(zip(narrow.architecture.groups, wide.groups)):
+            columns = [big.index(k) for k in small]
+            network.hidden[part].zero_()
+            network.hidden[part][:, columns] = narrow.hidden[part]
+            free = [i for i, k in enumerate(big) if k not in small and wide.signs[k] != 0]
+            network.hidden[part][:, free] = -20.0  # signed columns: softplus(−20) ≈ 0
+            network.bias[part].copy_(narrow.bias[part])
+            network.output[part].copy_(narrow.output[part])
+        for name in ("linear", "offset", "knee"):
+            getattr(network, name).copy_(getattr(narrow, name))
+    return network

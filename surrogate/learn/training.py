@@ -26,7 +26,14 @@ NN_WIDTH = 16
 NN_MEMBERS = 3
 NN_EPOCHS = 2500
 FLOW_SIGNS, FLOW_BOUNDS = (0, 0, 1), (0.8, 0.98, None)  # see surrogate/learn/monotone_nn.py
-FLOW_TRANSITION = 0  # laminar-turbulent blend on ln Re_q, depth 1/2
+# Flow networks are trained in two stages. First the physics: C_d = C_inf(u, sigma_q) *
+# (1 + Re_t(u)/Re_q)^(-1/2), the Reynolds number entering only through the laminar-turbulent
+# blend whose knee Re_t moves with the opening. Then, starting from that solution, the first part
+# also sees the Reynolds number and learns what the blend misses.
+FLOW_PHYSICS_GROUPS = ((1,), (1, 2))
+FLOW_GROUPS = ((0, 1), (1, 2))
+FLOW_TRANSITION = 0
+FLOW_KNEE_FEATURES = (1,)
 FORCE_SIGNS, FORCE_BOUNDS = (1, 0, -1), (None, None, None)
 GP_RESTARTS = 10
 
@@ -107,28 +114,44 @@ def _train_networks(data: Targets, progress, constrained: bool = True
     import torch
     from torch.nn.functional import softplus
 
-    from .monotone_nn import Architecture, SignConstrainedNet, train
+    from .monotone_nn import Architecture, SignConstrainedNet, train, widen
 
-    def ensemble(features, signs, bounds, loss, offset, output, name, transition=None,
-                 linear=True):
+    def ensemble(features, signs, bounds, loss, offset, output, name, groups=ADDITIVE_GROUPS,
+                 transition=None, knee_features=(), physics_groups=None):
         if not constrained:
             signs, bounds = (0,) * len(signs), (None,) * len(bounds)
         mean, std = features.mean(axis=0), features.std(axis=0)
-        architecture = Architecture(ADDITIVE_GROUPS, NN_WIDTH, signs, bounds, tuple(std),
-                                    transition, linear=linear)
+        z = (features - mean) / std
+
+        # the tanh parts hold their Reynolds correction beyond the data (the transition and
+        # linear terms carry the trend there)
+        held = {} if transition is None else {transition: (float(z[:, transition].min()),
+                                                           float(z[:, transition].max()))}
+
+        def architecture(parts):
+            return Architecture(parts, NN_WIDTH, signs, bounds, tuple(std), transition,
+                                knee_features=knee_features, held=held)
+
         states = []
         for member in range(NN_MEMBERS):
-            network = SignConstrainedNet(architecture)
-            final = train(network, (features - mean) / std, loss, offset=offset, seed=member,
-                          epochs=NN_EPOCHS)
+            if physics_groups is None:
+                network = SignConstrainedNet(architecture(groups))
+                final = train(network, z, loss, offset=offset, seed=member, epochs=NN_EPOCHS)
+            else:
+                physics = SignConstrainedNet(architecture(physics_groups))
+                train(physics, z, loss, offset=offset, seed=member, epochs=NN_EPOCHS)
+                network = widen(physics, architecture(groups), seed=member)
+                final = train(network, z, loss, offset=offset, epochs=NN_EPOCHS // 2,
+                              learning_rate=2e-3, initialise=False)
             progress(f"NN {name}: member {member + 1}/{NN_MEMBERS} trained, loss {final:.3e}")
             states.append({k: v.detach().numpy().copy() for k, v in network.state_dict().items()})
-        return NetworkEnsemble(architecture, states, mean, std, output)
+        return NetworkEnsemble(architecture(groups), states, mean, std, output)
 
     log_cd = torch.as_tensor(data.log_discharge)
     flow = ensemble(data.flow_features, FLOW_SIGNS, FLOW_BOUNDS,
                     lambda r: torch.mean((r - log_cd) ** 2), float(log_cd.mean()),
-                    "log_discharge", "flow (ln C_d)", FLOW_TRANSITION)
+                    "log_discharge", "flow (ln C_d)", FLOW_GROUPS, FLOW_TRANSITION,
+                    FLOW_KNEE_FEATURES, FLOW_PHYSICS_GROUPS)
     alpha = torch.as_tensor(data.flow_force_fraction)
     if bool(torch.all(alpha < 0)):
         # every sample's flow force closes the valve, so the map's does too: 1 + α = e^(−softplus(−R))

@@ -17,6 +17,10 @@ from scipy.interpolate import PchipInterpolator
 Outside = Literal["tangent", "hold"]
 
 
+_KEY_STRIDE = 1e4  # curves' knot ranges are laid side by side at this spacing for one search
+_KEY_RANGE = 4e3  # |x| is clipped below this for the search only (x are logarithms)
+
+
 class CurveSet:
     """A set of PCHIP curves y_c(x).
 
@@ -27,29 +31,46 @@ class CurveSet:
     outside : {"tangent", "hold"}
         Beyond its knots a curve continues along its end tangent (linear, C¹) or holds its end
         value.
+
+    Notes
+    -----
+    All knots are stored flat, curve after curve, with a search key ``c·stride + x`` that is
+    increasing over the whole set; one :func:`numpy.searchsorted` then finds the segment of every
+    (curve, x) query at once.
     """
 
     def __init__(self, curves, outside: Outside):
         if outside not in ("tangent", "hold"):
             raise ValueError(f"outside must be 'tangent' or 'hold', got {outside!r}")
         self.outside = outside
-        n_max = max(len(x) for x, _ in curves)
-        count = len(curves)
-        self.x = np.full((count, n_max), np.inf)
-        self.y = np.zeros((count, n_max))
-        self.slope = np.zeros((count, n_max))
-        self.n = np.empty(count, dtype=np.intp)
+        xs, ys, slopes, counts = [], [], [], []
         for c, (x, y) in enumerate(curves):
             x, y = np.asarray(x, float), np.asarray(y, float)
             if len(x) < 2 or np.any(np.diff(x) <= 0):
                 raise ValueError(f"curve {c}: need at least two strictly increasing knots")
-            self.x[c, : len(x)] = x
-            self.y[c, : len(x)] = y
-            self.slope[c, : len(x)] = PchipInterpolator(x, y).derivative()(x)
-            self.n[c] = len(x)
-        rows = np.arange(count)
-        self.lower = self.x[:, 0].copy()
-        self.upper = self.x[rows, self.n - 1]
+            if np.any(np.abs(x) >= _KEY_RANGE):
+                raise ValueError(f"curve {c}: knots must lie within ±{_KEY_RANGE:g}")
+            xs.append(x)
+            ys.append(y)
+            slopes.append(PchipInterpolator(x, y).derivative()(x))
+            counts.append(len(x))
+        self.n = np.asarray(counts, dtype=np.intp)
+        self.start = np.concatenate([[0], np.cumsum(self.n)[:-1]]).astype(np.intp)
+        self.x = np.concatenate(xs)
+        self.y = np.concatenate(ys)
+        self.slope = np.concatenate(slopes)
+        self._keys = np.repeat(np.arange(len(self.n)) * _KEY_STRIDE, self.n) + self.x
+        self.lower = self.x[self.start]
+        self.upper = self.x[self.start + self.n - 1]
+        # each segment as a cubic in s = x − x0: y = c0 + c1·s + c2·s² + c3·s³ (the last knot of
+        # each curve gets a dummy segment that is never selected)
+        h = np.append(np.diff(self.x), 1.0)
+        h[self.start + self.n - 1] = 1.0
+        dy = np.append(np.diff(self.y), 0.0)
+        d0, d1 = self.slope, np.append(self.slope[1:], 0.0)
+        secant = dy / h
+        self._c = np.stack([self.y, d0, (3 * secant - 2 * d0 - d1) / h,
+                            (d0 + d1 - 2 * secant) / h**2])
 
     def __len__(self) -> int:
         return len(self.n)
@@ -58,22 +79,17 @@ class CurveSet:
         """y of curve ``curve[i]`` at ``x[i]`` for every i."""
         curve = np.asarray(curve, dtype=np.intp)
         x = np.asarray(x, float)
-        knots = self.x[curve]
-        n = self.n[curve]
-        # segment i has knots i and i+1; padding knots are +inf and never counted
-        segment = np.clip(np.sum(x[:, None] >= knots[:, 1:], axis=1), 0, n - 2)
-        x0, x1 = knots[np.arange(len(x)), segment], knots[np.arange(len(x)), segment + 1]
-        rows = (curve, segment)
-        y0, y1 = self.y[rows], self.y[curve, segment + 1]
-        d0, d1 = self.slope[rows], self.slope[curve, segment + 1]
-        inside_x = np.clip(x, x0, x1)
-        h = x1 - x0
-        t = (inside_x - x0) / h
-        t2, t3 = t * t, t * t * t
-        y = ((2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * h * d0
-             + (-2 * t3 + 3 * t2) * y1 + (t3 - t2) * h * d1)
+        start, n = self.start[curve], self.n[curve]
+        keys = curve * _KEY_STRIDE + np.clip(x, -_KEY_RANGE, _KEY_RANGE)
+        segment = np.searchsorted(self._keys, keys, side="right") - 1 - start
+        first = start + np.clip(segment, 0, n - 2)  # flat index of the segment's left knot
+        x0, x1 = self.x[first], self.x[first + 1]
+        offset = np.clip(x, x0, x1) - x0
+        c0, c1, c2, c3 = self._c[:, first]
+        y = c0 + offset * (c1 + offset * (c2 + offset * c3))
         if self.outside == "tangent":
-            y = y + np.where(x < x0, d0 * (x - x0), 0.0) + np.where(x > x1, d1 * (x - x1), 0.0)
+            below, above = np.minimum(x - x0, 0.0), np.maximum(x - x1, 0.0)
+            y = y + self.slope[first] * below + self.slope[first + 1] * above
         return y
 
     def inside(self, curve: np.ndarray, x: np.ndarray, rtol: float = 1e-9) -> np.ndarray:

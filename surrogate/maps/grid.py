@@ -89,8 +89,9 @@ class _SweepGrid:
             self._log_u[k, : len(level.log_u)] = level.log_u
             self._curve[k, : len(level.log_u)] = level.curve
 
-    def _interpolate(self, x, log_u, log_nu) -> tuple[np.ndarray, np.ndarray]:
-        """Value at (x, ln u, ln ν) and whether the point lies inside the sampled sweeps."""
+    def _interpolate(self, x, log_u, log_nu, flags: bool = True
+                     ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Value at (x, ln u, ln ν) and (if ``flags``) whether it lies inside the sampled sweeps."""
         levels = len(self.levels)
         k0, k1, t, nu_excess = _bracket(np.broadcast_to(self.log_nu, (len(x), levels)),
                                         np.full(len(x), levels), log_nu)
@@ -101,10 +102,12 @@ class _SweepGrid:
                                 self._curve[k1, j10], self._curve[k1, j11]])
         xs = np.concatenate([x, x, x, x])
         values = self.curves(curve, xs).reshape(4, -1)
-        within = self.curves.inside(curve, xs).reshape(4, -1)
         level0 = (1.0 - s0) * values[0] + s0 * values[1] + self.excess_slope * excess0
         level1 = (1.0 - s1) * values[2] + s1 * values[3] + self.excess_slope * excess1
         value = (1.0 - t) * level0 + t * level1
+        if not flags:
+            return value, None
+        within = self.curves.inside(curve, xs).reshape(4, -1)
         inside &= ((t >= 1.0) | ((np.abs(excess0) <= 1e-9) & (within[0] | (s0 >= 1.0))
                                  & (within[1] | (s0 <= 0.0))))
         inside &= ((t <= 0.0) | ((np.abs(excess1) <= 1e-9) & (within[2] | (s1 >= 1.0))
@@ -251,7 +254,8 @@ class GridFlowMap(_SweepGrid, FlowMap):
         q, u, nu = q.ravel(), u.ravel(), fluid.nu.ravel()
         flowing = q > 0
         log_dp, _ = self._interpolate(np.log(np.where(flowing, q, 1.0)),
-                                      np.log(np.maximum(u, _TINY_OPENING)), np.log(nu))
+                                      np.log(np.maximum(u, _TINY_OPENING)), np.log(nu),
+                                      flags=False)
         dp = np.where(flowing, np.exp(log_dp), 0.0)
         dp = np.where(flowing & (u <= 0), np.inf, dp)
         return dp.reshape(shape)
@@ -304,18 +308,19 @@ class GridForceMap(_SweepGrid, ForceMap):
     def __repr__(self) -> str:
         return f"GridForceMap({len(self.curves)} sweeps)"
 
-    def _fraction(self, p_L, p_B, u, fluid):
+    def _fraction(self, p_L, p_B, u, fluid, flags: bool):
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
         dp = np.maximum(p_L - p_B, 0.0)
         fraction, inside = self._interpolate(np.log(np.maximum(dp.ravel(), 1e-300)),
                                              np.log(np.maximum(u.ravel(), _TINY_OPENING)),
-                                             np.log(fluid.nu.ravel()))
-        return p_L, p_B, dp, fraction.reshape(dp.shape), inside.reshape(dp.shape)
+                                             np.log(fluid.nu.ravel()), flags)
+        inside = None if inside is None else inside.reshape(dp.shape)
+        return p_L, p_B, dp, fraction.reshape(dp.shape), inside
 
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
-        p_L, p_B, dp, fraction, _ = self._fraction(p_L, p_B, u, fluid)
+        p_L, p_B, dp, fraction, _ = self._fraction(p_L, p_B, u, fluid, flags=False)
         return p_L * self.A_L + p_B * self.back_area + fraction * self.A_L * dp
 
     def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
-        _, p_B, dp, _, inside = self._fraction(p_L, p_B, u, fluid)
+        _, p_B, dp, _, inside = self._fraction(p_L, p_B, u, fluid, flags=True)
         return ~(inside & self._back_pressure_ok(p_B) & (dp > 0))

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import ValveModel
-from ..points import CLOSING, OPENING, OperatingPoints
+from ..points import CLOSING, OPENING, OperatingPoints, concatenate
 from .steady import Status, solve_steady
 
 
@@ -42,6 +42,9 @@ class Replay:
         True where the piston moved at this sample, False where friction held it.
     extrapolating : numpy.ndarray of bool
         True where the maps are queried outside their data.
+    band : numpy.ndarray
+        (2, n): the friction band's edges u_open and u_close at each sample [m], kept so that a
+        replay with nearby parameters can start from them (``replay(..., guess=...)``).
     """
 
     points: OperatingPoints
@@ -50,6 +53,7 @@ class Replay:
     status: np.ndarray
     moving: np.ndarray
     extrapolating: np.ndarray
+    band: np.ndarray
 
     @property
     def p_L(self) -> np.ndarray:
@@ -62,7 +66,8 @@ class Replay:
 
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
-           u_start: float = 0.0) -> Replay:
+           u_start: float = 0.0, guess: Replay | None = None,
+           extrapolation: bool = True) -> Replay:
     """Replay samples in time order with friction as a play.
 
     Parameters
@@ -75,16 +80,26 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         sample of each run. Default: one run.
     u_start : float
         Piston position before each run's first sample [m]; 0, closed, for a ramp from rest.
+    guess : Replay, optional
+        A replay of the same points with nearby parameters; its friction band starts the solver.
+    extrapolation : bool
+        False skips the extrapolation flags (all False), for the inner loop of a fit.
     """
     count = len(points)
-    if model.has_friction:
-        opening = solve_steady(model, points.replace(direction=np.full(count, OPENING)))
-        closing = solve_steady(model, points.replace(direction=np.full(count, CLOSING)))
+    if model.has_friction:  # both edges of the band in one batch
+        both = concatenate([points.replace(direction=np.full(count, OPENING)),
+                            points.replace(direction=np.full(count, CLOSING))])
+        start = None if guess is None else guess.band.ravel()
+        edges = solve_steady(model, both, guess=start)
+        u_edges, status_edges = edges.u.reshape(2, count), edges.status.reshape(2, count)
     else:
-        opening = closing = solve_steady(model, points, friction=False)
+        start = None if guess is None else guess.band[0]
+        edge = solve_steady(model, points, friction=False, guess=start)
+        u_edges = np.vstack([edge.u, edge.u])
+        status_edges = np.vstack([edge.status, edge.status])
 
     starts = _segment_starts(segments, count)
-    u, moving, status = _play(opening.u, closing.u, opening.status, closing.status, starts,
+    u, moving, status = _play(u_edges[0], u_edges[1], status_edges[0], status_edges[1], starts,
                               u_start)
     fluid = model.fluid(points)
     dp = np.full(count, np.nan)
@@ -93,11 +108,12 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
     if solved.size:
         sub = points[solved]
         dp[solved] = model.balance(u[solved], sub, fluid[solved]).dp
-        extrapolating[solved] = model.extrapolating(u[solved], sub.p_B + dp[solved], sub,
-                                                    fluid[solved])
+        if extrapolation:
+            extrapolating[solved] = model.extrapolating(u[solved], sub.p_B + dp[solved], sub,
+                                                        fluid[solved])
     at_stop = (status == Status.OK) & (u >= model.valve.U_max)
     status[at_stop] = Status.AT_STOP
-    return Replay(points, u, dp, status, moving, extrapolating)
+    return Replay(points, u, dp, status, moving, extrapolating, u_edges)
 
 
 def _segment_starts(segments, count: int) -> np.ndarray:

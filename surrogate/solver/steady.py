@@ -35,6 +35,7 @@ from ..roots import find_roots, invert_increasing
 from ..units import BAR, from_si
 
 _OPENING_FLOOR = 1e-7  # smallest opening tried, as a fraction of the stroke
+_GUESS_WIDTH = 0.02  # a guessed opening is bracketed within ±2 % before the full stroke is tried
 _U_RTOL = 1e-14  # relative tolerance on u: near closing eq. 15 amplifies u errors ~1e4-fold
 
 
@@ -120,8 +121,8 @@ class SteadyState:
         })
 
 
-def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool = True
-                 ) -> SteadyState:
+def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool = True,
+                 guess: np.ndarray | None = None) -> SteadyState:
     """Solve the force balance at every point.
 
     Parameters
@@ -131,6 +132,10 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
         Their ``direction`` selects the friction side (+1 opening, −1 closing, 0 none).
     friction : bool
         False leaves friction out whatever the direction (the paper's median-line comparison).
+    guess : numpy.ndarray, optional
+        Expected opening of each point [m] (NaN for none), e.g. the solution for nearby
+        parameters during a fit. Points whose root lies within ±2 % of it are solved from that
+        narrow bracket, which takes a few iterations instead of a dozen; the answer is the same.
     """
     count = len(points)
     u = np.full(count, np.nan)
@@ -142,7 +147,8 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
 
     flowing = np.flatnonzero(~invalid & (points.q > 0))
     if flowing.size:
-        _solve_flowing(model, points[flowing], sign[flowing], flowing, u, dp, status)
+        _solve_flowing(model, points[flowing], sign[flowing], flowing, u, dp, status,
+                       None if guess is None else np.asarray(guess, float)[flowing])
     still = np.flatnonzero(~invalid & (points.q == 0))
     if still.size:
         _solve_still(model, points[still], sign[still], still, u, dp, status)
@@ -156,38 +162,55 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
     return SteadyState(points, u, dp, status, extrapolating)
 
 
-def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out) -> None:
+def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=None) -> None:
     fluid = model.fluid(points)
     stroke = model.valve.U_max
+    floor = stroke * _OPENING_FLOOR
 
     def residual(u, i):
         balance = model.balance(u, points[i], fluid[i])
         return balance.net_force - sign[i] * balance.friction
 
-    everyone = np.arange(len(points))
-    at_top = residual(np.full(len(points), stroke), everyone)
-    floor = stroke * _OPENING_FLOOR
-    at_floor = residual(np.full(len(points), floor), everyone)
+    def solve_in(lower, upper, which):
+        roots = find_roots(lambda x, i: residual(x, which[i]), lower, upper,
+                           xatol=stroke * 1e-30, xrtol=_U_RTOL)
+        u[which] = roots.x
+        status[which] = np.where(roots.converged, Status.OK,
+                                 np.where(roots.status == -3, Status.MAP_FAILURE,
+                                          Status.NOT_CONVERGED))
 
-    broken = ~np.isfinite(at_top) | ~np.isfinite(at_floor)
+    count = len(points)
+    u = np.full(count, np.nan)
+    status = np.full(count, Status.NOT_CONVERGED, dtype=np.int8)
+    at_top = residual(np.full(count, stroke), np.arange(count))
+    broken = ~np.isfinite(at_top)
     at_stop = ~broken & (at_top >= 0)
-    no_equilibrium = ~broken & ~at_stop & (at_floor <= 0)
-    inside = np.flatnonzero(~broken & ~at_stop & ~no_equilibrium)
-
-    u = np.full(len(points), np.nan)
-    status = np.full(len(points), Status.NOT_CONVERGED, dtype=np.int8)
     status[broken] = Status.MAP_FAILURE
-    status[no_equilibrium] = Status.NO_EQUILIBRIUM
     u[at_stop], status[at_stop] = stroke, Status.AT_STOP
+    pending = np.flatnonzero(~broken & ~at_stop)
 
-    roots = find_roots(lambda x, i: residual(x, inside[i]), np.full(inside.size, floor),
-                       np.full(inside.size, stroke), xatol=stroke * 1e-30, xrtol=_U_RTOL)
-    u[inside] = roots.x
-    status[inside] = np.where(roots.converged, Status.OK,
-                              np.where(roots.status == -3, Status.MAP_FAILURE,
-                                       Status.NOT_CONVERGED))
+    if guess is not None and pending.size:  # try the narrow bracket around the guess first
+        centre = guess[pending]
+        usable = pending[np.isfinite(centre) & (centre > floor) & (centre < stroke)]
+        centre = guess[usable]
+        lower = np.maximum(floor, centre * (1 - _GUESS_WIDTH))
+        upper = np.minimum(stroke, centre * (1 + _GUESS_WIDTH))
+        inside = (residual(lower, usable) > 0) & (residual(upper, usable) < 0)
+        if inside.any():
+            solve_in(lower[inside], upper[inside], usable[inside])
+        pending = np.setdiff1d(pending, usable[inside])
+
+    if pending.size:
+        at_floor = residual(np.full(pending.size, floor), pending)
+        broken_floor = ~np.isfinite(at_floor)
+        status[pending[broken_floor]] = Status.MAP_FAILURE
+        no_equilibrium = ~broken_floor & (at_floor <= 0)
+        status[pending[no_equilibrium]] = Status.NO_EQUILIBRIUM
+        bracketed = pending[~broken_floor & ~no_equilibrium]
+        solve_in(np.full(bracketed.size, floor), np.full(bracketed.size, stroke), bracketed)
+
     solved = np.flatnonzero(status >= 0)
-    dp = np.full(len(points), np.nan)
+    dp = np.full(count, np.nan)
     dp[solved] = model.balance(u[solved], points[solved], fluid[solved]).dp
     u_out[where], dp_out[where], status_out[where] = u, dp, status
 
