@@ -19,7 +19,7 @@ from scipy.optimize import brentq
 
 from surrogate import load_valve
 from surrogate.data import load_bench_log
-from surrogate.effects import CoulombFriction, FlowForceScale
+from surrogate.effects import ConstantFriction, FlowForceScale, LoadPressureFriction
 from surrogate.maps.registry import build_maps
 from surrogate.model import ValveModel
 from surrogate.paths import SHIPPED_BENCH_LOG
@@ -87,7 +87,8 @@ def main() -> None:
 
     log = load_bench_log(SHIPPED_BENCH_LOG)
     with_friction = ValveModel(valve, flow_map, force_map,
-                               [FlowForceScale(scale=0.9), CoulombFriction(K1=6.5, K2=5e-7)])
+                               [FlowForceScale(scale=0.9), ConstantFriction(K1=6.5),
+                                LoadPressureFriction(K2=5e-7)])
     run = log.run("R06")
     run_points = OperatingPoints.from_bench(run.frame)
     run_time, _ = best_time(lambda: replay(with_friction, run_points), args.repeats)

@@ -1,27 +1,33 @@
 """A valve model: the valve's parameters, a flow map, a force map and a list of effects.
 
 The model knows the physics; the solver (:mod:`surrogate.solver`) only asks it for the force
-balance at candidate piston positions. For a flow q at opening u the model finds the pressure
-drop from the flow map, the fluid force from the force map (paper eq. 7),
+balance at candidate piston positions. For measured inputs and an opening u the model
 
-    f_fl = f_sim(p_L, p_B, u) − p_B·A_s3 + p_P·A_P
-         = p_L·A_L + p_P·A_P − p_B·A_B + f_ff,
+1. corrects the inputs for sensor errors (effects' ``correct_inputs``);
+2. finds the pressure drop from the flow map, for the flow the main restriction carries
+   (effects' ``restriction_flow``; with ``leakage`` effects, the split between restriction and
+   leakage paths is solved so that both see the same Δp);
+3. computes the fluid force from the force map (paper eq. 7),
 
-the spring force f_spr = F_cr + K_f·u (eq. 3), and adds what its effects contribute: extra forces,
-and the half-width of the Coulomb friction band.
+       f_fl = f_sim(p_L, p_B, u) − p_B·A_s3 + p_P·A_P = p_L·A_L + p_P·A_P − p_B·A_B + f_ff,
+
+   the spring force F_cr + K_f·u (eq. 3), and adds the effects' forces;
+4. sums the effects' friction into the half-width of the Coulomb friction band.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .effects import BalanceState, Effect, Parameter
+from .effects import BalanceState, Effect, FlowState, Parameter
 from .fluid import FluidState
 from .maps.base import FlowMap, ForceMap
 from .points import OperatingPoints
 from .valve import ValveParameters
+
+_LEAKAGE_STEPS = 60  # safeguarded secant steps at most; halving alone would need ~45 to 1e-13
 
 
 @dataclass(frozen=True)
@@ -46,6 +52,22 @@ class Balance:
     friction: np.ndarray
 
 
+@dataclass(frozen=True)
+class MapsSource:
+    """Where a model's maps come from, so it can be written to a file and rebuilt.
+
+    ``kind`` is ``"orifice"`` (with ``discharge_coefficient``), ``"grid"``, ``"nn"``, ``"gp"`` or
+    the path of a surrogate folder.
+    """
+
+    kind: str
+    options: dict = field(default_factory=dict)
+
+
+def _uses(effect: Effect, hook: str) -> bool:
+    return getattr(type(effect), hook) is not getattr(Effect, hook)
+
+
 class ValveModel:
     """Maps plus effects for one valve.
 
@@ -58,18 +80,22 @@ class ValveModel:
     force_map : ForceMap
         f_sim(p_L, p_B, u, fluid).
     effects : sequence of Effect
-        Extra terms of the force balance.
+        Extra terms (sensor corrections, flow, leakage, forces, friction).
     name : str
         Display name, e.g. ``"CFDA"``.
+    maps_source : MapsSource, optional
+        Where the maps come from (needed to save the model to a file).
     """
 
     def __init__(self, valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap,
-                 effects: tuple[Effect, ...] | list[Effect] = (), name: str = "model"):
+                 effects: tuple[Effect, ...] | list[Effect] = (), name: str = "model",
+                 maps_source: MapsSource | None = None):
         self.valve = valve
         self.flow_map = flow_map
         self.force_map = force_map
         self.effects = list(effects)
         self.name = name
+        self.maps_source = maps_source
         self._back_area = valve.A_s3 - valve.A_B
 
     def __repr__(self) -> str:
@@ -79,7 +105,14 @@ class ValveModel:
     def copy(self, name: str | None = None) -> "ValveModel":
         """A copy whose effects (and so parameters) can change without touching this one."""
         return ValveModel(self.valve, self.flow_map, self.force_map,
-                          [effect.copy() for effect in self.effects], name or self.name)
+                          [effect.copy() for effect in self.effects], name or self.name,
+                          self.maps_source)
+
+    def with_effects(self, effects, name: str | None = None) -> "ValveModel":
+        """A copy with other effects (copied) on the same maps."""
+        return ValveModel(self.valve, self.flow_map, self.force_map,
+                          [effect.copy() for effect in effects], name or self.name,
+                          self.maps_source)
 
     def effect(self, name: str) -> Effect:
         """The effect registered as ``name``."""
@@ -89,21 +122,84 @@ class ValveModel:
         raise KeyError(f"model {self.name!r} has no effect {name!r}; it has "
                        f"{', '.join(e.name for e in self.effects) or 'none'}")
 
+    def has_effect(self, name: str) -> bool:
+        return any(effect.name == name for effect in self.effects)
+
     def parameters(self) -> list[tuple[Effect, Parameter]]:
         """All parameters with the effect they belong to."""
         return [(effect, p) for effect in self.effects for p in effect.params.values()]
 
     @property
     def has_friction(self) -> bool:
-        return any(type(e).friction is not Effect.friction for e in self.effects)
+        return any(_uses(effect, "friction") for effect in self.effects)
 
     def fluid(self, points: OperatingPoints) -> FluidState:
         """The oil's ν and ρ at each point's temperature."""
         return self.valve.oil.state(points.temperature)
 
+    def true_points(self, points: OperatingPoints) -> OperatingPoints:
+        """The operating points corrected for the sensor effects."""
+        for effect in self.effects:
+            corrected = effect.correct_inputs(points)
+            if corrected is not None:
+                points = corrected
+        return points
+
+    def pressure_drop(self, u, points: OperatingPoints, fluid: FluidState) -> np.ndarray:
+        """Δp [Pa] across the valve at opening ``u`` [m] for the (true) points' flow."""
+        state = FlowState(np.broadcast_to(u, points.q.shape), points.q, points.p_B, points.p_P,
+                          points.temperature, fluid, self.valve)
+        flow_effects = [e for e in self.effects if _uses(e, "restriction_flow")]
+        leaks = [e for e in self.effects if _uses(e, "leakage")]
+
+        def through_restriction(q, index=slice(None)):
+            sub = state if isinstance(index, slice) else _subset(state, index)
+            for effect in flow_effects:
+                q = effect.restriction_flow(q, sub)
+            return self.flow_map.pressure_drop(q, sub.p_B, sub.u, sub.fluid)
+
+        dp = through_restriction(points.q)
+        if not leaks:
+            return dp
+
+        # the leakage path and the restriction see the same Δp and share the flow q: find the
+        # restriction's share q_r in [0, q] with g(q_r) = q_r + leak(Δp_r(q_r)) − q = 0, which
+        # rises with q_r; secant steps, kept inside the bracket (halving when one leaves it)
+        def leak(x, sub):
+            return sum(effect.leakage(x, sub) for effect in leaks)
+
+        flowing = np.flatnonzero((points.q > 0) & np.isfinite(dp) & (dp > 0))
+        sub = _subset(state, flowing)
+        q = sub.q
+        g_full = leak(dp[flowing], sub)  # g at q_r = q
+        if not np.any(g_full > 0):
+            return dp
+        low, high = np.zeros(flowing.size), q.copy()
+        previous, g_previous = q.copy(), g_full
+        share = np.clip(q - g_full, 0.0, q)
+        drop = through_restriction(share, flowing)
+        for _ in range(_LEAKAGE_STEPS):
+            g = share + leak(drop, sub) - q
+            low, high = np.where(g < 0, share, low), np.where(g >= 0, share, high)
+            denominator = g - g_previous
+            with np.errstate(divide="ignore", invalid="ignore"):
+                secant = share - g * (share - previous) / denominator
+            usable = (denominator != 0) & (secant >= low) & (secant <= high)
+            updated = np.where(usable, secant, 0.5 * (low + high))
+            updated = np.where(np.abs(g) <= 1e-15 * q, share, updated)  # already on the root
+            done = np.abs(updated - share) <= 1e-13 * q
+            previous, g_previous, share = share, g, updated
+            drop = through_restriction(share, flowing)
+            if done.all():
+                break
+        dp = dp.copy()
+        dp[flowing] = drop
+        return dp
+
     def balance(self, u, points: OperatingPoints, fluid: FluidState) -> Balance:
         """The force balance with the piston at ``u`` [m] while the points' flow passes."""
-        dp = self.flow_map.pressure_drop(points.q, points.p_B, u, fluid)
+        points = self.true_points(points)
+        dp = self.pressure_drop(u, points, fluid)
         p_L = points.p_B + dp
         f_sim = self.force_map.force(p_L, points.p_B, u, fluid)
         flow_force = f_sim - p_L * self.valve.A_L - points.p_B * self._back_area
@@ -113,9 +209,9 @@ class ValveModel:
                              fluid: FluidState) -> Balance:
         """The force balance at ``u`` [m] and load pressure ``p_L`` [Pa] with no flow (so no flow
         force): the closed valve, or one held open by its pilot alone."""
+        points = self.true_points(points.replace(q=np.zeros(len(points))))
         p_L = np.broadcast_to(p_L, points.q.shape)
-        return self._balance(u, points.replace(q=np.zeros(len(points))), fluid, p_L,
-                             p_L - points.p_B, np.zeros(points.q.shape))
+        return self._balance(u, points, fluid, p_L, p_L - points.p_B, np.zeros(points.q.shape))
 
     def _balance(self, u, points, fluid, p_L, dp, flow_force) -> Balance:
         valve = self.valve
@@ -138,5 +234,17 @@ class ValveModel:
     def extrapolating(self, u, p_L, points: OperatingPoints, fluid: FluidState) -> np.ndarray:
         """True where either map is queried outside its data with the points' flow passing at
         opening ``u`` [m] and load pressure ``p_L`` [Pa]."""
-        return (self.flow_map.extrapolating_at_flow(points.q, points.p_B, u, fluid)
+        points = self.true_points(points)
+        state = FlowState(np.broadcast_to(u, points.q.shape), points.q, points.p_B, points.p_P,
+                          points.temperature, fluid, self.valve)
+        q = points.q
+        for effect in self.effects:
+            if _uses(effect, "restriction_flow"):
+                q = effect.restriction_flow(q, state)
+        return (self.flow_map.extrapolating_at_flow(q, points.p_B, u, fluid)
                 | self.force_map.extrapolating(p_L, points.p_B, u, fluid))
+
+
+def _subset(state: FlowState, index) -> FlowState:
+    return FlowState(state.u[index], state.q[index], state.p_B[index], state.p_P[index],
+                     state.temperature[index], state.fluid[index], state.valve)

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from surrogate.effects import CoulombFriction
+from surrogate.effects import ConstantFriction, LoadPressureFriction
 from surrogate.maps import OrificeFlowMap, UniformPressureForceMap
 from surrogate.maps.base import FlowMap
 from surrogate.model import ValveModel
@@ -66,7 +66,7 @@ def test_play_gives_the_hand_computed_hysteresis_loop(valve):
     """Linear spring, constant friction K1: the up-ramp is the basic model with crack force
     F_cr + K1, the down-ramp the one with F_cr − K1, joined by a stretch where the piston sticks."""
     K1 = 12.0
-    model = basic_model(valve, effects=[CoulombFriction(K1=K1, K2=0.0)])
+    model = basic_model(valve, effects=[ConstantFriction(K1=K1)])
     q = np.concatenate([np.linspace(1, 12, 300), np.linspace(12, 1, 300)]) * LPM
     p_B, p_Pe = 3 * BAR, 50 * BAR
     points = OperatingPoints.create(q, p_Pe + p_B, p_B, 313.15)
@@ -100,7 +100,8 @@ def test_replay_without_friction_is_the_steady_solution(valve, grid_maps):
 
 def cfda_model(valve, grid_maps, K1=0.0, K2=0.0):
     flow_map, force_map = grid_maps
-    return ValveModel(valve, flow_map, force_map, [CoulombFriction(K1=K1, K2=K2)])
+    return ValveModel(valve, flow_map, force_map,
+                      [ConstantFriction(K1=K1), LoadPressureFriction(K2=K2)])
 
 
 @settings(max_examples=40, deadline=None)

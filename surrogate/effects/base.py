@@ -1,13 +1,21 @@
-"""Physical effects: terms added to the valve's force balance, each with named parameters.
+"""Physical effects: terms of the valve's flow equation and force balance, with named parameters.
 
-The valve model (:mod:`surrogate.model`) computes the force balance of the piston from its maps,
+The valve model (:mod:`surrogate.model`) turns measured inputs into a force balance in five stages,
+and an effect may take part in any of them through a hook (each returns None to stay out):
 
-    net force = f_fl − f_spr = p_L·A_L + p_P·A_P − p_B·A_B + f_ff − (F_cr + K_f·u),
+1. :meth:`Effect.correct_inputs` — **sensors**: measured operating points to true ones
+   (a pilot-transducer offset, a flowmeter gain error).
+2. :meth:`Effect.restriction_flow` — **flow**: the flow the main restriction's map sees, given the
+   flow through it (a discharge-coefficient scale).
+3. :meth:`Effect.leakage` — **leakage**: flow that bypasses the restriction at a pressure drop
+   (laminar leakage past the piston); the model solves for the split.
+4. :meth:`Effect.force` — **force**: an extra force on the piston, positive in the opening
+   direction (a spring preload offset, a scaled flow force).
+5. :meth:`Effect.friction` — **friction**: an extra half-width of the Coulomb friction band, >= 0;
+   the solver makes it oppose the piston's motion (a play).
 
-and then asks each effect for its contribution. An effect may add an opening force
-(:meth:`Effect.force`) or widen the friction band (:meth:`Effect.friction`, a non-negative
-half-width; the solver turns it into Coulomb friction that opposes the piston's motion). The
-solver never sees effects, so a new effect is one new class, registered by its ``name``.
+The solver never sees effects; a new effect is one new class with a ``name``, registered in
+:mod:`surrogate.effects` or loaded from a user's file (:mod:`.custom`).
 
 Parameters are stored in SI units; each carries the unit it is shown and written in.
 """
@@ -23,6 +31,8 @@ import numpy as np
 from ..fluid import FluidState
 from ..units import from_si, label, to_si
 from ..valve import ValveParameters
+
+KINDS = ("sensor", "flow", "leakage", "force", "friction")
 
 
 @dataclass
@@ -88,11 +98,24 @@ class Parameter:
 
 
 @dataclass(frozen=True)
-class BalanceState:
-    """Everything an effect may use at a batch of candidate piston positions (SI units).
+class FlowState:
+    """What a flow or leakage hook may use (SI units): the piston position and the inputs."""
 
-    ``flow_force`` is f_ff from the force map (zero for a uniform-pressure map), ``q`` the flow
-    through the main restriction.
+    u: np.ndarray
+    q: np.ndarray
+    p_B: np.ndarray
+    p_P: np.ndarray
+    temperature: np.ndarray
+    fluid: FluidState
+    valve: ValveParameters
+
+
+@dataclass(frozen=True)
+class BalanceState:
+    """Everything a force or friction hook may use at a batch of piston positions (SI units).
+
+    ``q`` is the flow through the valve, ``flow_force`` f_ff from the force map (zero for a
+    uniform-pressure map).
     """
 
     u: np.ndarray
@@ -117,16 +140,19 @@ class Effect:
     Class attributes
     ----------------
     name : str
-        Registry key, e.g. ``"coulomb_friction"``.
+        Registry key, e.g. ``"friction_pilot_pressure"``.
+    kind : str
+        One of :data:`KINDS`: which stage of the model it acts in.
     title : str
         What it is, in words an engineer recognises.
     parameter_specs : tuple of Parameter
-        Parameters with their default values, units, bounds and descriptions.
+        Parameters with their default values ("effect off"), units, bounds and descriptions.
     validity : str
         Where the term holds and where it does not.
     """
 
     name: ClassVar[str] = ""
+    kind: ClassVar[str] = ""
     title: ClassVar[str] = ""
     parameter_specs: ClassVar[tuple[Parameter, ...]] = ()
     validity: ClassVar[str] = ""
@@ -137,8 +163,9 @@ class Effect:
                                              for spec in self.parameter_specs}
         unknown = set(values) - set(self.params)
         if unknown:
-            raise TypeError(f"{type(self).__name__} has no parameter(s) {', '.join(sorted(unknown))}; "
-                            f"it has {', '.join(self.params) or 'none'}")
+            raise TypeError(f"{type(self).__name__} has no parameter(s) "
+                            f"{', '.join(sorted(unknown))}; it has "
+                            f"{', '.join(self.params) or 'none'}")
         for key, value in values.items():
             self.params[key].value = float(value)
 
@@ -150,10 +177,28 @@ class Effect:
         inside = ", ".join(str(p) for p in self.params.values())
         return f"{type(self).__name__}({inside})"
 
+    @classmethod
+    def describe(cls) -> str:
+        """The docstring's first paragraph: the physics in a sentence or two."""
+        doc = (cls.__doc__ or cls.title).strip().split("\n\n")[0]
+        return " ".join(doc.split())
+
     def copy(self) -> "Effect":
         return copy.deepcopy(self)
 
     # hooks: return None to contribute nothing
+    def correct_inputs(self, points):
+        """True operating points from measured ones (an ``OperatingPoints``), or None."""
+        return None
+
+    def restriction_flow(self, q: np.ndarray, state: FlowState) -> np.ndarray | None:
+        """The flow the main restriction's map should see when ``q`` [m^3/s] passes it."""
+        return None
+
+    def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray | None:
+        """Flow bypassing the main restriction at pressure drop ``dp`` [Pa], in [m^3/s]."""
+        return None
+
     def force(self, state: BalanceState) -> np.ndarray | None:
         """Extra force on the piston [N], positive in the opening direction."""
         return None

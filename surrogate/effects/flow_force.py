@@ -1,21 +1,23 @@
-"""Scaling of the flow force that the force map predicts."""
+"""Corrections to the flow force that the force map predicts."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..units import BAR
 from .base import BalanceState, Effect, Parameter
 
 
 class FlowForceScale(Effect):
-    """f_ff → scale·f_ff: the map's flow force, made stronger (scale > 1) or weaker (< 1).
+    """The map's flow force made stronger (scale > 1) or weaker (scale < 1): f_ff → scale·f_ff.
 
     The flow force f_ff is the part of the fluid force a uniform pressure would not give (paper
-    eq. 10). The paper's CFD-assisted model needed it reduced by 10 % (scale 0.9) to fit the
-    40 °C, p_Pe = 65 bar data.
+    eq. 10). The paper's CFD-assisted model needed it reduced by 10 % (scale 0.9) to fit its
+    bench data.
     """
 
     name = "flow_force_scale"
+    kind = "force"
     title = "flow-force scale"
     parameter_specs = (
         Parameter("scale", 1.0, "1", min=0.0, max=3.0,
@@ -25,3 +27,26 @@ class FlowForceScale(Effect):
 
     def force(self, state: BalanceState) -> np.ndarray:
         return (self["scale"] - 1.0) * state.flow_force
+
+
+class BackPressureFlowForce(Effect):
+    """A flow force that depends on the back pressure: f_ff → f_ff·(1 + γ·(p_B − p_ref)).
+
+    A higher back pressure suppresses cavitation in the jet leaving the restriction, which changes
+    the pressure distribution on the piston and hence the flow force. A map built from CFD at one
+    back pressure (p_ref) misses that dependence.
+    """
+
+    name = "back_pressure_flow_force"
+    kind = "force"
+    title = "flow force depending on back pressure"
+    parameter_specs = (
+        Parameter("gamma", 0.0, "1/bar", min=-0.5 / BAR, max=0.5 / BAR,
+                  description="relative change of the flow force per bar of back pressure"),
+        Parameter("p_ref", 5.0 * BAR, "bar", min=0.0, max=50.0 * BAR, vary=False,
+                  description="back pressure of the CFD samples the map was built from"),
+    )
+    validity = "Linear in p_B around p_ref; zero with a uniform-pressure map."
+
+    def force(self, state: BalanceState) -> np.ndarray:
+        return self["gamma"] * (state.p_B - self["p_ref"]) * state.flow_force

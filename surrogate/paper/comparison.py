@@ -119,7 +119,8 @@ def reproduce(valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap, lo
                      f"(p_Pe = {p_Pe:g} bar)")
             result = fit_friction(models, run)
             comparison.friction_models[(p_Pe, temperature)] = result.model
-            K1, K2 = (result.model.effect("coulomb_friction").params[k] for k in ("K1", "K2"))
+            K1 = result.model.effect("friction_constant").params["K1"]
+            K2 = result.model.effect("friction_load_pressure").params["K2"]
             comparison.table6.append({
                 "temperature_C": temperature, "fitted_on_p_Pe_bar": p_Pe,
                 "K1_N": round(K1.display_value, 3), "K2_N_per_bar": round(K2.display_value, 5),
@@ -136,7 +137,7 @@ def fit_friction(models: PaperModels, run: BenchRun):
     points = OperatingPoints.from_bench(run.frame)
     measured = measured_dp(run)
     return fit(start, lambda model: replay(model, points).dp - measured,
-               names=["coulomb_friction.K1", "coulomb_friction.K2"])
+               names=["friction_constant.K1", "friction_load_pressure.K2"])
 
 
 def _has_run(log: BenchLog, p_Pe: float, temperature: float) -> bool:

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize_scalar
 
-from ..effects import CoulombFriction, FlowForceScale
+from ..effects import ConstantFriction, FlowForceScale, LoadPressureFriction
 from ..maps.base import FlowMap, ForceMap
 from ..maps.orifice import OrificeFlowMap, UniformPressureForceMap
 from ..model import ValveModel
@@ -58,7 +58,7 @@ class PaperModels:
     def cfda_with_friction(self, K1: float, K2: float) -> ValveModel:
         """CFDA plus Coulomb friction s·(K1 + K2·p_L), K1 [N], K2 [N/Pa]."""
         model = self.cfda.copy("CFDA with friction")
-        model.effects.append(CoulombFriction(K1=K1, K2=K2))
+        model.effects += [ConstantFriction(K1=K1), LoadPressureFriction(K2=K2)]
         return model
 
 
