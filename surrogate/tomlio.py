@@ -1,6 +1,13 @@
-"""Small helpers for the package's TOML files (valve files, later model files)."""
+"""Small helpers for the package's TOML files (valve files, model files).
+
+Python reads TOML (``tomllib``) but does not write it; :func:`dumps` writes the small subset the
+package's own files use: tables, arrays of tables, and values that are strings, numbers, booleans
+or inline tables of those.
+"""
 
 from __future__ import annotations
+
+import math
 
 from .errors import InputError
 
@@ -17,3 +24,61 @@ def require_keys(table: dict, keys: set[str], source: str) -> None:
     if problems:
         raise InputError(f"{source}: {'; '.join(problems)} "
                          f"(expected exactly: {', '.join(sorted(keys))})")
+
+
+def _value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        if isinstance(value, float) and math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        if isinstance(value, float) and math.isnan(value):
+            return "nan"
+        return repr(value) if isinstance(value, float) else str(value)
+    if isinstance(value, str):
+        escaped = value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+        return f'"{escaped}"'
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{_key(k)} = {_value(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} to TOML")
+
+
+def _key(key: str) -> str:
+    return key if key.replace("_", "").replace("-", "").isalnum() else _value(key)
+
+
+def dumps(document: dict, header: str = "") -> str:
+    """TOML text of ``document``: a dict whose values are scalars, tables (dict) of scalars and
+    inline tables, or arrays of such tables (list of dict). Tables may nest one level
+    (``[effects.parameters]``)."""
+    lines = [f"# {line}".rstrip() for line in header.splitlines()]
+    scalars = {k: v for k, v in document.items() if not isinstance(v, (dict, list))
+               or (isinstance(v, list) and not all(isinstance(i, dict) for i in v))}
+    lines += [f"{_key(k)} = {_value(v)}" for k, v in scalars.items()]
+    for key, value in document.items():
+        if isinstance(value, dict):
+            _table(lines, key, value, array=False)
+        elif isinstance(value, list) and value and all(isinstance(i, dict) for i in value):
+            for item in value:
+                _table(lines, key, item, array=True)
+    return "\n".join(lines).strip() + "\n"
+
+
+def _table(lines: list[str], name: str, table: dict, array: bool) -> None:
+    lines.append("")
+    lines.append(f"[[{name}]]" if array else f"[{name}]")
+    nested = {k: v for k, v in table.items() if isinstance(v, dict) and not _inline(v)}
+    for key, value in table.items():
+        if key not in nested:
+            lines.append(f"{_key(key)} = {_value(value)}")
+    for key, value in nested.items():
+        lines.append(f"[{name}.{key}]")
+        for inner_key, inner in value.items():
+            lines.append(f"{_key(inner_key)} = {_value(inner)}")
+
+
+def _inline(table: dict) -> bool:
+    """Tables of scalars only are written inline; tables of tables get a section."""
+    return not any(isinstance(v, dict) for v in table.values())

@@ -93,7 +93,8 @@ class Parameter:
         text = f"{self.name} = {self.display_value:.5g}"
         if self.stderr is not None:
             text += f" ± {self.display_stderr:.2g}"
-        text = f"{text} {label(self.unit)}".rstrip()
+        if self.unit != "1":
+            text = f"{text} {label(self.unit)}"
         return text + " (at bound)" if self.at_bound else text
 
 

@@ -1,0 +1,1 @@
+"""The measurement workbench: compare a model with bench data, diagnose, fit, and iterate."""
