@@ -98,7 +98,8 @@ def free_parameters(model: ValveModel, names: Sequence[str] | None = None
 
 
 def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
-        names: Sequence[str] | None = None, *, max_evaluations: int = 200) -> FitResult:
+        names: Sequence[str] | None = None, *, max_evaluations: int = 200,
+        tolerance: float = 1e-8) -> FitResult:
     """Fit the free parameters of ``model`` to minimise the sum of squared ``residuals``.
 
     Parameters
@@ -111,7 +112,9 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
     names : sequence of str, optional
         ``"effect.parameter"`` names to fit; default every parameter with ``vary=True``.
     max_evaluations : int
-        Limit on residual evaluations.
+        Limit on residual evaluations (not counting those for the Jacobian).
+    tolerance : float
+        Relative change in the sum of squares, and in the parameters, below which the fit stops.
     """
     fitted = model.copy()
     chosen = free_parameters(fitted, names)
@@ -144,7 +147,8 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
         return evaluate(fitted)
 
     result = least_squares(objective, start, bounds=(lower, upper), x_scale="jac",
-                           max_nfev=max_evaluations, diff_step=1e-4)
+                           max_nfev=max_evaluations, diff_step=1e-4,
+                           ftol=tolerance, xtol=tolerance)
     assign(result.x)
     final = evaluate(fitted)
     covariance = _covariance(result.jac, final, len(chosen))

@@ -61,6 +61,12 @@ def build_model(source: MapsSource, valve: ValveParameters, effects: list[Effect
     return ValveModel(valve, *maps, effects, name, source)
 
 
+def cfda_effects() -> list[Effect]:
+    """The CFDA model's effects at their starting values (the paper's 0.9, 6.5 N, 0.05 N/bar)."""
+    return [FlowForceScale(scale=0.9), ConstantFriction(K1=6.5),
+            LoadPressureFriction(K2=to_si(0.05, "N/bar"))]
+
+
 def preset(name: str, valve: ValveParameters | None = None, cfd_samples=None) -> ValveModel:
     """A preset model (see the module docstring)."""
     valve = valve or load_valve()
@@ -69,9 +75,7 @@ def preset(name: str, valve: ValveParameters | None = None, cfd_samples=None) ->
         return build_model(source, valve, [], name)
     if name in ("cfda", "cfda-nn", "cfda-gp"):
         kind = {"cfda": "grid", "cfda-nn": "nn", "cfda-gp": "gp"}[name]
-        effects = [FlowForceScale(scale=0.9), ConstantFriction(K1=6.5),
-                   LoadPressureFriction(K2=to_si(0.05, "N/bar"))]
-        return build_model(MapsSource(kind), valve, effects, name, cfd_samples)
+        return build_model(MapsSource(kind), valve, cfda_effects(), name, cfd_samples)
     raise InputError(f"unknown preset {name!r}; presets: {', '.join(PRESETS)}")
 
 

@@ -1,5 +1,5 @@
 """The subcommands of ``python -m surrogate``, one module each."""
 
-from . import check_data, paper, predict
+from . import check_data, compare, diagnose, fit, paper, predict, simulate, workflow
 
-COMMANDS = (check_data, paper, predict)
+COMMANDS = (check_data, paper, predict, compare, diagnose, fit, workflow, simulate)

@@ -1,0 +1,52 @@
+"""``compare``: replay a model over a bench log and show how much, and where, they disagree."""
+
+from __future__ import annotations
+
+import json
+
+from ..outputs import atomic_directory
+from ..workbench.compare import compare
+from ..workbench.figures import all_figures
+from ..workbench.report import comparison_section, figure_png, write_html
+from .workbench_options import Progress, add_data_options, load_inputs, print_json
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "compare", help="compare a model with bench data: residuals per run, region and figure",
+        description="Replay every run of the bench log with the model (friction as a play) and "
+                    "summarise the residual: RMS, bias and hysteresis-width error per run, a "
+                    "p_Pe x temperature table, the noise floor of the data, and operating regions "
+                    "ranked by error with flags where the maps extrapolate. The model is used as "
+                    "given (no fit; see `fit`).")
+    add_data_options(parser, out_help="write compare.json, runs.csv, regions.csv, figures and "
+                                      "report.html here")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    progress = Progress()
+    model, log = load_inputs(args, progress)
+    progress(f"replaying {model.name}")
+    comparison = compare(model, log)
+    if args.out:
+        write_comparison(comparison, args.out)
+        progress(f"wrote {args.out}/report.html")
+    if args.json:
+        print_json(comparison.to_json())
+    else:
+        print(comparison.format_text())
+    return 0
+
+
+def write_comparison(comparison, out) -> None:
+    """All files of a comparison, all or none."""
+    with atomic_directory(out) as staging:
+        (staging / "compare.json").write_text(json.dumps(comparison.to_json(), indent=2) + "\n")
+        comparison.runs.to_csv(staging / "runs.csv", index=False)
+        comparison.regions.to_csv(staging / "regions.csv", index=False)
+        comparison.worst.to_csv(staging / "worst_samples.csv", index=False)
+        for name, figure in all_figures(comparison).items():
+            (staging / f"{name}.png").write_bytes(figure_png(figure))
+        write_html(staging / "report.html", f"Comparison: {comparison.model}",
+                   [comparison_section(comparison, "Model against measurements")])

@@ -1,0 +1,71 @@
+"""``diagnose``: which physical effect is the model missing? Refit with each candidate."""
+
+from __future__ import annotations
+
+import json
+
+from ..outputs import atomic_directory
+from ..units import from_si
+from ..workbench.compare import compare
+from ..workbench.diagnose import diagnose
+from ..workbench.fit import fit_to_log
+from ..workbench.report import (comparison_section, diagnosis_figure, diagnosis_section,
+                                diagnosis_table, figure_png, write_html)
+from .workbench_options import Progress, add_data_options, load_inputs, print_json
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "diagnose", help="rank candidate effects by how much of the residual they explain",
+        description="Fit the model's free parameters to the bench log, then refit it with each "
+                    "candidate effect (the library and any --effects-file) and report the RMS "
+                    "after, ΔBIC, the fitted parameters with standard errors and whether the "
+                    "improvement is significant (ΔBIC < -10 with the effective sample count, "
+                    "residual above 1.1x the noise floor, gain above 0.05x the noise floor). "
+                    "Candidates the data cannot tell apart are reported as a group.")
+    add_data_options(parser, out_help="write diagnosis.json, candidates.csv, a figure and "
+                                      "report.html here")
+    parser.add_argument("--candidates", nargs="+", metavar="NAME",
+                        help="only these effects (default: every effect the model lacks)")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    progress = Progress()
+    model, log = load_inputs(args, progress)
+    progress(f"fitting the free parameters of {model.name}")
+    model = fit_to_log(model, log).model
+    progress(f"diagnosing {model.name}")
+    comparison = compare(model, log)
+    diagnosis = diagnose(model, log, base=comparison.played, candidates=args.candidates,
+                         progress=progress)
+    progress(f"done in {progress.elapsed:.1f} s")
+    if args.out:
+        with atomic_directory(args.out) as staging:
+            (staging / "diagnosis.json").write_text(json.dumps(diagnosis.to_json(), indent=2))
+            diagnosis_table(diagnosis).to_csv(staging / "candidates.csv", index=False)
+            (staging / "diagnosis.png").write_bytes(figure_png(diagnosis_figure(diagnosis)))
+            write_html(staging / "report.html", f"Diagnosis: {model.name}",
+                       [diagnosis_section(diagnosis),
+                        comparison_section(comparison, "The fitted model against the data")])
+        progress(f"wrote {args.out}/report.html")
+    if args.json:
+        print_json(diagnosis.to_json())
+    else:
+        print(format_diagnosis(diagnosis))
+    return 0
+
+
+def format_diagnosis(diagnosis) -> str:
+    lines = [diagnosis.summary, "",
+             f"  current RMS {from_si(diagnosis.rms_before, 'bar'):.3f} bar, noise floor "
+             f"{from_si(diagnosis.noise_floor, 'bar'):.3f} bar, "
+             f"{diagnosis.effective_samples:.0f} effectively independent samples", "",
+             f"  {'candidate':<30}{'RMS after':>10}{'ΔBIC':>9}  {'signif.':<8}parameters"]
+    for c in diagnosis.candidates:
+        params = "; ".join(str(p) for p in c.params if p.vary)
+        same = [n for n in c.group if n != c.name]
+        lines.append(f"  {c.name:<30}{from_si(c.rms_after, 'bar'):>10.3f}{c.delta_bic:>9.1f}  "
+                     f"{'yes' if c.significant else 'no':<8}{params}"
+                     + (f"  [same as {', '.join(same)}]" if same else ""))
+    return "\n".join(lines)

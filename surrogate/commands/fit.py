@@ -1,0 +1,55 @@
+"""``fit``: add effects to a model, refit every free parameter on a bench log, save the model."""
+
+from __future__ import annotations
+
+from ..effects import effect_class
+from ..errors import InputError
+from ..modelfile import save_model
+from ..units import from_si
+from ..workbench.fit import fit_to_log
+from ..workbench.residuals import noise_floor, replay_log
+from .workbench_options import Progress, add_data_options, load_inputs, print_json
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "fit", help="add effects, refit on a bench log and save the model file",
+        description="Add the named effects (built-in, or custom from --effects-file) to the "
+                    "model, fit all free parameters to every sample of the bench log and write the "
+                    "fitted model as a TOML file.")
+    add_data_options(parser, out_help="model file (TOML) to write")
+    parser.add_argument("--add", action="append", default=[], metavar="NAME",
+                        help="effect to add (repeatable)")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    if not args.out:
+        raise InputError("fit needs --out MODEL.toml, the model file to write")
+    progress = Progress()
+    model, log = load_inputs(args, progress)
+    classes = [effect_class(name) for name in args.add]
+    already = [cls.name for cls in classes if model.has_effect(cls.name)]
+    if already:
+        raise InputError(f"model {model.name!r} has {', '.join(already)} already")
+    name = "+".join([model.name, *args.add])
+    model = model.with_effects([*model.effects, *(cls() for cls in classes)], name=name)
+    progress(f"fitting {name}")
+    result = fit_to_log(model, log)
+    played = replay_log(result.model, log)
+    floor = noise_floor(played.residual, played.runs)
+    save_model(result.model, args.out, note=f"fitted to {log.source}: rms "
+                                            f"{from_si(played.rms(), 'bar'):.3f} bar")
+    progress(f"wrote {args.out}")
+    if args.json:
+        print_json({
+            "model": result.model.name, "added": args.add, "file": str(args.out),
+            "rms_bar": round(float(from_si(played.rms(), "bar")), 4),
+            "noise_floor_bar": round(float(from_si(floor, "bar")), 4),
+            "parameters": {f"{e.name}.{p.name}": {"value": p.display_value, "unit": p.unit,
+                                                  "stderr": p.display_stderr}
+                           for e, p in result.model.parameters() if p.vary}})
+    else:
+        print(result.report())
+        print(f"  noise floor {from_si(floor, 'bar'):.3f} bar; model written to {args.out}")
+    return 0

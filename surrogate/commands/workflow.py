@@ -1,0 +1,68 @@
+"""``workflow``: from the paper's basic model to one the bench data cannot fault, step by step."""
+
+from __future__ import annotations
+
+import json
+
+from ..modelfile import save_model
+from ..outputs import atomic_directory
+from ..units import from_si
+from ..workbench.compare import compare
+from ..workbench.figures import all_figures
+from ..workbench.report import (comparison_section, diagnosis_section, figure_png,
+                                staircase_figure, staircase_section, staircase_table, write_html)
+from ..workbench.workflow import MAX_ADDITIONS, run_workflow
+from .workbench_options import Progress, add_data_options, load_inputs, print_json
+
+DEFAULT_OUT = "results/workflow"
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "workflow", help="run the loop: paper's models, then diagnose and add until only noise "
+                         "is left; write the error staircase and a report",
+        description="Start from the paper's basic model (BMBE), take the paper's steps (fitted "
+                    "C_d, CFD maps with a flow-force scale, Coulomb friction K1 + K2*p_L), then "
+                    "repeatedly diagnose the model and add the best significant effect, until "
+                    "nothing significant is left. Writes the staircase (table and figure), the "
+                    "final model file, its comparison with the data and an HTML report.")
+    add_data_options(parser, model=False, out_help=f"output folder (default {DEFAULT_OUT})")
+    parser.add_argument("--max-additions", type=int, default=MAX_ADDITIONS,
+                        help=f"effects the loop may add at most (default {MAX_ADDITIONS})")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    progress = Progress()
+    _, log = load_inputs(args, progress)
+    workflow = run_workflow(log, max_additions=args.max_additions, progress=progress)
+    out = args.out or DEFAULT_OUT
+    final = workflow.final
+    comparison = compare(final.model, log, played=final.played)
+    with atomic_directory(out) as staging:
+        document = workflow.to_json()
+        (staging / "workflow.json").write_text(json.dumps(document, indent=2) + "\n")
+        staircase_table(workflow.steps).to_csv(staging / "staircase.csv", index=False)
+        (staging / "staircase.png").write_bytes(
+            figure_png(staircase_figure(workflow.steps, workflow.noise_floor)))
+        save_model(final.model, staging / "final_model.toml",
+                   note=f"final model of the workflow on {log.source}")
+        for name, figure in all_figures(comparison).items():
+            (staging / f"{name}.png").write_bytes(figure_png(figure))
+        write_html(staging / "report.html", "CBV model against bench data: the workflow",
+                   [staircase_section(workflow),
+                    comparison_section(comparison, "The final model against the data"),
+                    diagnosis_section(workflow.final_diagnosis, "What is left: final diagnosis")],
+                   note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
+                        f"Run time {workflow.seconds:.0f} s.")
+    progress(f"wrote {out}/report.html")
+    if args.json:
+        print_json(document)
+    else:
+        for number, step in enumerate(workflow.steps, start=1):
+            print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
+                  f"{from_si(step.rms, 'bar'):7.3f} bar")
+        print(f"    noise floor {from_si(workflow.noise_floor, 'bar'):.3f} bar")
+        print(workflow.final_diagnosis.summary)
+        print(f"report: {out}/report.html")
+    return 0

@@ -1,0 +1,318 @@
+"""Compare: how much, and where, a model and a bench log disagree.
+
+The model is replayed over every run of the log (:func:`.residuals.replay_log`); the residual of a
+sample is the model's Δp = p_L − p_B minus the measured one. The comparison summarises it
+
+* over the whole log: RMS and the noise floor no model can beat (:func:`.residuals.noise_floor`);
+* per run: RMS, bias, the error in hysteresis width and the worst samples;
+* per pilot set point × temperature: RMS;
+* per operating region (flow band × temperature × set point), ranked by RMS, with how much of it
+  lies where the model extrapolates its maps.
+
+Statistics are computed in SI; the tables are for display and hold bar, L/min and °C (their
+column names say which). Samples the solver could not solve (NaN residual) are left out of every
+statistic and counted in the ``failed`` column.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..data.loaders import BenchLog
+from ..model import ValveModel
+from ..units import from_si
+from .residuals import LogReplay, noise_floor, replay_log
+
+FLOW_BANDS = 4  # equal-width bands over the log's flow range, for the operating regions
+HYSTERESIS_BINS = 10  # flow bins within a run in which the ramps up and down are matched
+WORST_PER_RUN = 3  # samples with the largest |residual| kept per run
+# Runs are grouped by temperature rounded to this step: a bench holds its oil to about a degree
+# around set points that are tens of degrees apart, so rounding recovers the set point.
+TEMPERATURE_STEP_C = 5.0
+
+
+@dataclass
+class Comparison:
+    """The result of :func:`compare`.
+
+    Attributes
+    ----------
+    model : str
+        The model's name.
+    played : LogReplay
+        The model's replay of the log.
+    rms : float
+        Residual RMS over the solved samples [Pa].
+    noise_floor : float
+        The residual's white-noise level, the lowest RMS any model could reach [Pa].
+    runs : pandas.DataFrame
+        One row per run in file order: ``run``, ``temperature_C`` (mean),
+        ``temperature_nominal_C`` (rounded to :data:`TEMPERATURE_STEP_C`), ``p_Pe_bar`` (set
+        point), ``samples``, ``failed``, ``rms_bar``, ``bias_bar`` (mean residual), ``noise_bar``
+        (the run's noise floor), ``hysteresis_measured_bar``, ``hysteresis_model_bar``,
+        ``hysteresis_error_bar`` (model minus measured width, see :func:`hysteresis_width`) and
+        ``extrapolating_fraction``.
+    pivot : pandas.DataFrame
+        RMS [bar] with the set point ``p_Pe_bar`` as index and ``temperature_C`` (nominal) as
+        columns.
+    regions : pandas.DataFrame
+        Operating regions ranked by RMS, worst first: ``q_low_lpm``, ``q_high_lpm``,
+        ``temperature_C`` (nominal), ``p_Pe_bar``, ``samples``, ``rms_bar``, ``bias_bar``,
+        ``extrapolating_fraction`` and ``extrapolating`` (True when any sample extrapolates).
+    worst : pandas.DataFrame
+        The :data:`WORST_PER_RUN` samples of largest |residual| in each run: ``run``, ``line``
+        (in the file), ``time_s``, ``q_lpm``, ``direction``, ``dp_measured_bar``,
+        ``dp_model_bar``, ``residual_bar``.
+    """
+
+    model: str
+    played: LogReplay = field(repr=False)
+    rms: float
+    noise_floor: float
+    runs: pd.DataFrame = field(repr=False)
+    pivot: pd.DataFrame = field(repr=False)
+    regions: pd.DataFrame = field(repr=False)
+    worst: pd.DataFrame = field(repr=False)
+
+    @property
+    def samples(self) -> int:
+        return len(self.played.residual)
+
+    @property
+    def solved(self) -> int:
+        return int(self.played.ok.sum())
+
+    @property
+    def rms_over_noise(self) -> float:
+        """How many times the noise floor the RMS is: near 1, nothing is left to model."""
+        return self.rms / self.noise_floor if self.noise_floor > 0 else float("nan")
+
+    @property
+    def extrapolating_fraction(self) -> float:
+        """Fraction of the solved samples at which the model extrapolates its maps."""
+        ok = self.played.ok
+        return float(np.mean(self.played.replay.extrapolating[ok])) if ok.any() else float("nan")
+
+    def to_json(self) -> dict:
+        """Plain JSON data in display units, numbers rounded to 4 decimals, NaN as null."""
+        worst = {run: _records(group.drop(columns="run"))
+                 for run, group in self.worst.groupby("run", sort=False)}
+        runs = [{**row, "worst": worst.get(row["run"], [])} for row in _records(self.runs)]
+        pivot = self.pivot.stack().rename("rms_bar").reset_index()
+        return {
+            "model": self.model,
+            "source": self.played.log.source,
+            "samples": self.samples,
+            "solved": self.solved,
+            "rms_bar": _plain(from_si(self.rms, "bar")),
+            "noise_floor_bar": _plain(from_si(self.noise_floor, "bar")),
+            "rms_over_noise": _plain(self.rms_over_noise),
+            "extrapolating_fraction": _plain(self.extrapolating_fraction),
+            "runs": runs,
+            "rms_by_p_Pe_and_temperature": _records(pivot),
+            "regions": _records(self.regions),
+        }
+
+    def format_text(self, regions: int = 5) -> str:
+        """A plain-text summary for a terminal: headline, per-run table, pivot, worst regions."""
+        rms, floor = from_si(self.rms, "bar"), from_si(self.noise_floor, "bar")
+        lines = [
+            f"{self.model} vs {Path(self.played.log.source).name}: {self.samples} samples in "
+            f"{len(self.runs)} runs" + (f", {self.samples - self.solved} not solved"
+                                        if self.solved < self.samples else ""),
+            f"  residual (model − measured Δp) RMS {rms:.3f} bar, noise floor {floor:.3f} bar "
+            f"({self.rms_over_noise:.1f}x); maps extrapolated at "
+            f"{100 * self.extrapolating_fraction:.0f} % of samples",
+            "",
+            f"  {'run':<6}{'T [°C]':>7}{'p_Pe [bar]':>11}{'samples':>8}{'RMS':>8}{'bias':>8}"
+            f"{'noise':>7}{'hyst. data':>11}{'model':>7}{'error':>7}{'extrap.':>8}",
+        ]
+        for r in self.runs.itertuples(index=False):
+            lines.append(
+                f"  {r.run:<6}{r.temperature_C:>7.1f}{r.p_Pe_bar:>11g}{r.samples:>8}"
+                f"{r.rms_bar:>8.3f}{r.bias_bar:>+8.3f}{r.noise_bar:>7.3f}"
+                f"{r.hysteresis_measured_bar:>11.3f}{r.hysteresis_model_bar:>7.3f}"
+                f"{r.hysteresis_error_bar:>+7.3f}{100 * r.extrapolating_fraction:>7.0f}%")
+        lines.append("  (in bar; hysteresis width: Δp of the ramp up − ramp down at equal q)")
+
+        lines += ["", "  RMS [bar] by p_Pe set point (rows) and temperature (columns):",
+                  "  " + " " * 10 + "".join(f"{t:>8g} °C" for t in self.pivot.columns)]
+        for p_Pe, row in self.pivot.iterrows():
+            lines.append(f"  {p_Pe:>6g} bar" + "".join(f"{v:>11.3f}" for v in row))
+
+        lines += ["", f"  Worst operating regions (of {len(self.regions)}):"]
+        for r in self.regions.head(regions).itertuples(index=False):
+            flag = (f", maps extrapolated at {100 * r.extrapolating_fraction:.0f} %"
+                    if r.extrapolating else "")
+            lines.append(f"    q {r.q_low_lpm:.1f}–{r.q_high_lpm:.1f} L/min, "
+                         f"{r.temperature_C:g} °C, p_Pe {r.p_Pe_bar:g} bar: RMS {r.rms_bar:.3f} "
+                         f"bar, bias {r.bias_bar:+.3f} bar, {r.samples} samples{flag}")
+        return "\n".join(lines)
+
+
+def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None) -> Comparison:
+    """Replay ``model`` over ``log`` and summarise the residual (see the module doc).
+
+    ``played``: the model's replay of ``log``, if already computed. It must have been made with
+    extrapolation flags on (the default of :func:`.replay_log`), or every region reads as inside
+    the maps.
+    """
+    played = played if played is not None else replay_log(model, log)
+    if len(played.residual) != len(log):
+        raise ValueError(f"the replay has {len(played.residual)} samples, the log {len(log)}")
+    samples = _samples(played)
+    solved = samples[samples["residual"].notna()]
+    return Comparison(
+        model=model.name,
+        played=played,
+        rms=played.rms() if len(solved) else float("nan"),
+        noise_floor=noise_floor(played.residual, played.runs),
+        runs=_run_table(samples, solved, log.run_ids),
+        pivot=_pivot(solved),
+        regions=_regions(solved, samples["q"]),
+        worst=_worst(solved, log.run_ids),
+    )
+
+
+def hysteresis_width(runs, q, direction, dp, bins: int = HYSTERESIS_BINS) -> pd.Series:
+    """Hysteresis width of each run: Δp on the ramp up minus Δp on the ramp down at equal flow.
+
+    The run's flow range is cut into ``bins`` equal bins; in each bin holding both directions the
+    mean Δp of the "down" samples is subtracted from that of the "up" samples, and the width is
+    the mean of these gaps over the bins. Matching by flow bins, not by time, keeps the width
+    independent of how fast each ramp was driven.
+
+    Parameters
+    ----------
+    runs, q, direction, dp : array_like
+        Run label, flow [m^3/s], ramp direction (``"up"``/``"down"``) and Δp [Pa] per sample;
+        samples with NaN Δp are ignored.
+
+    Returns
+    -------
+    pandas.Series
+        Width [Pa] by run (NaN for a run without both directions in any bin).
+    """
+    frame = pd.DataFrame({"run": np.asarray(runs), "q": np.asarray(q, float),
+                          "up": np.asarray(direction) == "up", "dp": np.asarray(dp, float)})
+    labels = list(dict.fromkeys(frame["run"]))
+    frame = frame[np.isfinite(frame["dp"])]
+    flow = frame.groupby("run", sort=False)["q"]
+    low, high = flow.transform("min"), flow.transform("max")
+    span = (high - low).where(high > low, 1.0)  # a run at one flow is one bin
+    frame = frame.assign(bin=np.clip(np.floor((frame["q"] - low) / span * bins), 0, bins - 1))
+    means = (frame.groupby(["run", "bin", "up"], sort=False)["dp"].mean()
+             .unstack("up").reindex(columns=[True, False]))
+    gap = (means[True] - means[False]).dropna()
+    return gap.groupby(level="run", sort=False).mean().reindex(labels)
+
+
+def _samples(played: LogReplay) -> pd.DataFrame:
+    """The replay's per-sample frame (SI) with the squared residual and the nominal temperature."""
+    samples = played.frame()
+    samples["residual_squared"] = samples["residual"] ** 2
+    run_temperature = samples.groupby("run", sort=False)["temperature"].transform("mean")
+    samples["temperature_nominal_C"] = TEMPERATURE_STEP_C * np.round(
+        from_si(run_temperature.to_numpy(), "degC") / TEMPERATURE_STEP_C)
+    return samples
+
+
+def _display(values: pd.Series, unit: str) -> pd.Series:
+    """``values`` (SI) converted to ``unit``, keeping their index."""
+    return pd.Series(from_si(values.to_numpy(dtype=float), unit), index=values.index)
+
+
+def _run_table(samples: pd.DataFrame, solved: pd.DataFrame, run_ids: list[str]) -> pd.DataFrame:
+    every, good = samples.groupby("run", sort=False), solved.groupby("run", sort=False)
+    # both widths from the same (solved) samples, so that failures cannot fake a difference
+    measured = hysteresis_width(samples["run"], samples["q"], samples["direction"],
+                                samples["dp_measured"].where(samples["residual"].notna()))
+    predicted = hysteresis_width(samples["run"], samples["q"], samples["direction"],
+                                 samples["dp_predicted"])
+    noise = pd.Series({run: noise_floor(group["residual"].to_numpy(), group["run"].to_numpy())
+                       for run, group in every})
+    table = pd.DataFrame({
+        "temperature_C": _display(every["temperature"].mean(), "degC"),
+        "temperature_nominal_C": every["temperature_nominal_C"].first(),
+        "p_Pe_bar": _display(every["p_Pe_nominal"].first(), "bar"),
+        "samples": every.size(),
+        "failed": every.size() - good.size().reindex(run_ids, fill_value=0),
+        "rms_bar": _display(np.sqrt(good["residual_squared"].mean()), "bar"),
+        "bias_bar": _display(good["residual"].mean(), "bar"),
+        "noise_bar": _display(noise, "bar"),
+        "hysteresis_measured_bar": _display(measured, "bar"),
+        "hysteresis_model_bar": _display(predicted, "bar"),
+        "hysteresis_error_bar": _display(predicted - measured, "bar"),
+        "extrapolating_fraction": good["extrapolating"].mean().astype(float),
+    }).reindex(run_ids)
+    table.index.name = "run"
+    return table.reset_index()
+
+
+def _pivot(solved: pd.DataFrame) -> pd.DataFrame:
+    mean_square = solved.groupby(["p_Pe_nominal", "temperature_nominal_C"])["residual_squared"]
+    rms = np.sqrt(mean_square.mean()).unstack("temperature_nominal_C")
+    pivot = pd.DataFrame(from_si(rms.to_numpy(), "bar"),
+                         index=pd.Index(from_si(rms.index.to_numpy(), "bar"), name="p_Pe_bar"),
+                         columns=pd.Index(rms.columns.to_numpy(), name="temperature_C"))
+    return pivot
+
+
+def _regions(solved: pd.DataFrame, q: pd.Series) -> pd.DataFrame:
+    """Flow band × nominal temperature × set point, ranked by RMS (worst first)."""
+    edges = np.linspace(q.min(), q.max(), FLOW_BANDS + 1)
+    band = np.clip(np.searchsorted(edges, solved["q"], side="right") - 1, 0, FLOW_BANDS - 1)
+    groups = solved.assign(band=band).groupby(["band", "temperature_nominal_C", "p_Pe_nominal"])
+    stats = groups.agg(samples=("residual", "size"), mean_square=("residual_squared", "mean"),
+                       bias=("residual", "mean"), extrapolating_fraction=("extrapolating", "mean"))
+    stats = stats.reset_index()
+    regions = pd.DataFrame({
+        "q_low_lpm": from_si(edges[stats["band"].to_numpy()], "L/min"),
+        "q_high_lpm": from_si(edges[stats["band"].to_numpy() + 1], "L/min"),
+        "temperature_C": stats["temperature_nominal_C"],
+        "p_Pe_bar": from_si(stats["p_Pe_nominal"].to_numpy(), "bar"),
+        "samples": stats["samples"],
+        "rms_bar": from_si(np.sqrt(stats["mean_square"].to_numpy()), "bar"),
+        "bias_bar": from_si(stats["bias"].to_numpy(), "bar"),
+        "extrapolating_fraction": stats["extrapolating_fraction"].astype(float),
+        "extrapolating": stats["extrapolating_fraction"].to_numpy() > 0,
+    })
+    return regions.sort_values("rms_bar", ascending=False, kind="stable").reset_index(drop=True)
+
+
+def _worst(solved: pd.DataFrame, run_ids: list[str]) -> pd.DataFrame:
+    order = {run: index for index, run in enumerate(run_ids)}
+    ranked = solved.assign(size=solved["residual"].abs()).sort_values("size", ascending=False)
+    worst = ranked.groupby("run", sort=False).head(WORST_PER_RUN)
+    worst = worst.assign(order=worst["run"].map(order)).sort_values(
+        ["order", "size"], ascending=[True, False], kind="stable")
+    return pd.DataFrame({
+        "run": worst["run"].to_numpy(),
+        "line": worst["line"].to_numpy(),
+        "time_s": worst["time"].to_numpy(),
+        "q_lpm": from_si(worst["q"].to_numpy(), "L/min"),
+        "direction": worst["direction"].to_numpy(),
+        "dp_measured_bar": from_si(worst["dp_measured"].to_numpy(), "bar"),
+        "dp_model_bar": from_si(worst["dp_predicted"].to_numpy(), "bar"),
+        "residual_bar": from_si(worst["residual"].to_numpy(), "bar"),
+    })
+
+
+def _plain(value):
+    """A JSON-ready scalar: Python bool/int/str, floats rounded to 4 decimals, NaN as None."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return round(float(value), 4) if np.isfinite(value) else None
+    return value
+
+
+def _records(table: pd.DataFrame) -> list[dict]:
+    return [{str(key): _plain(value) for key, value in row.items()}
+            for row in table.to_dict("records")]

@@ -1,0 +1,196 @@
+"""Figures of a model-against-log comparison (:mod:`.compare`), written as PNG files.
+
+* ``dp_vs_q``: Δp over q, measured against the model, one panel per temperature;
+* ``residuals``: the residual against q, p_L, p_P, p_B, temperature and ramp direction;
+* ``hysteresis``: hysteresis width against the pilot set point, measured against the model.
+
+Figures are built with :class:`matplotlib.figure.Figure` directly (no pyplot state), as in
+:mod:`surrogate.paper.figures`, so they need no display and leave nothing open.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib import colormaps
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from ..outputs import atomic_directory
+from ..units import from_si, label
+from .compare import Comparison
+
+DPI = 110
+# the paper's colours for 20, 40 and 60 °C, then more for logs with more temperatures
+TEMPERATURE_COLOURS = ("tab:blue", "tab:green", "tab:red", "tab:purple", "tab:orange",
+                       "tab:brown", "tab:cyan", "tab:olive")
+BAR, LPM, DEGC = label("bar"), label("L/min"), label("degC")
+
+
+def write_figures(comparison: Comparison, folder: str | Path) -> dict[str, Path]:
+    """Write every figure of ``comparison`` as ``folder/<name>.png`` (all or none).
+
+    Returns
+    -------
+    dict
+        Figure name (``dp_vs_q``, ``residuals``, ``hysteresis``) -> path of its PNG.
+    """
+    figures = all_figures(comparison)
+    with atomic_directory(folder) as staging:
+        for name, figure in figures.items():
+            figure.savefig(staging / f"{name}.png", dpi=DPI)
+    return {name: Path(folder) / f"{name}.png" for name in figures}
+
+
+def all_figures(comparison: Comparison) -> dict[str, Figure]:
+    """Figure name -> figure, for every figure of the comparison."""
+    samples = _samples(comparison)
+    return {"dp_vs_q": dp_against_flow(comparison, samples),
+            "residuals": residual_panels(comparison, samples),
+            "hysteresis": hysteresis_against_set_point(comparison)}
+
+
+def _samples(comparison: Comparison) -> pd.DataFrame:
+    """Per-sample data for plotting, in display units."""
+    frame = comparison.played.frame()
+    nominal = dict(zip(comparison.runs["run"], comparison.runs["temperature_nominal_C"]))
+    return pd.DataFrame({
+        "run": frame["run"].to_numpy(),
+        "temperature_nominal_C": frame["run"].map(nominal).to_numpy(),
+        "temperature_C": from_si(frame["temperature"].to_numpy(), "degC"),
+        "p_Pe_bar": from_si(frame["p_Pe_nominal"].to_numpy(), "bar"),
+        "q_lpm": from_si(frame["q"].to_numpy(), "L/min"),
+        "p_L_bar": from_si(frame["p_L"].to_numpy(), "bar"),
+        "p_P_bar": from_si(frame["p_P"].to_numpy(), "bar"),
+        "p_B_bar": from_si(frame["p_B"].to_numpy(), "bar"),
+        "up": (frame["direction"] == "up").to_numpy(),
+        "dp_measured_bar": from_si(frame["dp_measured"].to_numpy(), "bar"),
+        "dp_model_bar": from_si(frame["dp_predicted"].to_numpy(), "bar"),
+        "residual_bar": from_si(frame["residual"].to_numpy(), "bar"),
+    })
+
+
+def _temperature_colours(comparison: Comparison) -> dict[float, str]:
+    levels = sorted(set(comparison.runs["temperature_nominal_C"]))
+    return {level: TEMPERATURE_COLOURS[index % len(TEMPERATURE_COLOURS)]
+            for index, level in enumerate(levels)}
+
+
+def _title(comparison: Comparison, what: str) -> str:
+    return (f"{comparison.model} vs {Path(comparison.played.log.source).name}: {what} "
+            f"(RMS {from_si(comparison.rms, 'bar'):.2f} {BAR}, "
+            f"noise floor {from_si(comparison.noise_floor, 'bar'):.2f} {BAR})")
+
+
+def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
+    """Δp(q) of every run, measured (thin) and model (dashed), one panel per temperature."""
+    levels = sorted(set(samples["temperature_nominal_C"]))
+    set_points = sorted(set(samples["p_Pe_bar"]))
+    palette = colormaps["viridis"].resampled(max(len(set_points), 2))
+    colour = {p: palette(0.85 * index / max(len(set_points) - 1, 1))
+              for index, p in enumerate(set_points)}
+    figure = Figure(figsize=(4.2 * len(levels) + 2.0, 4.6), layout="constrained")
+    axes = figure.subplots(1, len(levels), sharex=True, sharey=True, squeeze=False)[0]
+    for ax, level in zip(axes, levels):
+        for run, group in samples[samples["temperature_nominal_C"] == level].groupby(
+                "run", sort=False):
+            c = colour[group["p_Pe_bar"].iloc[0]]
+            # time order, so each run draws its loop: up the ramp and back down
+            ax.plot(group["q_lpm"], group["dp_measured_bar"], "-", color=c, linewidth=0.6,
+                    alpha=0.6, rasterized=True)
+            ax.plot(group["q_lpm"], group["dp_model_bar"], "--", color=c, linewidth=1.2)
+        ax.set_title(f"{level:g} {DEGC}")
+        ax.set_xlabel(f"q [{LPM}]")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel(f"Δp = p_L − p_B [{BAR}]")
+    handles = [Line2D([], [], color=colour[p], linewidth=2.0, label=f"p_Pe {p:g} {BAR}")
+               for p in set_points]
+    handles += [Line2D([], [], color="0.3", linewidth=0.8, label="measured"),
+                Line2D([], [], color="0.3", linewidth=1.2, linestyle="--", label="model")]
+    figure.legend(handles=handles, fontsize=8, loc="outside right upper")
+    figure.suptitle(_title(comparison, "Δp over q"))
+    return figure
+
+
+RESIDUAL_PANELS = (("q_lpm", f"q [{LPM}]"), ("p_L_bar", f"p_L [{BAR}]"),
+                   ("p_P_bar", f"p_P [{BAR}]"), ("p_B_bar", f"p_B [{BAR}]"),
+                   ("temperature_C", f"temperature [{DEGC}]"))
+
+
+def residual_panels(comparison: Comparison, samples: pd.DataFrame) -> Figure:
+    """The residual against each input and the ramp direction, coloured by temperature, with
+    the noise floor as a grey band: structure outside the band is what the model misses."""
+    colours = _temperature_colours(comparison)
+    solved = samples[np.isfinite(samples["residual_bar"])]
+    point_colours = solved["temperature_nominal_C"].map(colours).to_numpy()
+    floor = from_si(comparison.noise_floor, "bar")
+    figure = Figure(figsize=(13.0, 7.2), layout="constrained")
+    axes = figure.subplots(2, 3, sharey=True).ravel()
+    for ax, (column, axis_label) in zip(axes, RESIDUAL_PANELS):
+        ax.scatter(solved[column], solved["residual_bar"], s=1.5, c=point_colours, alpha=0.35,
+                   linewidths=0, rasterized=True)
+        ax.set_xlabel(axis_label)
+
+    # direction: a strip per ramp direction, jittered so that the density shows, with mean ± σ
+    ax = axes[-1]
+    position = np.where(solved["up"], 0.0, 1.0)
+    jitter = np.random.default_rng(0).uniform(-0.3, 0.3, len(solved))  # fixed: same image twice
+    ax.scatter(position + jitter, solved["residual_bar"], s=1.5, c=point_colours, alpha=0.35,
+               linewidths=0, rasterized=True)
+    for x, up in ((0.0, True), (1.0, False)):
+        values = solved.loc[solved["up"] == up, "residual_bar"]
+        if len(values):
+            ax.errorbar(x, values.mean(), yerr=values.std(), fmt="o", color="black",
+                        capsize=6, markersize=5, zorder=3)
+    ax.set_xticks([0.0, 1.0], ["up", "down"])
+    ax.set_xlim(-0.6, 1.6)
+    ax.set_xlabel("ramp direction (mean ± σ in black)")
+
+    for ax in axes:
+        ax.axhspan(-floor, floor, color="0.6", alpha=0.25, linewidth=0)
+        ax.axhline(0.0, color="black", linewidth=0.6)
+        ax.grid(alpha=0.3)
+    for ax in axes[::3]:
+        ax.set_ylabel(f"residual = model − measured Δp [{BAR}]")
+    handles = [Line2D([], [], marker="o", linestyle="", color=c, label=f"{t:g} {DEGC}")
+               for t, c in colours.items()]
+    handles.append(Line2D([], [], color="0.6", alpha=0.5, linewidth=6, label="± noise floor"))
+    figure.legend(handles=handles, fontsize=8, loc="outside right upper")
+    figure.suptitle(_title(comparison, "residuals"))
+    return figure
+
+
+def hysteresis_against_set_point(comparison: Comparison) -> Figure:
+    """Hysteresis width of each run against its set point: measured (filled) and model (open),
+    joined by a line whose length is the model's error."""
+    colours = _temperature_colours(comparison)
+    runs = comparison.runs
+    levels = list(colours)
+    # spread the temperatures a little sideways so that runs at one set point do not overlap
+    spacing = 0.012 * max(float(np.ptp(runs["p_Pe_bar"])), 10.0)
+    figure = Figure(figsize=(7.0, 4.8), layout="constrained")
+    ax = figure.add_subplot()
+    for index, level in enumerate(levels):
+        group = runs[runs["temperature_nominal_C"] == level]
+        x = group["p_Pe_bar"] + (index - (len(levels) - 1) / 2) * spacing
+        ax.vlines(x, group["hysteresis_measured_bar"], group["hysteresis_model_bar"],
+                  color=colours[level], linewidth=1.0, alpha=0.7)
+        ax.plot(x, group["hysteresis_measured_bar"], "o", color=colours[level], markersize=7,
+                label=f"{level:g} {DEGC}")
+        ax.plot(x, group["hysteresis_model_bar"], "s", markerfacecolor="white",
+                markeredgecolor=colours[level], markeredgewidth=1.5, markersize=7)
+    set_points = sorted(set(runs["p_Pe_bar"]))
+    ax.set_xticks(set_points, [f"{p:g}" for p in set_points])
+    ax.axhline(0.0, color="black", linewidth=0.6)
+    ax.set_xlabel(f"p_Pe set point [{BAR}]")
+    ax.set_ylabel(f"hysteresis width: Δp up − down at equal q [{BAR}]")
+    ax.grid(alpha=0.3)
+    handles, _ = ax.get_legend_handles_labels()
+    handles += [Line2D([], [], marker="o", linestyle="", color="0.3", label="measured"),
+                Line2D([], [], marker="s", linestyle="", markerfacecolor="white",
+                       markeredgecolor="0.3", markeredgewidth=1.5, label="model")]
+    ax.legend(handles=handles, fontsize=8, loc="best")
+    ax.set_title(f"{comparison.model}: hysteresis width per run")
+    return figure
