@@ -1,0 +1,98 @@
+"""Benchmark of the measurement workbench on the shipped bench log, and its hidden-effect record.
+
+Measures, in one run on this machine:
+
+* one diagnose over the whole library on the full shipped log (12 runs, 11,000 samples),
+  against the cost of one replay of the log measured in the same run;
+* the full workflow (paper's steps, then diagnose → add until nothing significant is left);
+* the identification rate over randomised hidden-effect cases on the shipped test sequence.
+
+Writes results/workbench/benchmark.json and prints a summary. Run:
+``python eval/workbench.py [--cases 20] [--every 4]`` (about 10 minutes on 2 cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from surrogate.data import load_bench_log
+from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.units import from_si
+from surrogate.workbench.diagnose import diagnose
+from surrogate.workbench.fit import fit_to_log
+from surrogate.workbench.residuals import replay_log
+from surrogate.workbench.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case,
+                                          noise_free_sequence)
+from surrogate.workbench.workflow import run_workflow
+from surrogate.modelfile import preset
+
+
+def timed(function, *args, **kwargs):
+    start = time.perf_counter()
+    value = function(*args, **kwargs)
+    return value, time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--cases", type=int, default=20)
+    parser.add_argument("--every", type=int, default=4, help="decimation of the sequence")
+    parser.add_argument("--out", default="results/workbench")
+    args = parser.parse_args()
+    log = load_bench_log(SHIPPED_BENCH_LOG)
+
+    fitted = fit_to_log(preset("cfda"), log).model
+    base, replay_seconds = timed(replay_log, fitted, log)
+    diagnosis, diagnose_seconds = timed(diagnose, fitted, log, base=base)
+    print(f"diagnose over {len(diagnosis.candidates)} candidates on {len(log)} samples: "
+          f"{diagnose_seconds:.1f} s = {diagnose_seconds / replay_seconds:.0f} replays "
+          f"({replay_seconds:.2f} s each)")
+
+    workflow, workflow_seconds = timed(run_workflow, log, progress=print)
+    print(f"workflow: {workflow_seconds:.1f} s, {len(workflow.steps)} steps, final rms "
+          f"{from_si(workflow.final.rms, 'bar'):.3f} bar, noise floor "
+          f"{from_si(workflow.noise_floor, 'bar'):.3f} bar")
+
+    sequence = noise_free_sequence(log, every=args.every)
+    rng = np.random.default_rng(7)
+    names = sorted(REALISTIC_MAGNITUDES)
+    cases = []
+    for number in range(args.cases):
+        hidden = names[rng.integers(len(names))]
+        factor = float(rng.uniform(0.6, 1.5))
+        values = {k: (1.0 if k in ("scale", "c") else 0.0) * (1 - factor) + factor * v
+                  for k, v in REALISTIC_MAGNITUDES[hidden].items()}
+        case = hidden_effect_case(hidden, values, sequence=sequence, seed=1000 + number)
+        found = diagnose(fit_to_log(case.start, case.log).model, case.log)
+        best = found.best
+        ok = best is not None and found.candidates[0] is best and hidden in best.group
+        cases.append({"hidden": hidden, "factor": round(factor, 2), "identified": ok,
+                      "best": found.candidates[0].name,
+                      "rms_after_over_noise": round(found.candidates[0].rms_after
+                                                    / found.noise_floor, 3)})
+        print(f"  case {number + 1:2d}: {hidden:<28} x{factor:.2f} -> {cases[-1]['best']:<28} "
+              f"{'found' if ok else 'MISSED'}")
+    rate = float(np.mean([c["identified"] for c in cases]))
+    print(f"identification rate: {rate:.0%} over {len(cases)} cases")
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    document = {
+        "samples": len(log), "replay_seconds": round(replay_seconds, 3),
+        "diagnose_seconds": round(diagnose_seconds, 1),
+        "diagnose_in_replays": round(diagnose_seconds / replay_seconds, 1),
+        "workflow_seconds": round(workflow_seconds, 1),
+        "workflow": workflow.to_json(),
+        "identification_rate": rate, "cases": cases, "every": args.every,
+    }
+    (out / "benchmark.json").write_text(json.dumps(document, indent=2) + "\n")
+    print(f"wrote {out / 'benchmark.json'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,111 @@
+"""The workbench commands' contracts (JSON keys, files written, exit codes) on a small log."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import pytest
+
+from surrogate.cli import main
+from surrogate.modelfile import load_model, preset, save_model
+
+
+@pytest.fixture(scope="module")
+def small_log(tmp_path_factory):
+    """A synthetic log with friction growing with viscosity hidden (every 12th sample)."""
+    path = tmp_path_factory.mktemp("logs") / "viscous.csv"
+    assert main(["simulate", "--hidden", "friction_viscous", "--every", "12", "--seed", "4",
+                 "--out", str(path)]) == 0
+    return path
+
+
+def run_json(capsys, argv):
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_compare_json_contract(capsys, small_log, tmp_path):
+    out = tmp_path / "compare"
+    result = run_json(capsys, ["compare", "--model", "cfda", "--data", str(small_log),
+                               "--out", str(out), "--json"])
+    assert {"rms_bar", "noise_floor_bar", "runs"} <= set(result)
+    assert len(result["runs"]) == 12
+    for run in result["runs"]:
+        assert {"run", "temperature_C", "p_Pe_bar", "rms_bar", "bias_bar"} <= set(run)
+    assert result["rms_bar"] > result["noise_floor_bar"] > 0
+    assert (out / "report.html").read_text().count("data:image/png;base64") >= 3
+
+
+def test_diagnose_json_contract_names_the_hidden_effect(capsys, small_log):
+    result = run_json(capsys, ["diagnose", "--model", "cfda", "--data", str(small_log), "--json"])
+    assert {"rms_before_bar", "noise_floor_bar", "summary", "candidates"} <= set(result)
+    best = result["candidates"][0]
+    assert {"name", "description", "rms_after_bar", "delta_bic", "significant", "params"} <= set(
+        best)
+    assert best["name"] == "friction_viscous" and best["significant"]
+    assert "friction_viscous" in result["summary"]
+    after = [c["rms_after_bar"] for c in result["candidates"]]
+    assert after == sorted(after)
+
+
+def test_fit_writes_a_model_file_that_loads_and_compares(capsys, small_log, tmp_path):
+    path = tmp_path / "fitted.toml"
+    result = run_json(capsys, ["fit", "--model", "cfda", "--data", str(small_log),
+                               "--add", "friction_viscous", "--out", str(path), "--json"])
+    assert result["rms_bar"] < 1.3 * result["noise_floor_bar"]
+    document = tomllib.loads(path.read_text())
+    assert [e["name"] for e in document["effects"]][-1] == "friction_viscous"
+    again = run_json(capsys, ["compare", "--model", str(path), "--data", str(small_log), "--json"])
+    assert again["rms_bar"] == pytest.approx(result["rms_bar"], rel=1e-3)
+
+
+def test_workflow_json_contract(capsys, small_log, tmp_path):
+    out = tmp_path / "workflow"
+    result = run_json(capsys, ["workflow", "--data", str(small_log), "--out", str(out),
+                               "--max-additions", "1", "--json"])
+    steps = result["steps"]
+    assert [s["model"] for s in steps[:4]] == ["bmbe", "bmbebf", "cfd-maps", "cfda"]
+    assert all({"model", "added", "rms_bar"} <= set(s) for s in steps)
+    assert steps[-1]["added"] == ["friction_viscous"]
+    assert steps[-1]["rms_bar"] < steps[3]["rms_bar"] < steps[0]["rms_bar"]
+    for name in ("report.html", "staircase.png", "staircase.csv", "final_model.toml",
+                 "workflow.json"):
+        assert (out / name).is_file()
+    assert load_model(str(out / "final_model.toml")).has_effect("friction_viscous")
+
+
+def test_model_file_round_trip(tmp_path):
+    model = preset("cfda")
+    model.effect("friction_constant").params["K1"].value = 7.25
+    save_model(model, tmp_path / "m.toml")
+    loaded = load_model(str(tmp_path / "m.toml"))
+    assert [e.name for e in loaded.effects] == [e.name for e in model.effects]
+    for (_, a), (_, b) in zip(model.parameters(), loaded.parameters()):
+        assert a.value == pytest.approx(b.value, rel=1e-12) and a.vary == b.vary
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[model]\nname = 'x'\n", "maps"),
+    ("[model]\nmaps = { kind = 'grid' }\n[[effects]]\nname = 'no_such_effect'\n",
+     "unknown effect"),
+    ("[model]\nmaps = { kind = 'grid' }\n[[effects]]\nname = 'friction_constant'\n"
+     "parameters = { K1 = { value = 5.0, unit = 'N/bar' } }\n", "is in N"),
+    ("[model]\nmaps = { kind = 'grid' }\n[[effects]]\nname = 'friction_constant'\n"
+     "parameters = { K1 = { value = -5.0, unit = 'N' } }\n", "outside"),
+    ("not = [toml", "not a valid TOML"),
+])
+def test_bad_model_files_exit_2_with_a_message(capsys, small_log, tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    assert main(["compare", "--model", str(path), "--data", str(small_log)]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_unknown_preset_and_effect_exit_2(capsys, small_log, tmp_path):
+    assert main(["compare", "--model", "nonsense", "--data", str(small_log)]) == 2
+    assert "preset" in capsys.readouterr().err
+    assert main(["fit", "--model", "cfda", "--data", str(small_log), "--add", "warp_drive",
+                 "--out", str(tmp_path / "x.toml")]) == 2
+    assert "unknown effect" in capsys.readouterr().err
+    assert not (tmp_path / "x.toml").exists()
