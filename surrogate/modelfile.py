@@ -35,6 +35,7 @@ from .errors import InputError
 from .maps.orifice import OrificeFlowMap, UniformPressureForceMap
 from .maps.registry import build_maps
 from .model import MapsSource, ValveModel
+from .outputs import atomic_file
 from .tomlio import dumps
 from .units import from_si, to_si
 from .valve import ValveParameters, load_valve
@@ -191,8 +192,5 @@ def save_model(model: ValveModel, path: str | Path, note: str = "",
     """Write a model file (see the module docstring); ``stderr`` entries are informative."""
     header = "Valve model written by cbv-surrogate" + (f"\n{note}" if note else "")
     text = dumps(model_to_dict(model, valve_reference), header)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.tmp")
-    temporary.write_text(text)
-    temporary.replace(path)
+    with atomic_file(path) as stream:
+        stream.write(text)

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from ..data.queries import load_queries
 from ..maps.registry import MAP_KINDS, build_maps
+from ..outputs import atomic_file
 from ..units import from_si
 from ..valve import load_valve
 
@@ -54,12 +53,5 @@ def run(args) -> int:
 
 def _write_whole(frame, path: Path) -> None:
     """Write a CSV through a temporary file, so a failure leaves no half-written output."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
-    try:
-        with os.fdopen(handle, "w", newline="") as stream:
-            frame.to_csv(stream, index=False, float_format="%.10g")
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    with atomic_file(path) as stream:
+        frame.to_csv(stream, index=False, float_format="%.10g")

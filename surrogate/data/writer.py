@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..outputs import atomic_file
 from ..units import from_si
 from .loaders import BenchLog
 from .schema import BENCH_SCHEMA
@@ -24,12 +25,8 @@ def bench_log_frame(log: BenchLog) -> pd.DataFrame:
 def write_bench_log(log: BenchLog, path: str | Path) -> Path:
     """Write ``log`` as a CSV that :func:`~surrogate.data.load_bench_log` reads back.
 
-    The file is written beside its destination and renamed into place, so a failure leaves no
-    half-written file.
+    A failure leaves no half-written file.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.tmp")
-    bench_log_frame(log).to_csv(temporary, index=False, float_format="%.6f")
-    temporary.replace(path)
-    return path
+    with atomic_file(path) as stream:
+        bench_log_frame(log).to_csv(stream, index=False, float_format="%.6f")
+    return Path(path)

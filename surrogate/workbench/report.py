@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from ..outputs import atomic_file
 from ..units import from_si
 from .compare import Comparison
 from .diagnose import BIC_THRESHOLD, GAIN_FRACTION, NOISE_MARGIN, Diagnosis
@@ -203,8 +204,6 @@ def write_html(path: str | Path, title: str, sections: list[str], note: str = ""
     document = (f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
                 f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head><body>"
                 f"<h1>{html.escape(title)}</h1><p>{html.escape(note)}</p>{body}</body></html>")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.tmp")
-    temporary.write_text(document, encoding="utf-8")
-    temporary.replace(path)
+    with atomic_file(path) as stream:
+        stream.write(document)
     return path
