@@ -8,7 +8,7 @@ from ..errors import InputError
 from .base import KINDS, BalanceState, Effect, FlowState, Parameter
 from .custom import custom_effect, load_effects_file
 from .flow import DischargeScale, LaminarLeakage
-from .flow_force import BackPressureFlowForce, FlowForceScale
+from .flow_force import BackPressureFlowForce, FlowForceScale, NearSeatFlowForce
 from .friction import (ConstantFriction, LoadPressureFriction, PilotDifferentialFriction,
                        PilotPressureFriction, SealPressureFriction, ViscousFriction)
 from .sensors import FlowmeterGain, PilotTransducerOffset
@@ -38,7 +38,7 @@ def effect_class(name: str) -> type[Effect]:
                          "(custom ones need --effects-file)") from None
 
 
-BUILT_IN = (FlowForceScale, BackPressureFlowForce, SpringPreloadOffset, ProgressiveSpring,
+BUILT_IN = (FlowForceScale, BackPressureFlowForce, NearSeatFlowForce, SpringPreloadOffset, ProgressiveSpring,
             ConstantFriction, LoadPressureFriction, PilotPressureFriction, SealPressureFriction,
             PilotDifferentialFriction, ViscousFriction, DischargeScale, LaminarLeakage,
             PilotTransducerOffset, FlowmeterGain)

@@ -39,6 +39,7 @@ from .residuals import replay_log
 REALISTIC_MAGNITUDES: dict[str, dict[str, float]] = {
     "flow_force_scale": {"scale": 0.8},
     "back_pressure_flow_force": {"gamma": 0.05},
+    "seat_flow_force": {"k": 0.6},
     "spring_preload_offset": {"delta_F": 15.0},
     "progressive_spring": {"beta": 0.3},
     "friction_constant": {"K1": 8.0},
