@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surrogate import load_valve
 from surrogate.effects import BalanceState, NearSeatFlowForce
 from surrogate.fluid import FluidState
-from surrogate import load_valve
 
 
 def balance_state(u, flow_force):

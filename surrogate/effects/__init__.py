@@ -38,8 +38,8 @@ def effect_class(name: str) -> type[Effect]:
                          "(custom ones need --effects-file)") from None
 
 
-BUILT_IN = (FlowForceScale, BackPressureFlowForce, NearSeatFlowForce, SpringPreloadOffset, ProgressiveSpring,
-            ConstantFriction, LoadPressureFriction, PilotPressureFriction, SealPressureFriction,
+BUILT_IN = (FlowForceScale, BackPressureFlowForce, NearSeatFlowForce, SpringPreloadOffset,
+            ProgressiveSpring, ConstantFriction, LoadPressureFriction, PilotPressureFriction, SealPressureFriction,
             PilotDifferentialFriction, ViscousFriction, DischargeScale, LaminarLeakage,
             PilotTransducerOffset, FlowmeterGain)
 for _cls in BUILT_IN:
