@@ -40,8 +40,8 @@ def effect_class(name: str) -> type[Effect]:
 
 BUILT_IN = (FlowForceScale, BackPressureFlowForce, NearSeatFlowForce, SpringPreloadOffset,
             ProgressiveSpring, ConstantFriction, LoadPressureFriction, PilotPressureFriction,
-            SealPressureFriction, PilotDifferentialFriction, ViscousFriction, DischargeScale, LaminarLeakage,
-            PilotTransducerOffset, FlowmeterGain)
+            SealPressureFriction, PilotDifferentialFriction, ViscousFriction, DischargeScale,
+            LaminarLeakage, PilotTransducerOffset, FlowmeterGain)
 for _cls in BUILT_IN:
     register(_cls)
 
