@@ -20,10 +20,13 @@ from scipy.optimize import least_squares
 from .effects import Effect, Parameter
 from .errors import InputError
 from .model import ValveModel
+from .parallel import map_threads
 from .units import from_si, to_si
 
 #: residual of a solver failure, so that a fit is steered away from it [Pa]
 FAILURE_RESIDUAL = 1000e5
+#: finite-difference step of the Jacobian, relative to max(1, |parameter in display units|)
+DIFF_STEP = 1e-4
 
 
 @dataclass
@@ -108,7 +111,9 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
         Not modified; the result holds a fitted copy.
     residuals : callable
         ``residuals(model)`` returns an array of residuals; NaN entries (failed points) count as
-        :data:`FAILURE_RESIDUAL`.
+        :data:`FAILURE_RESIDUAL`. The Jacobian's columns are evaluated on threads
+        (:mod:`.parallel`), each with its own copy of the model, so ``residuals`` must not change
+        state that other calls read.
     names : sequence of str, optional
         ``"effect.parameter"`` names to fit; default every parameter with ``vary=True``.
     max_evaluations : int
@@ -138,18 +143,38 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
                       for _, _, p in chosen])
     start = np.clip(start, lower, upper)
 
-    def assign(x):
-        for (_, _, parameter), unit, value in zip(chosen, units, x):
+    names = [name for name, _, _ in chosen]
+
+    def assign(parameters: list[Parameter], x):
+        for parameter, unit, value in zip(parameters, units, x):
             parameter.value = float(to_si(value, unit))
 
-    def objective(x):
-        assign(x)
-        return evaluate(fitted)
+    last: dict = {"x": None, "values": None}
 
-    result = least_squares(objective, start, bounds=(lower, upper), x_scale="jac",
-                           max_nfev=max_evaluations, diff_step=1e-4,
-                           ftol=tolerance, xtol=tolerance)
-    assign(result.x)
+    def objective(x):
+        assign([p for _, _, p in chosen], x)
+        values = evaluate(fitted)
+        last["x"], last["values"] = np.array(x), values
+        return values
+
+    def jacobian(x):
+        """Forward differences, as scipy's '2-point', with the columns evaluated side by side."""
+        at_x = last["values"] if np.array_equal(last["x"], x) else objective(x)
+        steps = _forward_steps(np.asarray(x, float), upper)
+
+        def column(j: int) -> np.ndarray:
+            trial = fitted.copy()
+            shifted = np.array(x, float)
+            shifted[j] += steps[j]
+            assign([p for _, _, p in free_parameters(trial, names)], shifted)
+            return (evaluate(trial) - at_x) / steps[j]
+
+        return np.column_stack(list(map_threads(column, range(len(x)))))
+
+    result = least_squares(objective, start, jac=jacobian, bounds=(lower, upper),
+                           x_scale="jac", max_nfev=max_evaluations, ftol=tolerance,
+                           xtol=tolerance)
+    assign([p for _, _, p in chosen], result.x)
     final = evaluate(fitted)
     covariance = _covariance(result.jac, final, len(chosen))
     scales = np.array([to_si(1.0, unit) - to_si(0.0, unit) for unit in units])
@@ -164,6 +189,14 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
     return FitResult(fitted, [name for name, _, _ in chosen], _rms(final), len(final), aic, bic,
                      correlation, bool(result.success), str(result.message), int(result.nfev),
                      [p for _, _, p in chosen])
+
+
+def _forward_steps(x: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Finite-difference steps: :data:`DIFF_STEP` relative to max(1, |x|), away from the upper
+    bound when a step up would cross it (scipy's rule for '2-point' with bounds)."""
+    steps = DIFF_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+    steps = np.where(x + steps > upper, -np.abs(steps), steps)
+    return (x + steps) - x  # exactly representable differences
 
 
 def _rms(values: np.ndarray) -> float:

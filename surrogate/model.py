@@ -164,38 +164,46 @@ class ValveModel:
 
         # the leakage path and the restriction see the same Δp and share the flow q: find the
         # restriction's share q_r in [0, q] with g(q_r) = q_r + leak(Δp_r(q_r)) − q = 0, which
-        # rises with q_r; secant steps, kept inside the bracket (halving when one leaves it)
+        # rises with q_r. Each step solves that equation with Δp_r(q_r) replaced by the power law
+        # through the last two evaluations of the map (an orifice is close to one, so the steps
+        # converge in two or three map evaluations), kept inside the bracket on q_r.
         def leak(x, sub):
             return sum(effect.leakage(x, sub) for effect in leaks)
 
         flowing = np.flatnonzero((points.q > 0) & np.isfinite(dp) & (dp > 0))
-        sub = _subset(state, flowing)
-        q = sub.q
-        g_full = leak(dp[flowing], sub)  # g at q_r = q
+        q = points.q[flowing]
+        g_full = leak(dp[flowing], _subset(state, flowing))  # g at q_r = q
         if not np.any(g_full > 0):
             return dp
+        dp = dp.copy()
         low, high = np.zeros(flowing.size), q.copy()
-        previous, g_previous = q.copy(), g_full
+        previous, previous_drop = q.copy(), dp[flowing]
         share = np.clip(q - g_full, 0.0, q)
-        drop = through_restriction(share, flowing)
+        active = np.arange(flowing.size)  # points not converged yet: only these are iterated
         for _ in range(_LEAKAGE_STEPS):
-            g = share + leak(drop, sub) - q
-            low, high = np.where(g < 0, share, low), np.where(g >= 0, share, high)
-            denominator = g - g_previous
-            with np.errstate(divide="ignore", invalid="ignore"):
-                secant = share - g * (share - previous) / denominator
-            usable = (denominator != 0) & (secant >= low) & (secant <= high)
-            updated = np.where(usable, secant, 0.5 * (low + high))
+            index = flowing[active]
+            sub = _subset(state, index)
+            current, wanted = share[active], q[active]
+            drop = through_restriction(current, index)
+            dp[index] = drop
+            g = current + leak(drop, sub) - wanted
+            lower = np.where(g < 0, current, low[active])
+            upper = np.where(g >= 0, current, high[active])
             # converged: the flows balance to 1e-10 of q (so the leak, and Δp, to ~1e-10), or
             # the bracket is down to rounding (the restriction passes almost nothing)
-            done = (np.abs(g) <= 1e-10 * q) | (high - low <= 1e-12 * high)
-            if done.all():
+            done = (np.abs(g) <= 1e-9 * wanted) | (upper - lower <= 1e-12 * upper)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                exponent = (np.log(drop / previous_drop[active])
+                            / np.log(current / previous[active]))
+            exponent = np.where(np.isfinite(exponent), np.clip(exponent, 0.5, 4.0), 2.0)
+            step = _power_law_step(current, drop, exponent, wanted, lambda x: leak(x, sub))
+            low[active], high[active] = lower, upper
+            previous[active], previous_drop[active] = current, drop
+            share[active] = np.where((step > lower) & (step < upper), step,
+                                     0.5 * (lower + upper))
+            active = active[~done]
+            if not active.size:
                 break
-            updated = np.where(done, share, updated)
-            previous, g_previous, share = share, g, updated
-            drop = through_restriction(share, flowing)
-        dp = dp.copy()
-        dp[flowing] = drop
         return dp
 
     def balance(self, u, points: OperatingPoints, fluid: FluidState) -> Balance:
@@ -245,6 +253,19 @@ class ValveModel:
                 q = effect.restriction_flow(q, state)
         return (self.flow_map.extrapolating_at_flow(q, points.p_B, u, fluid)
                 | self.force_map.extrapolating(p_L, points.p_B, u, fluid))
+
+
+def _power_law_step(share, drop, exponent, q, leak, newton_steps: int = 3) -> np.ndarray:
+    """Root x of x + leak(Δp(x)) = q with Δp(x) = drop·(x/share)^exponent (no map call)."""
+    x = share
+    for _ in range(newton_steps):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pressure = drop * (x / share) ** exponent
+            nudge = 1e-6 * pressure
+            slope = (leak(pressure + nudge) - leak(pressure)) / nudge  # d leak / dΔp
+            derivative = 1.0 + slope * exponent * pressure / x
+            x = x - (x + leak(pressure) - q) / derivative
+    return x
 
 
 def _subset(state: FlowState, index) -> FlowState:

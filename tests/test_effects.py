@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from surrogate import load_valve
-from surrogate.effects import BalanceState, NearSeatFlowForce
+from surrogate.effects import BalanceState, LaminarLeakage, NearSeatFlowForce
 from surrogate.fluid import FluidState
+from surrogate.model import ValveModel
+from surrogate.points import OperatingPoints
+from surrogate.units import to_si
 
 
 def balance_state(u, flow_force):
@@ -30,3 +35,24 @@ def test_near_seat_flow_force_acts_only_below_the_reference_opening():
 def test_near_seat_flow_force_is_the_maps_rule_at_k_zero():
     effect = NearSeatFlowForce(k=0.0)
     assert np.all(effect.force(balance_state([1e-6, 1e-5, 1e-4], -40.0)) == 0.0)
+
+
+@given(q_lpm=st.floats(1.0, 12.0), u_mm=st.floats(0.03, 0.6),
+       leak_lpm_per_bar=st.floats(1e-4, 0.05), temperature_C=st.floats(20.0, 60.0))
+@settings(max_examples=40, deadline=None)
+def test_laminar_leakage_splits_the_flow_between_restriction_and_clearance(
+        valve, grid_maps, q_lpm, u_mm, leak_lpm_per_bar, temperature_C):
+    flow_map, force_map = grid_maps
+    model = ValveModel(valve, flow_map, force_map,
+                       [LaminarLeakage(G=to_si(leak_lpm_per_bar, "L/min/bar"))])
+    points = OperatingPoints.from_display(np.array([q_lpm]), np.array([60.0]), np.array([5.0]),
+                                          np.array([temperature_C]))
+    fluid = model.fluid(points)
+    u = to_si(u_mm, "mm")
+    dp = model.pressure_drop(u, points, fluid)
+    # the restriction passes what the clearance does not, and at that flow the map gives the
+    # same pressure drop
+    through_restriction = points.q - model.effect("laminar_leakage").leakage(dp, None)
+    assert 0.0 < through_restriction[0] <= points.q[0]
+    expected = flow_map.pressure_drop(through_restriction, points.p_B, np.array([u]), fluid)
+    assert dp == pytest.approx(expected, rel=1e-7)

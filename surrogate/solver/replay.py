@@ -90,11 +90,11 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         both = concatenate([points.replace(direction=np.full(count, OPENING)),
                             points.replace(direction=np.full(count, CLOSING))])
         start = None if guess is None else guess.band.ravel()
-        edges = solve_steady(model, both, guess=start)
+        edges = solve_steady(model, both, guess=start, positions_only=True)
         u_edges, status_edges = edges.u.reshape(2, count), edges.status.reshape(2, count)
     else:
         start = None if guess is None else guess.band[0]
-        edge = solve_steady(model, points, friction=False, guess=start)
+        edge = solve_steady(model, points, friction=False, guess=start, positions_only=True)
         u_edges = np.vstack([edge.u, edge.u])
         status_edges = np.vstack([edge.status, edge.status])
 

@@ -122,7 +122,7 @@ class SteadyState:
 
 
 def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool = True,
-                 guess: np.ndarray | None = None) -> SteadyState:
+                 guess: np.ndarray | None = None, positions_only: bool = False) -> SteadyState:
     """Solve the force balance at every point.
 
     Parameters
@@ -136,6 +136,9 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
         Expected opening of each point [m] (NaN for none), e.g. the solution for nearby
         parameters during a fit. Points whose root lies within ±2 % of it are solved from that
         narrow bracket, which takes a few iterations instead of a dozen; the answer is the same.
+    positions_only : bool
+        True skips what only a caller of the pressure drop needs: ``dp`` of flowing points stays
+        NaN and ``extrapolating`` False. The replay asks for the friction band's edges this way.
     """
     count = len(points)
     u = np.full(count, np.nan)
@@ -148,21 +151,23 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
     flowing = np.flatnonzero(~invalid & (points.q > 0))
     if flowing.size:
         _solve_flowing(model, points[flowing], sign[flowing], flowing, u, dp, status,
-                       None if guess is None else np.asarray(guess, float)[flowing])
+                       None if guess is None else np.asarray(guess, float)[flowing],
+                       with_dp=not positions_only)
     still = np.flatnonzero(~invalid & (points.q == 0))
     if still.size:
         _solve_still(model, points[still], sign[still], still, u, dp, status)
 
     extrapolating = np.zeros(count, dtype=bool)
     solved = np.flatnonzero(status >= 0)
-    if solved.size:
+    if solved.size and not positions_only:
         sub = points[solved]
         extrapolating[solved] = model.extrapolating(u[solved], sub.p_B + dp[solved], sub,
                                                     model.fluid(sub))
     return SteadyState(points, u, dp, status, extrapolating)
 
 
-def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=None) -> None:
+def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=None,
+                   with_dp=True) -> None:
     fluid = model.fluid(points)
     stroke = model.valve.U_max
     floor = stroke * _OPENING_FLOOR
@@ -182,23 +187,27 @@ def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=
     count = len(points)
     u = np.full(count, np.nan)
     status = np.full(count, Status.NOT_CONVERGED, dtype=np.int8)
-    at_top = residual(np.full(count, stroke), np.arange(count))
-    broken = ~np.isfinite(at_top)
-    at_stop = ~broken & (at_top >= 0)
-    status[broken] = Status.MAP_FAILURE
-    u[at_stop], status[at_stop] = stroke, Status.AT_STOP
-    pending = np.flatnonzero(~broken & ~at_stop)
+    pending = np.arange(count)
 
-    if guess is not None and pending.size:  # try the narrow bracket around the guess first
+    if guess is not None:  # try the narrow bracket around the guess first
         centre = guess[pending]
         usable = pending[np.isfinite(centre) & (centre > floor) & (centre < stroke)]
         centre = guess[usable]
         lower = np.maximum(floor, centre * (1 - _GUESS_WIDTH))
         upper = np.minimum(stroke, centre * (1 + _GUESS_WIDTH))
+        # a sign change inside the stroke: the root is there, and the piston is off its stop
         inside = (residual(lower, usable) > 0) & (residual(upper, usable) < 0)
         if inside.any():
             solve_in(lower[inside], upper[inside], usable[inside])
         pending = np.setdiff1d(pending, usable[inside])
+
+    if pending.size:
+        at_top = residual(np.full(pending.size, stroke), pending)
+        broken = ~np.isfinite(at_top)
+        at_stop = ~broken & (at_top >= 0)
+        status[pending[broken]] = Status.MAP_FAILURE
+        u[pending[at_stop]], status[pending[at_stop]] = stroke, Status.AT_STOP
+        pending = pending[~broken & ~at_stop]
 
     if pending.size:
         at_floor = residual(np.full(pending.size, floor), pending)
@@ -209,9 +218,10 @@ def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=
         bracketed = pending[~broken_floor & ~no_equilibrium]
         solve_in(np.full(bracketed.size, floor), np.full(bracketed.size, stroke), bracketed)
 
-    solved = np.flatnonzero(status >= 0)
     dp = np.full(count, np.nan)
-    dp[solved] = model.balance(u[solved], points[solved], fluid[solved]).dp
+    if with_dp:
+        solved = np.flatnonzero(status >= 0)
+        dp[solved] = model.balance(u[solved], points[solved], fluid[solved]).dp
     u_out[where], dp_out[where], status_out[where] = u, dp, status
 
 

@@ -11,7 +11,8 @@ Procedure
    replayed for real and the Jacobian is corrected by Broyden's update (one replay per step
    instead of one per parameter). The reported RMS is that of a real replay at the reported
    parameters, never a linear estimate. Standard errors come from the final Jacobian, inflated by
-   √(n/n_eff) because the samples are not independent.
+   √(n/n_eff) because the samples are not independent. The candidates are independent of each
+   other and are refitted side by side on threads (:mod:`..parallel`).
 4. Judge each candidate by ΔBIC = n_eff·ln(RSS_after/RSS_before) + k·ln(n_eff), with k its
    number of parameters.
 
@@ -42,6 +43,7 @@ from ..data.loaders import BenchLog
 from ..effects import REGISTRY, Effect
 from ..fitting import FAILURE_RESIDUAL, free_parameters
 from ..model import ValveModel
+from ..parallel import map_threads
 from ..units import from_si
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log
 
@@ -120,7 +122,7 @@ def candidate_effects(model: ValveModel, names: Iterable[str] | None = None) -> 
 
 def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | None = None,
              base: LogReplay | None = None, steps: int = REFINE_STEPS,
-             progress=None) -> Diagnosis:
+             progress=None, workers: int | None = None) -> Diagnosis:
     """Rank the candidate effects by how much of the residual they explain (see module doc).
 
     Parameters
@@ -136,6 +138,9 @@ def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | No
         Gauss–Newton steps (one replay each) per candidate after the linear solution.
     progress : callable, optional
         Called with a line of text as the work proceeds.
+    workers : int, optional
+        Threads refitting candidates side by side (default :func:`..parallel.default_workers`);
+        the result does not depend on it.
     """
     say = progress or (lambda message: None)
     base = base or replay_log(model, log)
@@ -149,18 +154,23 @@ def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | No
 
     own = free_parameters(model)
     say(f"linearising the replay in the model's {len(own)} free parameter(s)")
-    own_columns = [problem.column(model, effect.name, parameter.name)
-                   for _, effect, parameter in own]
+    own_columns = list(map_threads(
+        lambda entry: problem.column(model, entry[1].name, entry[2].name), own, workers=workers))
     classes = candidate_effects(model, candidates)
-    results = []
-    for number, cls in enumerate(classes, start=1):
+
+    def try_candidate(cls: type[Effect]) -> Candidate:
         trial = model.copy()
         trial.effects.append(cls())
         columns = [problem.column(trial, cls.name, name)
                    for name, parameter in trial.effect(cls.name).params.items() if parameter.vary]
-        candidate = problem.refit(cls, trial, own_columns + columns, len(columns), steps)
+        return problem.refit(cls, trial, own_columns + columns, len(columns), steps)
+
+    results = []
+    # the candidates are independent: refit them side by side
+    for number, candidate in enumerate(map_threads(try_candidate, classes, workers=workers),
+                                       start=1):
         results.append(candidate)
-        say(f"  [{number}/{len(classes)}] {cls.name}: rms "
+        say(f"  [{number}/{len(classes)}] {candidate.name}: rms "
             f"{from_si(candidate.rms_after, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}")
     results.sort(key=lambda c: c.rms_after)
     for candidate in results:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 
 import numpy as np
@@ -24,10 +25,14 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
     widened for the residuals' correlation in time (:func:`.residuals.effective_samples`).
     """
     last = {"replay": start}
+    caller = threading.get_ident()
 
     def residuals(candidate: ValveModel):
         played = replay_log(candidate, log, guess=last["replay"], extrapolation=False)
-        last["replay"] = played
+        # only the fit's own steps move the warm start: the Jacobian's columns, on other threads,
+        # start from the point they differentiate at, so the result does not depend on timing
+        if threading.get_ident() == caller:
+            last["replay"] = played
         return played.residual
 
     result = fit(model, residuals, names, max_evaluations=max_evaluations, tolerance=tolerance)

@@ -143,11 +143,12 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     steps: list[Step] = []
 
     def record(model: ValveModel, added: list[str], reason: str,
-               diagnosis: Diagnosis | None = None) -> Step:
+               diagnosis: Diagnosis | None = None, near: LogReplay | None = None) -> Step:
+        """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step."""
         if any(p.vary for _, p in model.parameters()):
-            previous = steps[-1].played if steps and steps[-1].model.flow_map is model.flow_map \
-                else None
-            model = fit_to_log(model, log, start=previous).model
+            if near is None and steps and steps[-1].model.flow_map is model.flow_map:
+                near = steps[-1].played
+            model = fit_to_log(model, log, start=near).model
         played = replay_log(model, log)
         step = Step(model, added, reason, played, played.rms(), diagnosis)
         steps.append(step)
@@ -173,10 +174,9 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
         best = diagnosis.best
         if best is None or additions == max_additions:
             break
-        model = current.model.with_effects([*current.model.effects,
-                                            best.model.effect(best.name)],
-                                           name=f"{current.model.name}+{best.name}")
-        record(model, [best.name], diagnosis.summary, diagnosis)
+        # the diagnosis already refitted every parameter with the effect added: polish that
+        record(best.model.copy(name=f"{current.model.name}+{best.name}"), [best.name],
+               diagnosis.summary, diagnosis, near=best.replay)
         additions += 1
     floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs)
     return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began)
