@@ -5,7 +5,9 @@ Measures, in one run on this machine:
 * one diagnose over the whole library on the full shipped log (12 runs, 11,000 samples),
   against the cost of one replay of the log measured in the same run;
 * the full workflow (paper's steps, then diagnose → add until nothing significant is left);
-* the identification rate over randomised hidden-effect cases on the shipped test sequence.
+* the identification rate over randomised hidden-effect cases on the shipped test sequence;
+* on a synthetic log with nothing hidden, the true model's RMS over the noise floor with the
+  classic friction play and with the replay's smoothed friction state.
 
 Writes results/workbench/benchmark.json and prints a summary. Run:
 ``python eval/workbench.py [--cases 20] [--every 4]`` (about 10 minutes on 2 cores).
@@ -21,21 +23,44 @@ from pathlib import Path
 import numpy as np
 
 from surrogate.data import load_bench_log
+from surrogate.modelfile import preset
 from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.points import OperatingPoints
+from surrogate.solver import replay
 from surrogate.units import from_si
 from surrogate.workbench.diagnose import diagnose
 from surrogate.workbench.fit import fit_to_log
-from surrogate.workbench.residuals import replay_log
+from surrogate.workbench.residuals import (measured_dp, noise_floor, replay_log,
+                                           state_smoothing_samples)
 from surrogate.workbench.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case,
                                           noise_free_sequence)
 from surrogate.workbench.workflow import run_workflow
-from surrogate.modelfile import preset
 
 
 def timed(function, *args, **kwargs):
     start = time.perf_counter()
     value = function(*args, **kwargs)
     return value, time.perf_counter() - start
+
+
+def replay_noise_control(log, seed: int = 1) -> dict:
+    """The true model on a synthetic log with nothing hidden (full test sequence): its residual
+    RMS over the noise floor with the classic play and with the workbench's smoothed state."""
+    case = hidden_effect_case(None, sequence=noise_free_sequence(log), seed=seed)
+    points = OperatingPoints.from_bench(case.log.frame)
+    runs = case.log.frame["run"].to_numpy()
+    measured = measured_dp(case.log)
+    result = {}
+    for label, window in (("classic play", 1),
+                          ("smoothed state", state_smoothing_samples(case.log))):
+        played = replay(case.truth, points, runs, smoothing=window)
+        residual = np.where(played.ok, played.dp - measured, np.nan)
+        rms = float(np.sqrt(np.nanmean(residual**2)))
+        floor = noise_floor(residual, runs)
+        result[label] = {"window_samples": window, "rms_bar": round(float(from_si(rms, "bar")), 3),
+                         "noise_floor_bar": round(float(from_si(floor, "bar")), 3),
+                         "rms_over_noise": round(rms / floor, 3)}
+    return result
 
 
 def main() -> None:
@@ -57,6 +82,11 @@ def main() -> None:
     print(f"workflow: {workflow_seconds:.1f} s, {len(workflow.steps)} steps, final rms "
           f"{from_si(workflow.final.rms, 'bar'):.3f} bar, noise floor "
           f"{from_si(workflow.noise_floor, 'bar'):.3f} bar")
+
+    control = replay_noise_control(log)
+    for label, entry in control.items():
+        print(f"control (nothing hidden), true model, {label}: rms {entry['rms_bar']:.3f} bar = "
+              f"{entry['rms_over_noise']:.2f}x the noise floor")
 
     sequence = noise_free_sequence(log, every=args.every)
     rng = np.random.default_rng(7)
@@ -88,6 +118,7 @@ def main() -> None:
         "diagnose_in_replays": round(diagnose_seconds / replay_seconds, 1),
         "workflow_seconds": round(workflow_seconds, 1),
         "workflow": workflow.to_json(),
+        "control_true_model": control,
         "identification_rate": rate, "cases": cases, "every": args.every,
     }
     (out / "benchmark.json").write_text(json.dumps(document, indent=2) + "\n")

@@ -89,6 +89,45 @@ def test_play_gives_the_hand_computed_hysteresis_loop(valve):
     assert width == pytest.approx(2 * K1 / valve.A_L, rel=1e-3)
 
 
+def test_smoothed_state_does_not_ratchet_on_pilot_noise(valve):
+    """Sensor noise on p_P: the classic play's piston follows the running maximum of the noise
+    while it slides open, so its pressure drop runs low on the up-ramp, and it keeps a lead where
+    friction holds it after the turn. The play on smoothed edges (7 samples, as the workbench's
+    replay of a 25 Hz log) removes most of both."""
+    model = basic_model(valve, effects=[ConstantFriction(K1=12.0)])
+    q = np.concatenate([np.linspace(1, 12, 500), np.linspace(12, 1, 500)]) * LPM
+    p_B, p_Pe = 3 * BAR, 50 * BAR
+    truth = replay(model, OperatingPoints.create(q, p_Pe + p_B, p_B, 313.15))
+    held = np.flatnonzero(~truth.moving[500:]) + 500  # after the turn, before sliding back
+    rising = np.arange(50, 450)
+    assert len(held) > 20
+    bias, lead = {}, {}
+    for window in (1, 7):
+        ramp_errors, leads = [], []
+        for seed in range(3):
+            noise = 0.3 * BAR * np.random.default_rng(seed).standard_normal(len(q))
+            noisy = OperatingPoints.create(q, p_Pe + p_B + noise, p_B, 313.15)
+            played = replay(model, noisy, smoothing=window)
+            ramp_errors.append(np.mean(played.dp[rising] - truth.dp[rising]))
+            leads.append(np.median(played.u[held] - truth.u[held]))
+        bias[window], lead[window] = np.mean(ramp_errors), np.mean(leads)
+    assert bias[1] < -0.1 * BAR and lead[1] > 0  # the classic play ratchets
+    assert abs(bias[7]) < 0.3 * abs(bias[1])
+    assert abs(lead[7]) < 0.6 * lead[1]
+
+
+def test_smoothing_of_noise_free_ramps_keeps_the_hand_computed_loop(valve):
+    """On noise-free straight ramps the smoothed state is the classic play's: the filter follows
+    ramps exactly and rounds only the turn, by much less than the friction band."""
+    model = basic_model(valve, effects=[ConstantFriction(K1=12.0)])
+    q = np.concatenate([np.linspace(1, 12, 300), np.linspace(12, 1, 300)]) * LPM
+    points = OperatingPoints.create(q, 53 * BAR, 3 * BAR, 313.15)
+    classic, smoothed = replay(model, points), replay(model, points, smoothing=7)
+    np.testing.assert_allclose(smoothed.dp[:296], classic.dp[:296], rtol=1e-9)
+    band = 2 * 12.0 / valve.A_L  # the friction band in pressure drop, 22 bar
+    assert np.max(np.abs(smoothed.dp - classic.dp)) < 0.01 * band
+
+
 def test_replay_without_friction_is_the_steady_solution(valve, grid_maps):
     flow_map, force_map = grid_maps
     model = ValveModel(valve, flow_map, force_map)

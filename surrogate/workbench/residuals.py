@@ -66,15 +66,34 @@ def measured_dp(log: BenchLog) -> np.ndarray:
     return (log.frame["p_L"] - log.frame["p_B"]).to_numpy()
 
 
+#: time over which the friction state ignores the inputs' sample-to-sample noise [s] (see
+#: :mod:`surrogate.solver.replay`): 7 samples at 25 Hz. On a noisy ramp that already removes the
+#: ratchet's bias; longer windows round the turns of the ramps, and the state then turns short
+#: of the real piston (tests/test_solver.py::test_smoothed_state_does_not_ratchet_on_pilot_noise)
+STATE_SMOOTHING = 0.28
+
+
+def state_smoothing_samples(log: BenchLog, seconds: float = STATE_SMOOTHING) -> int:
+    """The odd number of samples spanning ``seconds`` [s] at the log's median sampling interval."""
+    frame = log.frame
+    steps = frame["time"].diff()[frame["run"].eq(frame["run"].shift())]
+    interval = float(steps.median()) if len(steps) else float("nan")
+    if not np.isfinite(interval) or interval <= 0:
+        return 1
+    return int(round(seconds / interval)) // 2 * 2 + 1
+
+
 def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = None,
                extrapolation: bool = True) -> LogReplay:
-    """Replay every run of ``log`` with ``model`` (friction as a play within each run).
+    """Replay every run of ``log`` with ``model`` (friction as a play within each run, its state
+    blind to the inputs' sample-to-sample noise over :data:`STATE_SMOOTHING`).
 
     ``guess``: a replay of the same log with nearby parameters, to start the solver from.
     """
     points = OperatingPoints.from_bench(log.frame)
     played = replay(model, points, log.frame["run"].to_numpy(),
-                    guess=None if guess is None else guess.replay, extrapolation=extrapolation)
+                    guess=None if guess is None else guess.replay, extrapolation=extrapolation,
+                    smoothing=state_smoothing_samples(log))
     measured = measured_dp(log)
     residual = np.where(played.ok, played.dp - measured, np.nan)
     return LogReplay(log, played, measured, residual)
