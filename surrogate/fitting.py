@@ -144,6 +144,7 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
     start = np.clip(start, lower, upper)
 
     names = [name for name, _, _ in chosen]
+    parameters = [p for _, _, p in chosen]
 
     def assign(parameters: list[Parameter], x):
         for parameter, unit, value in zip(parameters, units, x):
@@ -152,7 +153,7 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
     last: dict = {"x": None, "values": None}
 
     def objective(x):
-        assign([p for _, _, p in chosen], x)
+        assign(parameters, x)
         values = evaluate(fitted)
         last["x"], last["values"] = np.array(x), values
         return values
@@ -174,7 +175,7 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
     result = least_squares(objective, start, jac=jacobian, bounds=(lower, upper),
                            x_scale="jac", max_nfev=max_evaluations, ftol=tolerance,
                            xtol=tolerance)
-    assign([p for _, _, p in chosen], result.x)
+    assign(parameters, result.x)
     final = evaluate(fitted)
     covariance = _covariance(result.jac, final, len(chosen))
     scales = np.array([to_si(1.0, unit) - to_si(0.0, unit) for unit in units])
@@ -186,9 +187,9 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
     with np.errstate(invalid="ignore", divide="ignore"):
         correlation = covariance / np.outer(errors, errors)
     aic, bic = information_criteria(final, len(chosen))
-    return FitResult(fitted, [name for name, _, _ in chosen], _rms(final), len(final), aic, bic,
+    return FitResult(fitted, names, _rms(final), len(final), aic, bic,
                      correlation, bool(result.success), str(result.message), int(result.nfev),
-                     [p for _, _, p in chosen])
+                     parameters)
 
 
 def _forward_steps(x: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -165,8 +165,8 @@ class ValveModel:
         # the leakage path and the restriction see the same Δp and share the flow q: find the
         # restriction's share q_r in [0, q] with g(q_r) = q_r + leak(Δp_r(q_r)) − q = 0, which
         # rises with q_r. Each step solves that equation with Δp_r(q_r) replaced by the power law
-        # through the last two evaluations of the map (an orifice is close to one, so the steps
-        # converge in two or three map evaluations), kept inside the bracket on q_r.
+        # through the last two evaluations of the map (an orifice is close to one), kept inside
+        # the bracket on q_r; on the shipped log most samples converge after three map calls.
         def leak(x, sub):
             return sum(effect.leakage(x, sub) for effect in leaks)
 
@@ -189,7 +189,7 @@ class ValveModel:
             g = current + leak(drop, sub) - wanted
             lower = np.where(g < 0, current, low[active])
             upper = np.where(g >= 0, current, high[active])
-            # converged: the flows balance to 1e-10 of q (so the leak, and Δp, to ~1e-10), or
+            # converged: the flows balance to 1e-9 of q (so the leak, and Δp, to ~1e-9), or
             # the bracket is down to rounding (the restriction passes almost nothing)
             done = (np.abs(g) <= 1e-9 * wanted) | (upper - lower <= 1e-12 * upper)
             with np.errstate(divide="ignore", invalid="ignore"):

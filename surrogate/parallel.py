@@ -3,8 +3,8 @@
 A replay of a bench log spends most of its time inside NumPy on arrays of tens of thousands of
 samples, where the interpreter lock is released, so threads overlap most of the work without the
 cost and fragility of processes (no pickling of maps, no forking a process that holds PyTorch).
-Measured on a 2-core machine: two replays on two threads take 0.68 of the time they take one
-after the other (eval/workbench.py reports the diagnosis' speed).
+Measured once by hand on a 2-core machine: two replays on two threads took 0.68 of the time they
+take one after the other; eval/workbench.py reports the diagnosis' speed that results.
 """
 
 from __future__ import annotations

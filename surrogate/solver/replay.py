@@ -22,9 +22,10 @@ piston's *state* (where friction holds it) is therefore played on the band edges
 that many samples (a centred quadratic Savitzky–Golay filter within each run, which follows ramps
 and their curvature without lag), while the *prediction* of a sliding sample is the edge at that
 sample's own measured inputs, as before: the model still answers each sample's inputs, it just
-does not let their noise push the friction state around. On synthetic logs made with the
-package's own valve (:mod:`surrogate.workbench.simulate`) the true model's residual then falls to
-within a few per cent of the noise floor, where the classic play leaves it ~1.4 times above.
+does not let their noise push the friction state around. On a synthetic log made with the
+package's own valve (:mod:`surrogate.workbench.simulate`, nothing hidden) the true model's residual
+RMS is 1.14 times the noise floor with 7 samples, 1.37 times with the classic play
+(``python eval/workbench.py`` prints both).
 """
 
 from __future__ import annotations
