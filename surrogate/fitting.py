@@ -102,7 +102,9 @@ def free_parameters(model: ValveModel, names: Sequence[str] | None = None
 
 def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
         names: Sequence[str] | None = None, *, max_evaluations: int = 200,
-        tolerance: float = 1e-8) -> FitResult:
+        tolerance: float = 1e-8,
+        scoped: Callable[[ValveModel, str], tuple[np.ndarray, np.ndarray]] | None = None
+        ) -> FitResult:
     """Fit the free parameters of ``model`` to minimise the sum of squared ``residuals``.
 
     Parameters
@@ -120,6 +122,11 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
         Limit on residual evaluations (not counting those for the Jacobian).
     tolerance : float
         Relative change in the sum of squares, and in the parameters, below which the fit stops.
+    scoped : callable, optional
+        ``scoped(model, scope)`` returns ``(rows, values)``: the positions of the residuals a
+        parameter with that ``scope`` (a run) can change, and their values for ``model``. The
+        Jacobian's column of such a parameter then costs only those residuals; without it, every
+        column evaluates them all.
     """
     fitted = model.copy()
     chosen = free_parameters(fitted, names)
@@ -168,7 +175,14 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
             shifted = np.array(x, float)
             shifted[j] += steps[j]
             assign([p for _, _, p in free_parameters(trial, names)], shifted)
-            return (evaluate(trial) - at_x) / steps[j]
+            scope = parameters[j].scope
+            if scope is None or scoped is None:
+                return (evaluate(trial) - at_x) / steps[j]
+            rows, values = scoped(trial, scope)
+            values = np.where(np.isfinite(values), values, FAILURE_RESIDUAL)
+            change = np.zeros_like(at_x)
+            change[rows] = (values - at_x[rows]) / steps[j]
+            return change
 
         return np.column_stack(list(map_threads(column, range(len(x)))))
 

@@ -135,7 +135,7 @@ def _effect_from_entry(entry: dict, source: str, index: int) -> Effect:
     except InputError as error:
         hint = f" (its source was {entry['source']})" if "source" in entry else ""
         raise InputError(f"{where}: {error}{hint}") from None
-    effect = cls()
+    effect = cls.for_parameters(list(entry.get("parameters", {})))
     for key, spec in entry.get("parameters", {}).items():
         if key not in effect.params:
             raise InputError(f"{where} ({cls.name}): unknown parameter {key!r}; it has "

@@ -31,6 +31,9 @@ class OperatingPoints:
     direction : numpy.ndarray of int
         +1 while the piston opens (flow ramping up), −1 while it closes (ramping down), 0 for a
         point without history (friction left out). Selects the side of the friction band.
+    run : numpy.ndarray of str, or None
+        The bench run each point belongs to, for effects whose parameters differ from run to run
+        (:mod:`surrogate.effects.per_run`); None for points that belong to no run.
     """
 
     q: np.ndarray
@@ -38,6 +41,7 @@ class OperatingPoints:
     p_B: np.ndarray
     temperature: np.ndarray
     direction: np.ndarray
+    run: np.ndarray | None = None
 
     def __post_init__(self):
         arrays = np.broadcast_arrays(*(np.asarray(getattr(self, name), float)
@@ -45,6 +49,12 @@ class OperatingPoints:
                                      np.asarray(self.direction, np.int8))
         for name, array in zip(("q", "p_P", "p_B", "temperature", "direction"), arrays):
             object.__setattr__(self, name, np.ascontiguousarray(array).ravel())
+        if self.run is not None:
+            # fixed-width text, not objects: effects compare labels on every model evaluation
+            run = np.asarray(self.run).astype(str, copy=False).ravel()
+            if run.shape != self.q.shape:
+                raise InputError(f"{run.size} run labels for {self.q.size} operating points")
+            object.__setattr__(self, "run", run)
 
     @classmethod
     def create(cls, q, p_P, p_B, temperature, direction=STEADY) -> "OperatingPoints":
@@ -56,7 +66,7 @@ class OperatingPoints:
         """The points of a bench log's SI frame (:class:`surrogate.data.BenchLog`)."""
         return cls(frame["q"].to_numpy(), frame["p_P"].to_numpy(), frame["p_B"].to_numpy(),
                    frame["temperature"].to_numpy(),
-                   frame["direction"].map(_DIRECTIONS).to_numpy())
+                   frame["direction"].map(_DIRECTIONS).to_numpy(), frame["run"].to_numpy())
 
     @classmethod
     def from_display(cls, q_lpm, p_P_bar, p_B_bar, temperature_C,
@@ -70,12 +80,13 @@ class OperatingPoints:
 
     def __getitem__(self, index) -> "OperatingPoints":
         return OperatingPoints(self.q[index], self.p_P[index], self.p_B[index],
-                               self.temperature[index], self.direction[index])
+                               self.temperature[index], self.direction[index],
+                               None if self.run is None else self.run[index])
 
     def replace(self, **arrays) -> "OperatingPoints":
         """A copy with some attributes replaced (e.g. corrected sensor readings)."""
         values = {name: getattr(self, name) for name in
-                  ("q", "p_P", "p_B", "temperature", "direction")}
+                  ("q", "p_P", "p_B", "temperature", "direction", "run")}
         values.update(arrays)
         return OperatingPoints(**values)
 
@@ -90,5 +101,9 @@ def concatenate(batches: list[OperatingPoints]) -> OperatingPoints:
     """One batch made of several."""
     if not batches:
         raise InputError("no operating points")
-    return OperatingPoints(*(np.concatenate([getattr(b, name) for b in batches])
-                             for name in ("q", "p_P", "p_B", "temperature", "direction")))
+    arrays = [np.concatenate([getattr(b, name) for b in batches])
+              for name in ("q", "p_P", "p_B", "temperature", "direction")]
+    # run labels survive only if every batch has them
+    labelled = all(b.run is not None for b in batches)
+    run = np.concatenate([b.run for b in batches]) if labelled else None
+    return OperatingPoints(*arrays, run)

@@ -33,7 +33,7 @@ def run(args) -> int:
     if already:
         raise InputError(f"model {model.name!r} has {', '.join(already)} already")
     name = "+".join([model.name, *args.add])
-    model = model.with_effects([*model.effects, *(cls() for cls in classes)], name=name)
+    model = model.with_effects([*model.effects, *(cls.for_runs(log.run_ids) for cls in classes)], name=name)
     progress(f"fitting {name}")
     result = fit_to_log(model, log)
     played = replay_log(result.model, log)

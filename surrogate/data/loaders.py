@@ -91,6 +91,10 @@ class BenchLog:
         groups = dict(tuple(self.frame.groupby("run", sort=False)))
         return [BenchRun(run, groups[run].reset_index(drop=True)) for run in self.run_ids]
 
+    def take(self, rows) -> "BenchLog":
+        """The log of these rows (positions), e.g. one run's, for a replay of that run alone."""
+        return BenchLog(self.frame.iloc[rows].reset_index(drop=True), self.source)
+
     def run(self, run_id: str) -> BenchRun:
         """One run by its id."""
         frame = self.frame[self.frame["run"] == run_id]

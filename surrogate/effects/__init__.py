@@ -11,7 +11,8 @@ from .flow import DischargeScale, LaminarLeakage
 from .flow_force import BackPressureFlowForce, FlowForceScale, NearSeatFlowForce
 from .friction import (ConstantFriction, LoadPressureFriction, PilotDifferentialFriction,
                        PilotPressureFriction, SealPressureFriction, ViscousFriction)
-from .sensors import FlowmeterGain, PilotTransducerOffset
+from .per_run import PerRunEffect
+from .sensors import FlowmeterGain, PilotTransducerOffset, PilotZeroDrift
 from .spring import ProgressiveSpring, SpringPreloadOffset
 
 #: the library, by name (custom effects are added when their file is loaded)
@@ -41,10 +42,11 @@ def effect_class(name: str) -> type[Effect]:
 BUILT_IN = (FlowForceScale, BackPressureFlowForce, NearSeatFlowForce, SpringPreloadOffset,
             ProgressiveSpring, ConstantFriction, LoadPressureFriction, PilotPressureFriction,
             SealPressureFriction, PilotDifferentialFriction, ViscousFriction, DischargeScale,
-            LaminarLeakage, PilotTransducerOffset, FlowmeterGain)
+            LaminarLeakage, PilotTransducerOffset, PilotZeroDrift, FlowmeterGain)
 for _cls in BUILT_IN:
     register(_cls)
 
 __all__ = ["BUILT_IN", "KINDS", "REGISTRY", "BalanceState", "Effect", "FlowState", "Parameter",
+           "PerRunEffect",
            "custom_effect", "effect_class", "load_effects_file", "register", *(
                c.__name__ for c in BUILT_IN)]

@@ -55,6 +55,9 @@ class Parameter:
         What it means, in words.
     stderr : float or None
         Standard error from the last fit [SI], if any.
+    scope : str or None
+        The bench run it acts on, for a parameter that changes only that run's samples (see
+        :mod:`.per_run`); a fit then differentiates it by replaying that run alone.
     """
 
     name: str
@@ -65,6 +68,7 @@ class Parameter:
     vary: bool = True
     description: str = ""
     stderr: float | None = None
+    scope: str | None = None
 
     @property
     def display_value(self) -> float:
@@ -186,6 +190,17 @@ class Effect:
 
     def copy(self) -> "Effect":
         return copy.deepcopy(self)
+
+    @classmethod
+    def for_runs(cls, runs: list[str]) -> "Effect":
+        """The effect, off, ready to be fitted to a log with these runs (the same for every
+        effect but those with a parameter per run, :mod:`.per_run`)."""
+        return cls()
+
+    @classmethod
+    def for_parameters(cls, names: list[str]) -> "Effect":
+        """The effect, off, with parameters of these names (as a model file lists them)."""
+        return cls()
 
     # hooks: return None to contribute nothing
     def correct_inputs(self, points):

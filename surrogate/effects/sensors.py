@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ..units import BAR
 from .base import Effect, Parameter
+from .per_run import PerRunEffect
 
 
 class PilotTransducerOffset(Effect):
@@ -22,6 +23,28 @@ class PilotTransducerOffset(Effect):
 
     def correct_inputs(self, points):
         return points.replace(p_P=points.p_P - self["delta"])
+
+
+class PilotZeroDrift(PerRunEffect):
+    """A pilot-pressure transducer offset δ that differs from run to run (its zero drifts or is
+    reset between tests): true p_P = measured p_P − δ_run.
+
+    Within a run it acts as :class:`PilotTransducerOffset` does, a constant force A_P·δ that shifts
+    the sliding piston's characteristic by about α_P·δ in Δp; from run to run it changes at random,
+    following neither temperature nor pilot set point.
+    """
+
+    name = "pilot_zero_drift"
+    kind = "sensor"
+    title = "pilot-pressure transducer zero, different in each run"
+    template = Parameter("delta", 0.0, "bar", min=-2.0 * BAR, max=2.0 * BAR,
+                         description="reading minus true pilot pressure in this run")
+    validity = ("One offset per run of the log it was fitted to; other runs get none. A run whose "
+                "piston sits on its stop does not feel the pilot pressure and leaves its offset "
+                "undetermined. Within a run, indistinguishable from any constant force.")
+
+    def correct_inputs(self, points):
+        return points.replace(p_P=points.p_P - self.per_point(points))
 
 
 class FlowmeterGain(Effect):

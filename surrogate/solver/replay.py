@@ -80,6 +80,11 @@ class Replay:
     def ok(self) -> np.ndarray:
         return self.status >= 0
 
+    def take(self, index) -> "Replay":
+        """The replay of some samples only (whole runs, for the friction state to make sense)."""
+        return Replay(self.points[index], self.u[index], self.dp[index], self.status[index],
+                      self.moving[index], self.extrapolating[index], self.band[:, index])
+
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
            u_start: float = 0.0, guess: Replay | None = None,

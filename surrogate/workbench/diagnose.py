@@ -9,12 +9,15 @@ Procedure
 3. *Refit* every candidate together with the model's free parameters: bounded linear least
    squares on the linearisation, then a few Gauss–Newton steps in which every new point is
    replayed for real and the Jacobian is corrected by Broyden's update (one replay per step
-   instead of one per parameter). The reported RMS is that of a real replay at the reported
-   parameters, never a linear estimate. Standard errors come from the final Jacobian, inflated by
+   instead of one per parameter). Only the four front runners after the first real replay (and
+   any as good as the last of them) take those steps; the others keep the RMS of that first
+   replay, an upper bound, as they are far behind. The reported RMS is that of a real replay at
+   the reported parameters, never a linear estimate. Standard errors come from the final Jacobian, inflated by
    √(n/n_eff) because the samples are not independent. The candidates are independent of each
    other and are refitted side by side on threads (:mod:`..parallel`).
 4. Judge each candidate by ΔBIC = n_eff·ln(RSS_after/RSS_before) + k·ln(n_eff), with k its
-   number of parameters.
+   number of parameters the data inform, and rank them by it, best (most negative) first: among
+   candidates with as many parameters this is the order of their RMS.
 
 Significance rule
 -----------------
@@ -45,7 +48,8 @@ from ..fitting import FAILURE_RESIDUAL, free_parameters
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
-from .residuals import LogReplay, effective_samples, noise_floor, replay_log
+from .fit import felt
+from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
 
 BIC_THRESHOLD = -10.0
 NOISE_MARGIN = 1.1  # the residual must exceed the noise floor by 10 %
@@ -54,7 +58,8 @@ GAIN_FRACTION = 0.05  # and a candidate must remove at least 5 % of the noise fl
 # ~10 % low when friction holds the piston (input noise then reaches Δp in bursts, not white)
 NOISE_LEVEL = 1.3
 SAME_DIRECTION = 0.98  # cosine of two prediction changes above which they act alike
-REFINE_STEPS = 4  # Gauss–Newton steps per candidate after the linear solution
+REFINE_STEPS = 4  # Gauss–Newton steps per front-running candidate after the linear solution
+REFINED = 4  # candidates refined by those steps (with any as good as the last of them)
 _STEP_FRACTION = 0.02  # finite-difference step: 2 % of a parameter's range (or of its value)
 
 
@@ -154,25 +159,42 @@ def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | No
 
     own = free_parameters(model)
     say(f"linearising the replay in the model's {len(own)} free parameter(s)")
-    own_columns = list(map_threads(
-        lambda entry: problem.column(model, entry[1].name, entry[2].name), own, workers=workers))
+    own_columns = [column for column in map_threads(
+        lambda entry: problem.column(model, entry[1].name, entry[2].name), own, workers=workers)
+        if column.felt]
     classes = candidate_effects(model, candidates)
 
-    def try_candidate(cls: type[Effect]) -> Candidate:
+    def linearise(cls: type[Effect]) -> tuple[type[Effect], list[_Column]]:
         trial = model.copy()
-        trial.effects.append(cls())
+        trial.effects.append(cls.for_runs(log.run_ids))
         columns = [problem.column(trial, cls.name, name)
                    for name, parameter in trial.effect(cls.name).params.items() if parameter.vary]
-        return problem.refit(cls, trial, own_columns + columns, len(columns), steps)
+        # a parameter the data do not feel (a run's pilot offset while its piston sits on the
+        # stop) stays where it is: an empty column leaves the linear step undetermined
+        return cls, [c for c in columns if c.felt]
 
-    results = []
-    # the candidates are independent: refit them side by side
-    for number, candidate in enumerate(map_threads(try_candidate, classes, workers=workers),
-                                       start=1):
-        results.append(candidate)
+    def refit(entry, refine_steps: int) -> Candidate:
+        cls, columns = entry
+        trial = model.copy()
+        trial.effects.append(cls.for_runs(log.run_ids))
+        return problem.refit(cls, trial, own_columns + columns, len(columns), refine_steps)
+
+    # the candidates are independent: linearise and refit them side by side. Every candidate gets
+    # its linear solution replayed for real; only the front runners are refined further, the
+    # others keep that first real RMS (an upper bound: refining only lowers it)
+    linearised = list(map_threads(linearise, classes, workers=workers))
+    first = list(map_threads(lambda entry: refit(entry, 0), linearised, workers=workers))
+    chosen = _front_runners(first)
+    refined = dict(zip(chosen, map_threads(lambda i: refit(linearised[i], steps), chosen,
+                                           workers=workers)))
+    results = [refined.get(i, candidate) for i, candidate in enumerate(first)]
+    for number, candidate in enumerate(results, start=1):
         say(f"  [{number}/{len(classes)}] {candidate.name}: rms "
-            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}")
-    results.sort(key=lambda c: c.rms_after)
+            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
+            + ("" if number - 1 in refined else " (not refined)"))
+    # best first by ΔBIC, which weighs the gain against the parameters it took (an offset per
+    # run always fits a little better than one offset; it must fit better by enough)
+    results.sort(key=lambda c: (c.delta_bic, c.rms_after))
     for candidate in results:
         candidate.significant = (candidate.delta_bic < BIC_THRESHOLD
                                  and rms_before > NOISE_MARGIN * floor
@@ -192,6 +214,7 @@ class _Column:
     parameter: str
     step: float
     change: np.ndarray
+    felt: bool = True  # whether the data determine the parameter (:func:`.fit.felt`)
 
 
 @dataclass
@@ -208,15 +231,24 @@ class _Problem:
         return replay_log(model, self.log, guess=self.base, extrapolation=False)
 
     def column(self, model: ValveModel, effect_name: str, parameter_name: str) -> _Column:
-        """∂Δp/∂parameter · step by a forward difference, warm-started from the base replay."""
+        """∂Δp/∂parameter · step by a forward difference, warm-started from the base replay; a
+        parameter scoped to one run replays that run only."""
         trial = model.copy()
         parameter = trial.effect(effect_name).params[parameter_name]
         step = _step(parameter)
         parameter.value += step
-        played = self.replay(trial)
-        change = played.replay.dp - self.base.replay.dp
+        change = np.zeros(len(self.ok))
+        if parameter.scope is None:
+            change = self.replay(trial).replay.dp - self.base.replay.dp
+            determined = felt(change[self.ok], scoped=False)
+        else:
+            rows = run_rows(self.log, parameter.scope)
+            played = replay_log(trial, self.log.take(rows), guess=self.base.take(rows),
+                                extrapolation=False)
+            change[rows] = played.replay.dp - self.base.replay.dp[rows]
+            determined = felt(change[rows], scoped=True)
         return _Column(effect_name, parameter_name, step,
-                       np.where(np.isfinite(change), change, 0.0)[self.ok])
+                       np.where(np.isfinite(change), change, 0.0)[self.ok], determined)
 
     def refit(self, cls, trial: ValveModel, columns: list[_Column], extra: int,
               steps: int) -> Candidate:
@@ -278,6 +310,17 @@ class _Problem:
         for parameter, error in zip(parameters, errors):
             usable = np.isfinite(error) and not parameter.at_bound
             parameter.stderr = float(error) if usable else None
+
+
+def _front_runners(candidates: list[Candidate]) -> list[int]:
+    """Indices of the candidates worth refining: the :data:`REFINED` best by ΔBIC after their
+    first real replay, and any within 2·|:data:`BIC_THRESHOLD`| of the last of those (so that
+    two candidates the data may not tell apart are refined alike)."""
+    order = sorted(range(len(candidates)), key=lambda i: candidates[i].delta_bic)
+    if len(order) <= REFINED:
+        return order
+    cut = candidates[order[REFINED - 1]].delta_bic - 2.0 * BIC_THRESHOLD
+    return [i for i in order if candidates[i].delta_bic <= cut]
 
 
 def _step(parameter) -> float:

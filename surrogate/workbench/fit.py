@@ -8,9 +8,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..data.loaders import BenchLog
-from ..fitting import FitResult, fit
+from ..fitting import FitResult, fit, free_parameters
 from ..model import ValveModel
-from .residuals import LogReplay, effective_samples, replay_log
+from .residuals import LogReplay, effective_samples, replay_log, run_rows
 
 
 def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = None, *,
@@ -19,13 +19,16 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
     """Least-squares fit of the free parameters (or ``names``) by replaying the whole log.
 
     Each evaluation starts the solver from the previous one (warm start), which halves the cost
-    of a replay; extrapolation flags are skipped inside the fit. The default ``tolerance`` stops
+    of a replay; extrapolation flags are skipped inside the fit. A parameter of one run that the
+    run's samples do not feel (a run's pilot offset while its piston sits on the stop) keeps its
+    value: with a column of zeros in the Jacobian it would only stall the trust region. The default ``tolerance`` stops
     once the sum of squares falls by less than 10⁻⁵ of itself per step: the RMS is then settled to
     a few parts per million, far below anything the workbench compares. Standard errors are
     widened for the residuals' correlation in time (:func:`.residuals.effective_samples`).
     """
     last = {"replay": start}
     caller = threading.get_ident()
+    names = _felt(model, log, names)
 
     def residuals(candidate: ValveModel):
         played = replay_log(candidate, log, guess=last["replay"], extrapolation=False)
@@ -35,7 +38,16 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
             last["replay"] = played
         return played.residual
 
-    result = fit(model, residuals, names, max_evaluations=max_evaluations, tolerance=tolerance)
+    def scoped(candidate: ValveModel, run: str):
+        """A run's residuals alone, for the Jacobian column of a parameter of that run only."""
+        rows = run_rows(log, run)
+        start = last["replay"]
+        played = replay_log(candidate, log.take(rows), extrapolation=False,
+                            guess=None if start is None else start.take(rows))
+        return rows, played.residual
+
+    result = fit(model, residuals, names, max_evaluations=max_evaluations, tolerance=tolerance,
+                 scoped=scoped)
     # fit() evaluates the optimum last; its standard errors count every sample as independent,
     # but bench residuals are correlated in time: widen them by sqrt(n / n_eff)
     final = last["replay"]
@@ -45,3 +57,43 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
             if parameter.stderr is not None:
                 parameter.stderr *= float(inflation)
     return result
+
+
+#: [Pa] a change of the predicted Δp smaller than this is not felt
+FELT = 1.0
+#: a parameter of one run is fitted only if a step of 2 % of its range moves at least this share
+#: of the run's samples by more than :data:`FELT`: a pilot offset of a run whose piston sits on
+#: its stop moves only the few samples before the piston gets there, and fitting it to those
+#: would only fit their noise
+FELT_SHARE = 0.05
+
+
+def felt(change: np.ndarray, scoped: bool) -> bool:
+    """Whether a parameter step that changed the predicted Δp by ``change`` [Pa] (over its run's
+    samples if ``scoped``, else over the whole log) is determined by the data."""
+    moved = np.abs(np.where(np.isfinite(change), change, 0.0)) > FELT
+    return bool(np.mean(moved) >= FELT_SHARE) if scoped else bool(np.any(moved))
+
+
+def _felt(model: ValveModel, log: BenchLog, names: Sequence[str] | None) -> list[str] | None:
+    """``names`` (default: every free parameter) without the run-scoped ones the data ignore."""
+    chosen = free_parameters(model, names)
+    scoped = [(name, effect, p) for name, effect, p in chosen if p.scope is not None]
+    if not scoped:
+        return names
+    ignored = set()
+    for name, effect, parameter in scoped:
+        rows = run_rows(log, parameter.scope)
+        if rows.size == 0:
+            ignored.add(name)
+            continue
+        run = log.take(rows)
+        base = replay_log(model, run, extrapolation=False)
+        trial = model.copy()
+        moved = trial.effect(effect.name).params[parameter.name]
+        span = moved.max - moved.min
+        moved.value += 0.02 * span if moved.value + 0.02 * span <= moved.max else -0.02 * span
+        change = replay_log(trial, run, guess=base, extrapolation=False).replay.dp - base.replay.dp
+        if not felt(change, scoped=True):
+            ignored.add(name)
+    return [name for name, _, _ in chosen if name not in ignored]

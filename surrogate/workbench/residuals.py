@@ -49,6 +49,11 @@ class LogReplay:
         """Root-mean-square residual over the solved samples [Pa]."""
         return float(np.sqrt(np.mean(self.residual[self.ok] ** 2)))
 
+    def take(self, rows) -> "LogReplay":
+        """The replay of these rows (positions) alone, e.g. one run's."""
+        return LogReplay(self.log.take(rows), self.replay.take(rows), self.measured[rows],
+                         self.residual[rows])
+
     def frame(self) -> pd.DataFrame:
         """One row per sample (SI): the log's columns, predicted and measured Δp, residual,
         whether the maps extrapolate there and whether the piston moved."""
@@ -60,6 +65,11 @@ class LogReplay:
         frame["moving"] = self.replay.moving
         frame["status"] = self.replay.status
         return frame
+
+
+def run_rows(log: BenchLog, run: str) -> np.ndarray:
+    """Positions of one run's samples in the log."""
+    return np.flatnonzero(log.frame["run"].astype(str).to_numpy() == str(run))
 
 
 def measured_dp(log: BenchLog) -> np.ndarray:

@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.loaders import BenchLog
-from ..effects import ConstantFriction, FlowForceScale, LoadPressureFriction, effect_class
+from ..effects import (ConstantFriction, FlowForceScale, LoadPressureFriction, PerRunEffect,
+                       effect_class)
 from ..errors import InputError
 from ..model import ValveModel
 from ..modelfile import cfda_effects, preset
@@ -51,6 +52,8 @@ REALISTIC_MAGNITUDES: dict[str, dict[str, float]] = {
     "discharge_scale": {"c": 0.9},
     "laminar_leakage": {"G": 0.004},
     "pilot_transducer_offset": {"delta": 0.8},
+    # per-run effects: the standard deviation of the runs' values, drawn with the case's seed
+    "pilot_zero_drift": {"delta": 0.4},
     "flowmeter_gain": {"g": 0.04},
 }
 
@@ -194,13 +197,28 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
         if truth.has_effect(hidden):
             effect = truth.effect(hidden)
         else:
-            effect = cls()
+            effect = cls.for_runs(sequence.run_ids)
             truth.effects.append(effect)
-        for key, value in values.items():
-            effect.params[key].set_display(value)
+        if isinstance(effect, PerRunEffect):
+            _draw_per_run(effect, values, seed)
+        else:
+            for key, value in values.items():
+                effect.params[key].set_display(value)
         start_effects = [e for e in start_effects if e.name != hidden]
     log = simulate(truth, sequence, noise=noise, seed=seed)
     # the fit starts from the presets' values, not from the truth
     starting = {effect.name: effect for effect in cfda_effects()}
     start = reference.with_effects([starting.get(e.name, e) for e in start_effects], name="start")
     return HiddenEffectCase(hidden or "", truth, start, log)
+
+
+def _draw_per_run(effect: PerRunEffect, values: dict[str, float], seed: int) -> None:
+    """Give each run's parameter a value drawn from N(0, σ), σ = ``values[template]`` (display
+    units), with its own random stream so the noise of the log stays that of ``seed``."""
+    name = effect.template.name
+    if set(values) != {name}:
+        raise InputError(f"{effect.name} takes the spread of its per-run values as {name!r}; "
+                         f"got {', '.join(values)}")
+    draws = np.random.default_rng([seed, 7919]).standard_normal(len(effect.params))
+    for parameter, draw in zip(effect.params.values(), draws):
+        parameter.set_display(values[name] * draw)

@@ -30,7 +30,7 @@ from .diagnose import Diagnosis, diagnose
 from .fit import fit_to_log
 from .residuals import LogReplay, noise_floor, replay_log
 
-MAX_ADDITIONS = 6  # effects the loop may add after the paper's steps
+MAX_ADDITIONS = 8  # effects the loop may add after the paper's steps
 
 
 @dataclass
