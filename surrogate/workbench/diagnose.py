@@ -12,8 +12,8 @@ Procedure
    instead of one per parameter). Only the four front runners after the first real replay (and
    any as good as the last of them) take those steps; the others keep the RMS of that first
    replay, an upper bound, as they are far behind. The reported RMS is that of a real replay at
-   the reported parameters, never a linear estimate. Standard errors come from the final Jacobian, inflated by
-   √(n/n_eff) because the samples are not independent. The candidates are independent of each
+   the reported parameters, never a linear estimate. Standard errors come from the final
+   Jacobian, inflated by √(n/n_eff) because the samples are not independent. The candidates are independent of each
    other and are refitted side by side on threads (:mod:`..parallel`).
 4. Judge each candidate by ΔBIC = n_eff·ln(RSS_after/RSS_before) + k·ln(n_eff), with k its
    number of parameters the data inform, and rank them by it, best (most negative) first: among
@@ -48,7 +48,7 @@ from ..fitting import FAILURE_RESIDUAL, free_parameters
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
-from .fit import felt
+from .fit import felt, probe_step
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
 
 BIC_THRESHOLD = -10.0
@@ -60,7 +60,6 @@ NOISE_LEVEL = 1.3
 SAME_DIRECTION = 0.98  # cosine of two prediction changes above which they act alike
 REFINE_STEPS = 4  # Gauss–Newton steps per front-running candidate after the linear solution
 REFINED = 4  # candidates refined by those steps (with any as good as the last of them)
-_STEP_FRACTION = 0.02  # finite-difference step: 2 % of a parameter's range (or of its value)
 
 
 @dataclass
@@ -235,7 +234,7 @@ class _Problem:
         parameter scoped to one run replays that run only."""
         trial = model.copy()
         parameter = trial.effect(effect_name).params[parameter_name]
-        step = _step(parameter)
+        step = probe_step(parameter)
         parameter.value += step
         change = np.zeros(len(self.ok))
         if parameter.scope is None:
@@ -321,12 +320,6 @@ def _front_runners(candidates: list[Candidate]) -> list[int]:
         return order
     cut = candidates[order[REFINED - 1]].delta_bic - 2.0 * BIC_THRESHOLD
     return [i for i in order if candidates[i].delta_bic <= cut]
-
-
-def _step(parameter) -> float:
-    span = parameter.max - parameter.min
-    step = _STEP_FRACTION * (span if np.isfinite(span) else max(abs(parameter.value), 1.0))
-    return step if parameter.value + step <= parameter.max else -step
 
 
 def _delta_bic(rss_after: float, rss_before: float, n_eff: float, extra: int) -> float:

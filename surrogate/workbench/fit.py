@@ -21,9 +21,10 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
     Each evaluation starts the solver from the previous one (warm start), which halves the cost
     of a replay; extrapolation flags are skipped inside the fit. A parameter of one run that the
     run's samples do not feel (a run's pilot offset while its piston sits on the stop) keeps its
-    value: with a column of zeros in the Jacobian it would only stall the trust region. The default ``tolerance`` stops
-    once the sum of squares falls by less than 10⁻⁵ of itself per step: the RMS is then settled to
-    a few parts per million, far below anything the workbench compares. Standard errors are
+    value: with a column of zeros in the Jacobian it would only stall the trust region. The
+    default ``tolerance`` stops once the sum of squares falls by less than 10⁻⁵ of itself per
+    step: the RMS is then settled to a few parts per million, far below anything the workbench
+    compares. Standard errors are
     widened for the residuals' correlation in time (:func:`.residuals.effective_samples`).
     """
     last = {"replay": start}
@@ -61,11 +62,21 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
 
 #: [Pa] a change of the predicted Δp smaller than this is not felt
 FELT = 1.0
-#: a parameter of one run is fitted only if a step of 2 % of its range moves at least this share
+#: probe step of a parameter: 2 % of its range (or of its value, if unbounded)
+PROBE_FRACTION = 0.02
+#: a parameter of one run is fitted only if its :func:`probe_step` moves at least this share
 #: of the run's samples by more than :data:`FELT`: a pilot offset of a run whose piston sits on
 #: its stop moves only the few samples before the piston gets there, and fitting it to those
 #: would only fit their noise
 FELT_SHARE = 0.05
+
+
+def probe_step(parameter) -> float:
+    """A step [SI] that shows how the prediction depends on ``parameter``: :data:`PROBE_FRACTION`
+    of its range, downwards where a step up would cross the upper bound."""
+    span = parameter.max - parameter.min
+    step = PROBE_FRACTION * (span if np.isfinite(span) else max(abs(parameter.value), 1.0))
+    return step if parameter.value + step <= parameter.max else -step
 
 
 def felt(change: np.ndarray, scoped: bool) -> bool:
@@ -91,8 +102,7 @@ def _felt(model: ValveModel, log: BenchLog, names: Sequence[str] | None) -> list
         base = replay_log(model, run, extrapolation=False)
         trial = model.copy()
         moved = trial.effect(effect.name).params[parameter.name]
-        span = moved.max - moved.min
-        moved.value += 0.02 * span if moved.value + 0.02 * span <= moved.max else -0.02 * span
+        moved.value += probe_step(moved)
         change = replay_log(trial, run, guess=base, extrapolation=False).replay.dp - base.replay.dp
         if not felt(change, scoped=True):
             ignored.add(name)
