@@ -157,6 +157,23 @@ def test_solutions_stay_within_the_stroke(valve, grid_maps, q, p_Pe, p_B, temper
 
 
 @settings(max_examples=40, deadline=None)
+@given(q=st.lists(st.floats(0.2, 15.0), min_size=1, max_size=30),
+       p_Pe=st.floats(20.0, 150.0), temperature=st.floats(10.0, 70.0),
+       direction=st.sampled_from([-1, 0, 1]),
+       factor=st.one_of(st.floats(0.97, 1.03), st.floats(0.3, 3.0)))
+def test_a_guess_changes_how_fast_not_what(valve, grid_maps, q, p_Pe, temperature, direction,
+                                           factor):
+    # guesses within the first ±2 % bracket, within the wider ones, and beyond all of them
+    model = cfda_model(valve, grid_maps, K1=8.0, K2=5e-7)
+    points = OperatingPoints.from_display(q, p_Pe + 5.0, 5.0, temperature, direction)
+    cold = solve_steady(model, points)
+    warm = solve_steady(model, points, guess=cold.u * factor)
+    np.testing.assert_array_equal(warm.status, cold.status)
+    np.testing.assert_allclose(warm.u, cold.u, rtol=1e-12)
+    np.testing.assert_allclose(warm.dp, cold.dp, rtol=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
 @given(p_Pe=st.floats(20.0, 150.0), p_B=st.floats(1.0, 8.0), temperature=st.floats(10.0, 70.0))
 def test_pressure_drop_rises_with_flow_without_friction(valve, grid_maps, p_Pe, p_B,
                                                         temperature):
