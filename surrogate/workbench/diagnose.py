@@ -7,14 +7,16 @@ Procedure
 2. *Linearise*: one finite-difference replay per free parameter of the model (shared by every
    candidate) and per parameter of each candidate effect.
 3. *Refit* every candidate together with the model's free parameters: bounded linear least
-   squares on the linearisation, then a few Gauss–Newton steps in which every new point is
+   squares on the linearisation, then up to four Gauss–Newton steps in which every new point is
    replayed for real and the Jacobian is corrected by Broyden's update (one replay per step
-   instead of one per parameter). Only the four front runners after the first real replay (and
-   any as good as the last of them) take those steps; the others keep the RMS of that first
-   replay, an upper bound, as they are far behind. The reported RMS is that of a real replay at
-   the reported parameters, never a linear estimate. Standard errors come from the final
-   Jacobian, inflated by √(n/n_eff) because the samples are not independent. The candidates are independent of each
-   other and are refitted side by side on threads (:mod:`..parallel`).
+   instead of one per parameter); a step that lowers the RSS by less than
+   :data:`SETTLED_GAIN` of it ends the refit. Only the four front runners after the first real
+   replay (and any as good as the last of them) take those steps; the others keep the RMS of
+   that first replay, an upper bound, as they are far behind. The reported RMS is that of a real
+   replay at the reported parameters, never a linear estimate. Standard errors come from the
+   final Jacobian, inflated by √(n/n_eff) because the samples are not independent. The
+   candidates are independent of each other and are refitted side by side on threads
+   (:mod:`..parallel`).
 4. Judge each candidate by ΔBIC = n_eff·ln(RSS_after/RSS_before) + k·ln(n_eff), with k its
    number of parameters the data inform, and rank them by it, best (most negative) first: among
    candidates with as many parameters this is the order of their RMS.
@@ -172,20 +174,21 @@ def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | No
         # stop) stays where it is: an empty column leaves the linear step undetermined
         return cls, [c for c in columns if c.felt]
 
-    def refit(entry, refine_steps: int) -> Candidate:
+    def first_step(entry) -> _Refit:
         cls, columns = entry
         trial = model.copy()
         trial.effects.append(cls.for_runs(log.run_ids))
-        return problem.refit(cls, trial, own_columns + columns, len(columns), refine_steps)
+        return problem.refit(cls, trial, own_columns + columns, len(columns)).advance(1)
 
     # the candidates are independent: linearise and refit them side by side. Every candidate gets
     # its linear solution replayed for real; only the front runners are refined further, the
     # others keep that first real RMS (an upper bound: refining only lowers it)
     linearised = list(map_threads(linearise, classes, workers=workers))
-    first = list(map_threads(lambda entry: refit(entry, 0), linearised, workers=workers))
+    refits = list(map_threads(first_step, linearised, workers=workers))
+    first = [refit.candidate() for refit in refits]
     chosen = _front_runners(first)
-    refined = dict(zip(chosen, map_threads(lambda i: refit(linearised[i], steps), chosen,
-                                           workers=workers)))
+    refined = dict(zip(chosen, map_threads(lambda i: refits[i].advance(steps).candidate(),
+                                           chosen, workers=workers)))
     results = [refined.get(i, candidate) for i, candidate in enumerate(first)]
     for number, candidate in enumerate(results, start=1):
         say(f"  [{number}/{len(classes)}] {candidate.name}: rms "
@@ -249,63 +252,104 @@ class _Problem:
         return _Column(effect_name, parameter_name, step,
                        np.where(np.isfinite(change), change, 0.0)[self.ok], determined)
 
-    def refit(self, cls, trial: ValveModel, columns: list[_Column], extra: int,
-              steps: int) -> Candidate:
-        """Bounded Gauss–Newton with Broyden updates in z = (parameter − start)/step."""
-        parameters = [trial.effect(c.effect).params[c.parameter] for c in columns]
-        start = np.array([p.value for p in parameters])
-        scale = np.array([c.step for c in columns])
-        lower = np.array([(p.min - p.value) / c.step for p, c in zip(parameters, columns)])
-        upper = np.array([(p.max - p.value) / c.step for p, c in zip(parameters, columns)])
-        lower, upper = np.minimum(lower, upper), np.maximum(lower, upper)
-        jacobian = np.column_stack([c.change for c in columns])
-        base_residual = self.base.residual[self.ok]
+    def refit(self, cls, trial: ValveModel, columns: list[_Column], extra: int) -> "_Refit":
+        """A refit of ``trial`` (the model with candidate ``cls``) on its linearisation; it has
+        replayed nothing yet."""
+        return _Refit(self, cls, trial, columns, extra)
 
-        def assign(z):
-            for parameter, value in zip(parameters, np.clip(start + scale * z,
-                                                            [p.min for p in parameters],
-                                                            [p.max for p in parameters])):
-                parameter.value = float(value)
 
-        best_z, best_residual, best_replay = np.zeros(len(columns)), base_residual, self.base
-        best_rss = self.rss_before
-        z, r = best_z, base_residual
-        for _ in range(steps + 1):
-            target = lsq_linear(jacobian, -r + jacobian @ z, bounds=(lower, upper)).x
-            if np.allclose(target, z, rtol=0, atol=1e-4):
+#: a Gauss–Newton step that lowers the RSS by less than this share of it ends a refit: the RMS
+#: is then settled to 5e-5 of itself, and ΔBIC to ~1e-4·n_eff, a fraction of its threshold
+SETTLED_GAIN = 1e-4
+
+
+class _Refit:
+    """Bounded Gauss–Newton with Broyden updates in z = (parameter − start)/step, which can be
+    resumed: every candidate takes its first step, the front runners take more."""
+
+    def __init__(self, problem: _Problem, cls, trial: ValveModel, columns: list[_Column],
+                 extra: int):
+        self.problem, self.cls, self.trial, self.extra = problem, cls, trial, extra
+        self.parameters = [trial.effect(c.effect).params[c.parameter] for c in columns]
+        self.start = np.array([p.value for p in self.parameters])
+        self.scale = np.array([c.step for c in columns])
+        lower = np.array([(p.min - p.value) / c.step for p, c in zip(self.parameters, columns)])
+        upper = np.array([(p.max - p.value) / c.step for p, c in zip(self.parameters, columns)])
+        self.lower, self.upper = np.minimum(lower, upper), np.maximum(lower, upper)
+        self.jacobian = np.column_stack([c.change for c in columns])
+        self.base_residual = problem.base.residual[problem.ok]
+        self.best_z = np.zeros(len(columns))
+        self.best_residual, self.best_replay = self.base_residual, problem.base
+        self.best_rss = problem.rss_before
+        self.z, self.r = self.best_z, self.base_residual
+        self.replays = 0
+        self.settled = False
+
+    def advance(self, steps: int) -> "_Refit":
+        """Take up to ``steps`` more steps, each one real replay; stop early once settled."""
+        for _ in range(steps):
+            if self.settled:
                 break
-            assign(target)
-            played = self.replay(trial)
-            new = played.residual[self.ok]
-            new = np.where(np.isfinite(new), new, FAILURE_RESIDUAL)
-            # Broyden: make the Jacobian reproduce the change just observed
-            dz = target - z
-            jacobian = jacobian + np.outer((new - r) - jacobian @ dz, dz) / float(dz @ dz)
-            rss = float(np.sum(new**2))
-            if rss < best_rss:
-                best_z, best_residual, best_replay, best_rss = target, new, played, rss
-                z, r = target, new
-            else:  # the updated Jacobian proposes a new step from the best point so far
-                z, r = best_z, best_residual
-        assign(best_z)
-        self._standard_errors(parameters, jacobian, scale, best_residual)
-        change = np.zeros(len(self.ok))
-        change[self.ok] = best_residual - base_residual
-        own = [p for p in trial.effect(cls.name).params.values()]
-        return Candidate(cls.name, cls.title, cls.describe(), cls.kind,
-                         float(np.sqrt(best_rss / self.ok.sum())),
-                         _delta_bic(best_rss, self.rss_before, self.n_eff, extra),
-                         params=own, change=change, model=trial, replay=best_replay)
+            self._step()
+        return self
 
-    def _standard_errors(self, parameters, jacobian, scale, residual) -> None:
+    def _step(self) -> None:
+        target = lsq_linear(self.jacobian, -self.r + self.jacobian @ self.z,
+                            bounds=(self.lower, self.upper)).x
+        if np.allclose(target, self.z, rtol=0, atol=1e-4):
+            self.settled = True
+            return
+        self._assign(target)
+        played = self.problem.replay(self.trial)
+        self.replays += 1
+        new = played.residual[self.problem.ok]
+        new = np.where(np.isfinite(new), new, FAILURE_RESIDUAL)
+        # Broyden: make the Jacobian reproduce the change just observed
+        dz = target - self.z
+        self.jacobian = self.jacobian + np.outer((new - self.r) - self.jacobian @ dz,
+                                                 dz) / float(dz @ dz)
+        rss = float(np.sum(new**2))
+        # the first replay is the linear solution, judged against the model without the
+        # candidate; after that, a step that gains (almost) nothing means the refit is done
+        if self.replays > 1 and rss > (1.0 - SETTLED_GAIN) * self.best_rss:
+            self.settled = True
+        if rss < self.best_rss:
+            self.best_z, self.best_residual, self.best_replay = target, new, played
+            self.best_rss = rss
+            self.z, self.r = target, new
+        else:  # the updated Jacobian proposes a new step from the best point so far
+            self.z, self.r = self.best_z, self.best_residual
+
+    def _assign(self, z) -> None:
+        values = np.clip(self.start + self.scale * z, [p.min for p in self.parameters],
+                         [p.max for p in self.parameters])
+        for parameter, value in zip(self.parameters, values):
+            parameter.value = float(value)
+
+    def candidate(self) -> Candidate:
+        """The candidate at the best point so far, with standard errors."""
+        self._assign(self.best_z)
+        self._standard_errors()
+        problem = self.problem
+        change = np.zeros(len(problem.ok))
+        change[problem.ok] = self.best_residual - self.base_residual
+        cls = self.cls
+        own = [p for p in self.trial.effect(cls.name).params.values()]
+        return Candidate(cls.name, cls.title, cls.describe(), cls.kind,
+                         float(np.sqrt(self.best_rss / problem.ok.sum())),
+                         _delta_bic(self.best_rss, problem.rss_before, problem.n_eff, self.extra),
+                         params=own, change=change, model=self.trial, replay=self.best_replay)
+
+    def _standard_errors(self) -> None:
+        residual, parameters = self.best_residual, self.parameters
         count = len(residual)
         dof = max(count - len(parameters), 1)
-        variance = float(np.sum(residual**2)) / dof * count / self.n_eff
+        variance = float(np.sum(residual**2)) / dof * count / self.problem.n_eff
         try:
-            covariance = np.linalg.pinv(jacobian.T @ jacobian) * variance
+            covariance = np.linalg.pinv(self.jacobian.T @ self.jacobian) * variance
         except np.linalg.LinAlgError:
             covariance = np.full((len(parameters),) * 2, np.nan)
-        errors = np.sqrt(np.clip(np.diag(covariance), 0.0, None)) * np.abs(scale)
+        errors = np.sqrt(np.clip(np.diag(covariance), 0.0, None)) * np.abs(self.scale)
         for parameter, error in zip(parameters, errors):
             usable = np.isfinite(error) and not parameter.at_bound
             parameter.stderr = float(error) if usable else None
