@@ -10,6 +10,7 @@ import numpy as np
 from ..data.loaders import BenchLog
 from ..fitting import FitResult, fit, free_parameters
 from ..model import ValveModel
+from ..parallel import map_threads
 from .residuals import LogReplay, effective_samples, replay_log, run_rows
 
 
@@ -29,7 +30,7 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
     """
     last = {"replay": start}
     caller = threading.get_ident()
-    names = _felt(model, log, names)
+    names = _felt(model, log, names, start)
 
     def residuals(candidate: ValveModel):
         played = replay_log(candidate, log, guess=last["replay"], extrapolation=False)
@@ -86,24 +87,28 @@ def felt(change: np.ndarray, scoped: bool) -> bool:
     return bool(np.mean(moved) >= FELT_SHARE) if scoped else bool(np.any(moved))
 
 
-def _felt(model: ValveModel, log: BenchLog, names: Sequence[str] | None) -> list[str] | None:
-    """``names`` (default: every free parameter) without the run-scoped ones the data ignore."""
+def _felt(model: ValveModel, log: BenchLog, names: Sequence[str] | None,
+          start: LogReplay | None) -> list[str] | None:
+    """``names`` (default: every free parameter) without the run-scoped ones the data ignore;
+    ``start``, a replay of ``log`` near ``model``'s, warm-starts the runs' replays."""
     chosen = free_parameters(model, names)
     scoped = [(name, effect, p) for name, effect, p in chosen if p.scope is not None]
     if not scoped:
         return names
-    ignored = set()
-    for name, effect, parameter in scoped:
+
+    def ignored(entry) -> bool:
+        _, effect, parameter = entry
         rows = run_rows(log, parameter.scope)
         if rows.size == 0:
-            ignored.add(name)
-            continue
+            return True
         run = log.take(rows)
-        base = replay_log(model, run, extrapolation=False)
+        base = replay_log(model, run, extrapolation=False,
+                          guess=None if start is None else start.take(rows))
         trial = model.copy()
         moved = trial.effect(effect.name).params[parameter.name]
         moved.value += probe_step(moved)
         change = replay_log(trial, run, guess=base, extrapolation=False).replay.dp - base.replay.dp
-        if not felt(change, scoped=True):
-            ignored.add(name)
-    return [name for name, _, _ in chosen if name not in ignored]
+        return not felt(change, scoped=True)
+
+    dropped = {entry[0] for entry, drop in zip(scoped, map_threads(ignored, scoped)) if drop}
+    return [name for name, _, _ in chosen if name not in dropped]
