@@ -35,7 +35,7 @@ class Roots:
 
 def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper, *,
                xatol: float, xrtol: float = 1e-13, fatol: float = 0.0,
-               maxiter: int = 200) -> Roots:
+               maxiter: int = 200, f_lower=None, f_upper=None) -> Roots:
     """Solve ``fn(x, index) = 0`` for every point, with the root bracketed by [lower, upper].
 
     Parameters
@@ -49,6 +49,9 @@ def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper,
         Absolute and relative tolerance on the root, absolute tolerance on the function value.
     maxiter : int
         Iteration limit; points that reach it are reported as not converged.
+    f_lower, f_upper : numpy.ndarray, optional
+        ``fn`` at the bracket ends, if the caller has them already (having checked the bracket):
+        they then stand in for the method's first two evaluations.
     """
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     if lower.ndim != 1 or lower.shape != upper.shape:
@@ -57,8 +60,17 @@ def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper,
         empty = np.empty(0)
         return Roots(empty, empty.astype(bool), empty.astype(int), empty.astype(int))
     index = np.arange(lower.size, dtype=float)
+    # find_root starts by evaluating the two ends, one call each; answer those from what the
+    # caller knows (checked by value, so a different start-up only costs the evaluations)
+    known = [] if f_lower is None or f_upper is None else [
+        (lower, np.asarray(f_lower, float)), (upper, np.asarray(f_upper, float))]
 
     def wrapped(x, point):
+        if known:
+            ends, values = known.pop(0)
+            if x.shape == ends.shape and np.array_equal(x, ends):
+                return values.copy()
+            known.clear()
         return fn(x, point.astype(np.intp))
 
     result = find_root(wrapped, (lower, upper), args=(index,), maxiter=maxiter,

@@ -179,9 +179,10 @@ def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=
         balance = model.balance(u, points[i], fluid[i])
         return balance.net_force - sign[i] * balance.friction
 
-    def solve_in(lower, upper, which):
+    def solve_in(lower, upper, which, h_lower, h_upper):
         roots = find_roots(lambda x, i: residual(x, which[i]), lower, upper,
-                           xatol=stroke * 1e-30, xrtol=_U_RTOL)
+                           xatol=stroke * 1e-30, xrtol=_U_RTOL, f_lower=h_lower,
+                           f_upper=h_upper)
         u[which] = roots.x
         status[which] = np.where(roots.converged, Status.OK,
                                  np.where(roots.status == -3, Status.MAP_FAILURE,
@@ -218,7 +219,8 @@ def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=
         # a sign change inside the stroke: the root is there, and the piston is off its stop
         inside = (h_lower > 0) & (h_upper < 0)
         if inside.any():
-            solve_in(lower[inside], upper[inside], usable[inside])
+            solve_in(lower[inside], upper[inside], usable[inside], h_lower[inside],
+                     h_upper[inside])
         pending = np.setdiff1d(pending, usable[inside])
 
     if pending.size:
@@ -227,7 +229,7 @@ def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=
         at_stop = ~broken & (at_top >= 0)
         status[pending[broken]] = Status.MAP_FAILURE
         u[pending[at_stop]], status[pending[at_stop]] = stroke, Status.AT_STOP
-        pending = pending[~broken & ~at_stop]
+        pending, top = pending[~broken & ~at_stop], at_top[~broken & ~at_stop]
 
     if pending.size:
         at_floor = residual(np.full(pending.size, floor), pending)
@@ -235,8 +237,10 @@ def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=
         status[pending[broken_floor]] = Status.MAP_FAILURE
         no_equilibrium = ~broken_floor & (at_floor <= 0)
         status[pending[no_equilibrium]] = Status.NO_EQUILIBRIUM
-        bracketed = pending[~broken_floor & ~no_equilibrium]
-        solve_in(np.full(bracketed.size, floor), np.full(bracketed.size, stroke), bracketed)
+        keep = ~broken_floor & ~no_equilibrium
+        bracketed = pending[keep]
+        solve_in(np.full(bracketed.size, floor), np.full(bracketed.size, stroke), bracketed,
+                 at_floor[keep], top[keep])
 
     dp = np.full(count, np.nan)
     if with_dp:
