@@ -145,11 +145,11 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     def record(model: ValveModel, added: list[str], reason: str,
                diagnosis: Diagnosis | None = None, near: LogReplay | None = None) -> Step:
         """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step."""
+        if near is None and steps and steps[-1].model.flow_map is model.flow_map:
+            near = steps[-1].played
         if any(p.vary for _, p in model.parameters()):
-            if near is None and steps and steps[-1].model.flow_map is model.flow_map:
-                near = steps[-1].played
             model = fit_to_log(model, log, start=near).model
-        played = replay_log(model, log)
+        played = replay_log(model, log, guess=near)
         step = Step(model, added, reason, played, played.rms(), diagnosis)
         steps.append(step)
         say(f"step {len(steps)}: {model.name:<28} rms {from_si(step.rms, 'bar'):6.3f} bar"
