@@ -10,7 +10,7 @@ Measures, in one run on this machine:
   classic friction play and with the replay's smoothed friction state.
 
 Writes results/workbench/benchmark.json and prints a summary. Run:
-``python eval/workbench.py [--cases 20] [--every 4]`` (about 10 minutes on 2 cores).
+``python eval/workbench.py [--cases 20] [--every 4]`` (about 5 minutes on 2 cores).
 """
 
 from __future__ import annotations
