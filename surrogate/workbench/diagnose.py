@@ -50,7 +50,7 @@ from ..fitting import FAILURE_RESIDUAL, free_parameters
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
-from .fit import felt, probe_step
+from .fit import felt, probe_change
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
 
 BIC_THRESHOLD = -10.0
@@ -165,20 +165,18 @@ def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | No
         if column.felt]
     classes = candidate_effects(model, candidates)
 
-    def linearise(cls: type[Effect]) -> tuple[type[Effect], list[_Column]]:
+    def linearise(cls: type[Effect]) -> tuple[type[Effect], ValveModel, list[_Column]]:
         trial = model.copy()
         trial.effects.append(cls.for_runs(log.run_ids))
         columns = [problem.column(trial, cls.name, name)
                    for name, parameter in trial.effect(cls.name).params.items() if parameter.vary]
         # a parameter the data do not feel (a run's pilot offset while its piston sits on the
         # stop) stays where it is: an empty column leaves the linear step undetermined
-        return cls, [c for c in columns if c.felt]
+        return cls, trial, [c for c in columns if c.felt]
 
     def first_step(entry) -> _Refit:
-        cls, columns = entry
-        trial = model.copy()
-        trial.effects.append(cls.for_runs(log.run_ids))
-        return problem.refit(cls, trial, own_columns + columns, len(columns)).advance(1)
+        cls, trial, columns = entry
+        return _Refit(problem, cls, trial, own_columns + columns, len(columns)).advance(1)
 
     # the candidates are independent: linearise and refit them side by side. Every candidate gets
     # its linear solution replayed for real; only the front runners are refined further, the
@@ -235,27 +233,19 @@ class _Problem:
     def column(self, model: ValveModel, effect_name: str, parameter_name: str) -> _Column:
         """∂Δp/∂parameter · step by a forward difference, warm-started from the base replay; a
         parameter scoped to one run replays that run only."""
-        trial = model.copy()
-        parameter = trial.effect(effect_name).params[parameter_name]
-        step = probe_step(parameter)
-        parameter.value += step
-        change = np.zeros(len(self.ok))
-        if parameter.scope is None:
-            change = self.replay(trial).replay.dp - self.base.replay.dp
+        scope = model.effect(effect_name).params[parameter_name].scope
+        if scope is None:
+            step, change = probe_change(model, effect_name, parameter_name, self.log, self.base)
             determined = felt(change[self.ok], scoped=False)
         else:
-            rows = run_rows(self.log, parameter.scope)
-            played = replay_log(trial, self.log.take(rows), guess=self.base.take(rows),
-                                extrapolation=False)
-            change[rows] = played.replay.dp - self.base.replay.dp[rows]
-            determined = felt(change[rows], scoped=True)
+            rows = run_rows(self.log, scope)
+            step, in_run = probe_change(model, effect_name, parameter_name, self.log.take(rows),
+                                        self.base.take(rows))
+            determined = felt(in_run, scoped=True)
+            change = np.zeros(len(self.ok))
+            change[rows] = in_run
         return _Column(effect_name, parameter_name, step,
                        np.where(np.isfinite(change), change, 0.0)[self.ok], determined)
-
-    def refit(self, cls, trial: ValveModel, columns: list[_Column], extra: int) -> "_Refit":
-        """A refit of ``trial`` (the model with candidate ``cls``) on its linearisation; it has
-        replayed nothing yet."""
-        return _Refit(self, cls, trial, columns, extra)
 
 
 #: a Gauss–Newton step that lowers the RSS by less than this share of it ends a refit: the RMS

@@ -52,8 +52,9 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
 
     result = fit(model, residuals, names, max_evaluations=max_evaluations, tolerance=tolerance,
                  scoped=scoped)
-    # fit() evaluates the optimum last; its standard errors count every sample as independent,
-    # but bench residuals are correlated in time: widen them by sqrt(n / n_eff)
+    # fit()'s last evaluation on this thread is at the optimum; its standard errors count every
+    # sample as independent, but bench residuals are correlated in time: widen them by
+    # sqrt(n / n_eff)
     final = last["replay"]
     if final is not None:
         inflation = np.sqrt(final.ok.sum() / effective_samples(final.residual, final.runs))
@@ -82,6 +83,18 @@ def probe_step(parameter) -> float:
     return step if parameter.value + step <= parameter.max else -step
 
 
+def probe_change(model: ValveModel, effect_name: str, parameter_name: str, log: BenchLog,
+                 base: LogReplay) -> tuple[float, np.ndarray]:
+    """The parameter's :func:`probe_step` [SI] and the change of the predicted Δp [Pa] it makes
+    on ``log``, replayed from ``base``, the model's own replay of ``log``."""
+    trial = model.copy()
+    parameter = trial.effect(effect_name).params[parameter_name]
+    step = probe_step(parameter)
+    parameter.value += step
+    played = replay_log(trial, log, guess=base, extrapolation=False)
+    return step, played.replay.dp - base.replay.dp
+
+
 def felt(change: np.ndarray, scoped: bool) -> bool:
     """Whether a parameter step that changed the predicted Δp by ``change`` [Pa] (over its run's
     samples if ``scoped``, else over the whole log) is determined by the data."""
@@ -106,10 +119,7 @@ def _felt(model: ValveModel, log: BenchLog, names: Sequence[str] | None,
         run = log.take(rows)
         base = replay_log(model, run, extrapolation=False,
                           guess=None if start is None else start.take(rows))
-        trial = model.copy()
-        moved = trial.effect(effect.name).params[parameter.name]
-        moved.value += probe_step(moved)
-        change = replay_log(trial, run, guess=base, extrapolation=False).replay.dp - base.replay.dp
+        _, change = probe_change(model, effect.name, parameter.name, run, base)
         return not felt(change, scoped=True)
 
     dropped = {entry[0] for entry, drop in zip(scoped, map_threads(ignored, scoped)) if drop}
