@@ -11,21 +11,19 @@ the committed surrogates no longer match the shipped samples. Takes about a minu
 from __future__ import annotations
 
 import argparse
-import platform
 import sys
-import time
 from pathlib import Path
-
-import numpy as np
 
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.learn.metrics import map_errors
+from surrogate.learn.reproducibility import environment
 from surrogate.learn.splits import HOLDOUT_FRACTION, HOLDOUT_SEED, holdout_mask
 from surrogate.learn.training import KINDS, train_surrogate
 from surrogate.maps.learned import data_hash
 from surrogate.maps.registry import TRAINED
 from surrogate.paths import PROJECT_ROOT, SHIPPED_CFD_SAMPLES
+from surrogate.progress import Progress
 
 
 def main() -> int:
@@ -36,12 +34,7 @@ def main() -> int:
     parser.add_argument("--valve", help="valve file (default: the shipped valve)")
     args = parser.parse_args()
 
-    started = time.perf_counter()
-
-    def progress(message: str) -> None:
-        print(f"[{time.perf_counter() - started:6.1f} s] {message}", flush=True)
-
-    import sklearn
+    progress = Progress()
     import torch
 
     torch.set_num_threads(max(1, min(2, torch.get_num_threads())))
@@ -57,8 +50,8 @@ def main() -> int:
         "data_sha256": data_hash(args.cfd),
         "split": {"holdout_fraction": HOLDOUT_FRACTION, "seed": HOLDOUT_SEED,
                   "held_out_cases": sorted(samples.frame.loc[held_out, "case"])},
-        "versions": {"python": platform.python_version(), "numpy": np.__version__,
-                     "torch": torch.__version__, "scikit-learn": sklearn.__version__},
+        # what decides the rounding: a retraining matches bit for bit only where this does
+        "environment": environment(),
     }
     progress(f"{len(samples)} CFD samples from {args.cfd}; training on {int((~held_out).sum())}, "
              f"holding out {int(held_out.sum())}")
