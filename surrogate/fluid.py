@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError
+from .limits import DENSITY, Range
 from .tomlio import require_keys
 from .units import CST, ZERO_CELSIUS, from_si, to_si
 
@@ -18,6 +19,9 @@ _WALTHER_SHIFT = 0.7  # [cSt] the constant of ASTM D341, valid for ν >= 2 cSt
 _T40 = 40.0 + ZERO_CELSIUS  # [K]
 _T100 = 100.0 + ZERO_CELSIUS  # [K]
 _T15 = 15.0 + ZERO_CELSIUS  # [K]
+# datasheet viscosities of hydraulic and lubricating oils: ISO VG 2 to VG 1500 and beyond
+_NU40 = Range(1.0, 1e4, "cSt")
+_NU100 = Range(0.5, 1e3, "cSt")
 
 
 @dataclass(frozen=True)
@@ -83,12 +87,18 @@ class Oil:
     expansion: float
 
     def __post_init__(self):
+        for key, value, plausible in (("nu40_cSt", self.nu40, _NU40), ("nu100_cSt", self.nu100,
+                                                                       _NU100)):
+            value = from_si(value, "cSt")
+            if not plausible.contains(value):
+                raise InputError(f"oil {self.name!r}: {key} = {value:g} is not plausible "
+                                 f"(expected {plausible.describe()}{plausible.unit_hint(value)})")
         if not (self.nu40 > self.nu100 > 0):
             raise InputError(f"oil {self.name!r}: need nu40 > nu100 > 0, got "
                              f"{from_si(self.nu40, 'cSt')} and {from_si(self.nu100, 'cSt')} cSt")
-        if not (600 <= self.rho15 <= 1200):
+        if not DENSITY.contains(self.rho15):
             raise InputError(f"oil {self.name!r}: rho15 = {self.rho15} kg/m^3 is outside 600-1200")
-        if not (0 <= self.expansion < 0.01):
+        if not (0 <= self.expansion < 0.01):  # also refuses NaN
             raise InputError(f"oil {self.name!r}: expansion = {self.expansion} 1/K is implausible "
                              "(mineral oils: about 6e-4 to 9e-4)")
 
@@ -118,13 +128,17 @@ class Oil:
         """Build from the ``[oil]`` table of a valve file (file units: cSt, kg/m^3, 1/K)."""
         keys = {"name", "nu40_cSt", "nu100_cSt", "rho15_kg_m3", "expansion_per_K"}
         require_keys(table, keys, source)
+        for key in sorted(keys - {"name"}):
+            value = table[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise InputError(f"{source}: {key} must be a number, got {value!r}")
         try:
             return cls(name=str(table["name"]),
                        nu40=to_si(table["nu40_cSt"], "cSt"),
                        nu100=to_si(table["nu100_cSt"], "cSt"),
                        rho15=float(table["rho15_kg_m3"]),
                        expansion=float(table["expansion_per_K"]))
-        except (InputError, TypeError, ValueError) as error:
+        except InputError as error:
             raise InputError(f"{source}: {error}") from None
 
     def to_dict(self) -> dict:

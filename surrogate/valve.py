@@ -26,8 +26,9 @@ from pathlib import Path
 
 from .errors import InputError
 from .fluid import Oil
+from .limits import PRESSURE_MAX_BAR, Range
 from .tomlio import require_keys
-from .units import from_si, to_si
+from .units import from_si, label, to_si
 
 SHIPPED_VALVE = "paper_cbv.toml"
 
@@ -41,6 +42,20 @@ _FILE_KEYS = {
     "U_max": ("U_max_mm", "mm"),
     "w": ("w_mm", "mm"),
 }
+# Plausible values in file units, wide enough for any poppet or spool valve from a 1 mm² pilot
+# stage to a 1000 L/min cartridge; outside them a value is a unit or typing mistake (see
+# surrogate.limits). The paper's valve: 10.7 mm², 2.72, 46 mm², 226 N, 1.14e5 N/m, 0.63 mm, 12 mm.
+_PLAUSIBLE = {
+    "A_L": Range(0.1, 1e4, "mm^2"),
+    "alpha_P": Range(0.1, 100.0, "1"),
+    "A_s3": Range(0.1, 1e5, "mm^2"),
+    "F_cr": Range(0.1, 1e5, "N"),
+    "K_f": Range(1e3, 1e9, "N/m"),
+    "U_max": Range(0.01, 50.0, "mm"),
+    "w": Range(0.1, 1000.0, "mm"),
+}
+# F_cr / A_L: the Δp at which the valve cracks open without pilot pressure [bar]
+_CRACK_PRESSURE = Range(0.1, PRESSURE_MAX_BAR, "bar")
 
 
 @dataclass(frozen=True)
@@ -81,12 +96,19 @@ class ValveParameters:
     oil: Oil
 
     def __post_init__(self):
-        for field in _FILE_KEYS:
-            value = getattr(self, field)
-            if not value > 0:
-                key, unit = _FILE_KEYS[field]
-                raise InputError(f"valve {self.name!r}: {key} must be > 0, got "
-                                 f"{from_si(value, unit)}")
+        for field, (key, unit) in _FILE_KEYS.items():
+            value = from_si(getattr(self, field), unit)
+            plausible = _PLAUSIBLE[field]
+            if not plausible.contains(value):
+                raise InputError(f"valve {self.name!r}: {key} = {value:g} is not a plausible "
+                                 f"value (expected {plausible.describe()}"
+                                 f"{plausible.unit_hint(value)})")
+        crack = from_si(self.P_cr, "bar")
+        if not _CRACK_PRESSURE.contains(crack):
+            raise InputError(
+                f"valve {self.name!r}: the crack pressure F_cr_N / A_L_mm2 = {crack:.4g} bar is "
+                f"implausible (expected {_CRACK_PRESSURE.describe()}); check the units of F_cr_N "
+                f"[{label('N')}] and A_L_mm2 [{label('mm^2')}]")
         if not self.A_s3 > self.A_B:
             raise InputError(
                 f"valve {self.name!r}: A_s3 = {from_si(self.A_s3, 'mm^2'):.3g} mm² must exceed "

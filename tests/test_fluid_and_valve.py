@@ -61,7 +61,7 @@ def test_user_valve_file_round_trips(tmp_path):
 
 
 @pytest.mark.parametrize("edit, words", [
-    ({"w_mm = 12.0": "w_mm = -1"}, "w_mm must be > 0"),
+    ({"w_mm = 12.0": "w_mm = -1"}, "w_mm = -1 is not a plausible value (expected 0.1 to 1000 mm)"),
     ({"A_s3_mm2 = 46.0": "A_s3_mm2 = 30.0"}, "must exceed"),
     ({"U_max_mm = 0.63": "U_max_mm = \"0.63\""}, "U_max_mm must be a number in mm"),
     ({"K_f_N_per_m": "K_f"}, "missing K_f_N_per_m; unknown K_f"),

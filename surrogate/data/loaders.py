@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ..fluid import FluidState
+from ..limits import PRESSURE_NOISE_BAR
 from ..units import to_si
 from .errors import DataFileError, Problem
 from .reader import RawTable, detect_schema, parse_cells, read_raw_table
@@ -171,6 +172,16 @@ def _in_file_order(problems: list[Problem]) -> list[Problem]:
     return sorted(problems, key=lambda p: (p.line is None, p.line or 0))
 
 
+#: [-] rows of one oil at one temperature must agree on ν and ρ to this (rounding in the file)
+FLUID_TOLERANCE = 0.005
+#: a run's p_P − p_B must sit within this of its set point, as a fraction plus [bar]: regulated
+#: benches hold it within a few bar; the shipped log's runs have medians within 0.04 bar
+SET_POINT_TOLERANCE = (0.10, 2.0)
+#: one sample's p_P − p_B may stray further while the regulator catches up: fraction, [bar]
+SAMPLE_SET_POINT_TOLERANCE = (0.25, 5.0)
+_PSI_PER_BAR = 14.5038
+
+
 def _check_cfd_rows(file: str, values: Values, lines: np.ndarray) -> list[Problem]:
     problems = []
     if "p_L_bar" in values and "p_B_bar" in values:
@@ -190,6 +201,64 @@ def _check_cfd_rows(file: str, values: Values, lines: np.ndarray) -> list[Proble
                                         f"{first_line[case]}"))
             else:
                 first_line[case] = int(line)
+    if {"oil", "temperature_C", "nu_cSt", "rho_kg_m3"} <= set(values):
+        problems += _check_fluid_consistency(file, values, lines)
+    if {"oil", "temperature_C", "u_mm", "p_B_bar", "q_lpm", "p_L_bar"} <= set(values):
+        problems += _check_sweeps(file, values, lines)
+    return problems
+
+
+def _check_fluid_consistency(file: str, values: Values, lines: np.ndarray) -> list[Problem]:
+    """One ν and one ρ per oil and temperature, both falling as the temperature rises."""
+    problems = []
+    frame = pd.DataFrame({"oil": values["oil"], "T": values["temperature_C"],
+                          "nu": values["nu_cSt"], "rho": values["rho_kg_m3"], "line": lines})
+    frame = frame.dropna()
+    for oil, of_oil in frame.groupby("oil", sort=False):
+        medians = []
+        for temperature, group in of_oil.groupby("T"):
+            for column, name, unit in (("nu", "nu_cSt", "cSt"), ("rho", "rho_kg_m3", "kg/m³")):
+                typical = float(group[column].median())
+                off = group[np.abs(group[column] / typical - 1.0) > FLUID_TOLERANCE]
+                for row in off.itertuples():
+                    problems.append(Problem(
+                        file, int(row.line), name, f"{getattr(row, column):g}",
+                        f"the same {'viscosity' if column == 'nu' else 'density'} as the other "
+                        f"rows of {oil} at {temperature:g} °C ({typical:g} {unit}, within "
+                        f"{100 * FLUID_TOLERANCE:g} %)"))
+            medians.append((temperature, group["nu"].median(), group["rho"].median(),
+                            int(group["line"].min())))
+        for (t0, nu0, rho0, _), (t1, nu1, rho1, line) in zip(medians, medians[1:]):
+            for name, before, after, unit in (("nu_cSt", nu0, nu1, "cSt"),
+                                              ("rho_kg_m3", rho0, rho1, "kg/m³")):
+                if not after < before:
+                    problems.append(Problem(
+                        file, line, name, f"{after:g}",
+                        f"{'viscosity' if name == 'nu_cSt' else 'density'} of {oil} falling as "
+                        f"the temperature rises: {before:g} {unit} at {t0:g} °C, so less at "
+                        f"{t1:g} °C"))
+    return problems
+
+
+def _check_sweeps(file: str, values: Values, lines: np.ndarray) -> list[Problem]:
+    """Within a sweep (one oil, temperature, opening and back pressure) Δp rises with q: the
+    flow through a fixed restriction rises with its pressure drop."""
+    problems = []
+    frame = pd.DataFrame({key: values[column] for key, column in (
+        ("oil", "oil"), ("T", "temperature_C"), ("u", "u_mm"), ("p_B", "p_B_bar"),
+        ("q", "q_lpm"), ("p_L", "p_L_bar"))})
+    frame["line"] = lines
+    frame = frame.dropna()
+    for _, sweep in frame.groupby(["oil", "T", "u", "p_B"], sort=False):
+        sweep = sweep.sort_values("q")
+        q, dp, at = sweep["q"].to_numpy(), (sweep["p_L"] - sweep["p_B"]).to_numpy(), \
+            sweep["line"].to_numpy()
+        for k in np.flatnonzero((np.diff(q) > 0) & (np.diff(dp) <= 0)):
+            problems.append(Problem(
+                file, int(at[k + 1]), "p_L_bar", f"{sweep['p_L'].iloc[k + 1]:g}",
+                f"p_L − p_B rising with the flow within a sweep (same oil, temperature, u_mm, "
+                f"p_B_bar): {q[k + 1]:g} L/min gives {dp[k + 1]:g} bar here, but {q[k]:g} L/min "
+                f"gives {dp[k]:g} bar on line {at[k]}"))
     return problems
 
 
@@ -218,4 +287,40 @@ def _check_bench_runs(file: str, values: Values, lines: np.ndarray) -> list[Prob
                                             f"{set_points[k]:g}",
                                             f"one set point per run: run {run!r} started at "
                                             f"{first:g} bar"))
+                if {"p_P_bar", "p_B_bar"} <= set(values):
+                    problems += _check_set_point(file, run, first, values["p_P_bar"][rows],
+                                                 values["p_B_bar"][rows], lines[rows])
+    if {"p_L_bar", "p_B_bar"} <= set(values):
+        p_L, p_B = values["p_L_bar"], values["p_B_bar"]
+        for i in np.flatnonzero(p_L < p_B - PRESSURE_NOISE_BAR):
+            problems.append(Problem(file, int(lines[i]), "p_L_bar", f"{p_L[i]:g}",
+                                    f"load pressure >= back pressure p_B_bar = {p_B[i]:g} bar "
+                                    f"within the sensors' noise ({PRESSURE_NOISE_BAR:g} bar): flow "
+                                    "runs from the load port to the back port"))
     return problems
+
+
+def _check_set_point(file: str, run: str, set_point: float, p_P: np.ndarray, p_B: np.ndarray,
+                     lines: np.ndarray) -> list[Problem]:
+    """p_P − p_B follows the run's set point: the run as a whole, then sample by sample."""
+    pilot = p_P - p_B
+    valid = np.isfinite(pilot)
+    if not valid.any():
+        return []
+    typical = float(np.median(pilot[valid]))
+    fraction, absolute = SET_POINT_TOLERANCE
+    if abs(typical - set_point) > fraction * abs(set_point) + absolute:
+        hint = ""
+        if set_point > 0 and abs(typical / set_point / _PSI_PER_BAR - 1.0) < 0.1:
+            hint = "; p_P_bar and p_B_bar look like psi (1 bar = 14.5 psi)"
+        elif typical > 0 and abs(set_point / typical / _PSI_PER_BAR - 1.0) < 0.1:
+            hint = "; p_Pe_nominal_bar looks like psi (1 bar = 14.5 psi)"
+        return [Problem(file, int(lines[0]), "p_P_bar", None,
+                        f"p_P − p_B near the set point of run {run!r} ({set_point:g} bar, within "
+                        f"{100 * fraction:g} % + {absolute:g} bar); its median is {typical:.4g} "
+                        f"bar{hint}")]
+    fraction, absolute = SAMPLE_SET_POINT_TOLERANCE
+    off = np.flatnonzero(valid & (np.abs(pilot - set_point) > fraction * abs(set_point) + absolute))
+    return [Problem(file, int(lines[i]), "p_P_bar", f"{p_P[i]:g}",
+                    f"p_P − p_B within {100 * fraction:g} % + {absolute:g} bar of run {run!r}'s "
+                    f"set point {set_point:g} bar; here it is {pilot[i]:.4g} bar") for i in off]

@@ -203,9 +203,6 @@ def _parse_cell(text: str, column: Column) -> tuple[object, str | None]:
     value = float(text)
     if not math.isfinite(value):
         return None, f"a finite number ({column.describe_expected()})"
-    if column.lower is not None and (value < column.lower or (
-            column.lower_strict and value == column.lower)):
-        return None, column.describe_expected()
-    if column.upper is not None and value > column.upper:
-        return None, column.describe_expected()
+    if column.range is not None and not column.range.contains(value):
+        return None, column.describe_expected() + column.range.unit_hint(value)
     return value, None

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..units import P_ATM, from_si, label
-
-_VACUUM_BAR = -from_si(P_ATM, "bar")  # [bar gauge] a gauge pressure cannot lie below vacuum
+from .. import limits
+from ..limits import Range
+from ..units import label
 
 
 @dataclass(frozen=True)
@@ -27,10 +27,8 @@ class Column:
         What it holds, in words (used in messages and READMEs).
     unit : str or None
         File unit (a key of :mod:`surrogate.units`), or None for a text column.
-    lower, upper : float or None
-        Physical bounds in the file unit; None for no bound.
-    lower_strict : bool
-        Whether the lower bound itself is excluded (e.g. viscosity > 0).
+    range : Range or None
+        Plausible values in the file unit (:mod:`surrogate.limits`); None for any finite number.
     choices : tuple of str
         Allowed values of a text column; empty for any non-empty text.
     """
@@ -39,9 +37,7 @@ class Column:
     si_name: str
     meaning: str
     unit: str | None = None
-    lower: float | None = None
-    upper: float | None = None
-    lower_strict: bool = False
+    range: Range | None = None
     choices: tuple[str, ...] = ()
 
     @property
@@ -49,15 +45,12 @@ class Column:
         return self.unit is not None
 
     def allowed(self) -> str:
-        """The allowed values in short: ``">= 0 mm"``, ``"600 to 1200 kg/m³"``, ``"'up', 'down'"``."""
+        """The allowed values in short: ``"0 to 100 mm"``, ``"'up', 'down'"``."""
         if not self.is_number:
             return ", ".join(repr(c) for c in self.choices) if self.choices else "non-empty text"
-        unit = label(self.unit)
-        if self.lower is not None and self.upper is not None:
-            return f"{self.lower:g} to {self.upper:g} {unit}"
-        if self.lower is not None:
-            return f"{'>' if self.lower_strict else '>='} {self.lower:g} {unit}"
-        return f"finite, in {unit}"
+        if self.range is not None:
+            return self.range.describe()
+        return f"finite, in {label(self.unit)}"
 
     def describe_expected(self) -> str:
         """What a valid cell looks like, for error messages."""
@@ -83,11 +76,14 @@ class FileSchema:
 
 
 def _pressure(name: str, si_name: str, meaning: str) -> Column:
-    return Column(name, si_name, meaning, "bar", lower=_VACUUM_BAR)
+    return Column(name, si_name, meaning, "bar", limits.PRESSURE)
 
 
-_TEMPERATURE = Column("temperature_C", "temperature", "temperature", "degC", -40.0, 200.0)
-_FLOW = Column("q_lpm", "q", "flow", "L/min", lower=0.0)
+_TEMPERATURE = Column("temperature_C", "temperature", "temperature", "degC", limits.TEMPERATURE)
+_FLOW = Column("q_lpm", "q", "flow", "L/min", limits.FLOW)
+_OPENING = Column("u_mm", "u", "piston position", "mm", limits.OPENING)
+_VISCOSITY = Column("nu_cSt", "nu", "kinematic viscosity", "cSt", limits.VISCOSITY)
+_DENSITY = Column("rho_kg_m3", "rho", "density", "kg/m^3", limits.DENSITY)
 
 CFD_SCHEMA = FileSchema(
     kind="CFD-sample file",
@@ -97,13 +93,14 @@ CFD_SCHEMA = FileSchema(
         Column("case", "case", "run id, unique within the file"),
         Column("oil", "oil", "oil name"),
         _TEMPERATURE,
-        Column("nu_cSt", "nu", "kinematic viscosity", "cSt", lower=0.0, lower_strict=True),
-        Column("rho_kg_m3", "rho", "density", "kg/m^3", 600.0, 1200.0),
-        Column("u_mm", "u", "piston position", "mm", lower=0.0),
+        _VISCOSITY,
+        _DENSITY,
+        _OPENING,
         _FLOW,
         _pressure("p_B_bar", "p_B", "back pressure (gauge)"),
         _pressure("p_L_bar", "p_L", "load pressure (gauge)"),
-        Column("f_sim_N", "f_sim", "axial fluid force on the piston inside the CFD domain", "N"),
+        Column("f_sim_N", "f_sim", "axial fluid force on the piston inside the CFD domain", "N",
+               limits.FORCE),
     ),
 )
 
@@ -115,7 +112,8 @@ BENCH_SCHEMA = FileSchema(
         Column("run", "run", "ramp-test id"),
         Column("time_s", "time", "time within the run", "s"),
         _TEMPERATURE,
-        Column("p_Pe_nominal_bar", "p_Pe_nominal", "set point of p_Pe = p_P - p_B", "bar"),
+        Column("p_Pe_nominal_bar", "p_Pe_nominal", "set point of p_Pe = p_P - p_B", "bar",
+               limits.PRESSURE_DIFFERENCE),
         _FLOW,
         _pressure("p_L_bar", "p_L", "load pressure (gauge)"),
         _pressure("p_B_bar", "p_B", "back pressure (gauge)"),
@@ -127,7 +125,7 @@ BENCH_SCHEMA = FileSchema(
 SCHEMAS = (CFD_SCHEMA, BENCH_SCHEMA)
 
 _QUERY_STATE = (
-    Column("u_mm", "u", "piston position", "mm", lower=0.0),
+    _OPENING,
     _pressure("p_L_bar", "p_L", "load pressure (gauge)"),
     _pressure("p_B_bar", "p_B", "back pressure (gauge)"),
 )
@@ -141,8 +139,7 @@ QUERY_AT_TEMPERATURE = FileSchema(
 QUERY_WITH_FLUID = FileSchema(
     kind="map query file", description="one row per query, fluid given by ν and ρ",
     columns=(*_QUERY_STATE,
-             Column("nu_cSt", "nu", "kinematic viscosity", "cSt", lower=0.0, lower_strict=True),
-             Column("rho_kg_m3", "rho", "density", "kg/m^3", 600.0, 1200.0)),
+             _VISCOSITY, _DENSITY),
     allow_extra=True)
 
 
