@@ -162,6 +162,11 @@ def fit(model: ValveModel, residuals: Callable[[ValveModel], np.ndarray],
     def objective(x):
         assign(parameters, x)
         values = evaluate(fitted)
+        if len(values) <= len(chosen):
+            # as many unknowns as equations: the fit would pass through every point and report
+            # standard errors computed from nothing
+            raise InputError(f"fitting {len(chosen)} free parameter(s) of {model.name!r} needs "
+                             f"more than {len(chosen)} samples; there are {len(values)}")
         last["x"], last["values"] = np.array(x), values
         return values
 

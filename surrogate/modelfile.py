@@ -98,69 +98,163 @@ def load_model(spec: str, valve_path: str | None = None, cfd_samples=None) -> Va
     return model_from_dict(document, f"{path}", path.parent, valve_path, cfd_samples)
 
 
+# What a model file may hold; anything else is refused rather than silently ignored.
+_TOP_KEYS = {"model", "effects"}
+_MODEL_KEYS = {"name", "description", "valve", "maps"}
+_MAP_OPTIONS = {"orifice": {"discharge_coefficient"}, "grid": set(), "nn": set(), "gp": set()}
+_EFFECT_KEYS = {"name", "title", "source", "parameters"}
+_PARAMETER_KEYS = {"value", "unit", "min", "max", "vary", "stderr"}
+
+
+def _unknown_keys(table: dict, allowed: set[str], where: str) -> None:
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise InputError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))}; allowed: "
+                         f"{', '.join(sorted(allowed))}")
+
+
+def _text(table: dict, key: str, where: str, default: str | None = None) -> str | None:
+    value = table.get(key, default)
+    if value is not None and not isinstance(value, str):
+        raise InputError(f"{where}: {key} must be a string, got {value!r}")
+    return value
+
+
+def _number(value, what: str, where: str, *, allow_infinite: bool = False) -> float:
+    """A TOML number (not a boolean, not text), finite unless ``allow_infinite``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{where}: {what} must be a number, got {value!r}")
+    value = float(value)
+    if value != value or (not allow_infinite and value in (float("inf"), float("-inf"))):
+        raise InputError(f"{where}: {what} must be a finite number, got {value!r}")
+    return value
+
+
 def model_from_dict(document: dict, source: str, folder: Path, valve_path: str | None = None,
                     cfd_samples=None) -> ValveModel:
-    """Build a model from a parsed model file (``source`` names it in messages)."""
+    """Build a model from a parsed model file (``source`` names it in messages).
+
+    The file is read strictly: unknown keys, wrong types, duplicated effects, non-boolean
+    ``vary`` and empty bounds are errors that name the key, never ignored.
+    """
+    _unknown_keys(document, _TOP_KEYS, source)
     table = document.get("model")
     if not isinstance(table, dict) or "maps" not in table:
         raise InputError(f"{source}: needs a [model] table with maps = {{ kind = ... }}")
-    maps = table["maps"]
-    if isinstance(maps, str):
-        maps = {"kind": maps}
-    kind = maps.get("kind")
-    if not isinstance(kind, str):
-        raise InputError(f"{source}: [model] maps needs a kind (orifice, grid, nn, gp or a path)")
-    if kind not in ("orifice", "grid", "nn", "gp"):
-        kind = str((folder / kind).resolve()) if not Path(kind).is_absolute() else kind
-    options = {k: v for k, v in maps.items() if k != "kind"}
-    valve_spec = valve_path or table.get("valve", "shipped")
+    _unknown_keys(table, _MODEL_KEYS, f"{source} [model]")
+    kind, options = _maps_entry(table["maps"], f"{source} [model] maps", folder)
+    _text(table, "description", f"{source} [model]")
+    valve_spec = valve_path or _text(table, "valve", f"{source} [model]", "shipped")
     if valve_spec == "shipped":
         valve = load_valve()
+    elif valve_path:
+        valve = load_valve(valve_path)
     else:
         candidate = Path(valve_spec)
-        valve = load_valve(candidate if candidate.is_absolute() or valve_path
-                           else folder / candidate)
-    effects = [_effect_from_entry(entry, source, index)
-               for index, entry in enumerate(document.get("effects", []), start=1)]
-    return build_model(MapsSource(kind, options), valve, effects,
-                       str(table.get("name", Path(source).stem)), cfd_samples)
+        try:
+            valve = load_valve(candidate if candidate.is_absolute() else folder / candidate)
+        except InputError as error:
+            raise InputError(f"{source} [model] valve = {valve_spec!r}: {error}") from None
+    entries = document.get("effects", [])
+    if not isinstance(entries, list):
+        raise InputError(f"{source}: effects must be an array of tables ([[effects]]), got "
+                         f"{entries!r}")
+    effects, seen = [], {}
+    for index, entry in enumerate(entries, start=1):
+        effect = _effect_from_entry(entry, source, index)
+        if effect.name in seen:
+            raise InputError(f"{source}, effect {index}: {effect.name!r} is already effect "
+                             f"{seen[effect.name]}; list each effect once")
+        seen[effect.name] = index
+        effects.append(effect)
+    name = _text(table, "name", f"{source} [model]", Path(source).stem)
+    return build_model(MapsSource(kind, options), valve, effects, name, cfd_samples)
+
+
+def _maps_entry(maps, where: str, folder: Path) -> tuple[str, dict]:
+    """The map kind (or surrogate folder) and its options, checked against what the kind takes."""
+    if isinstance(maps, str):
+        maps = {"kind": maps}
+    if not isinstance(maps, dict):
+        raise InputError(f"{where}: expected a map kind (orifice, grid, nn, gp or the path of a "
+                         f"surrogate folder) or a table {{ kind = ... }}, got {maps!r}")
+    kind = maps.get("kind")
+    if not isinstance(kind, str):
+        raise InputError(f"{where}: needs a kind (orifice, grid, nn, gp or the path of a "
+                         "surrogate folder)")
+    options = {k: v for k, v in maps.items() if k != "kind"}
+    allowed = _MAP_OPTIONS.get(kind, set())
+    _unknown_keys(options, allowed, f"{where} (kind {kind!r})")
+    if "discharge_coefficient" in options:
+        value = _number(options["discharge_coefficient"], "discharge_coefficient", where)
+        if not 0.0 < value <= 1.0:
+            raise InputError(f"{where}: discharge_coefficient must lie in (0, 1], got {value:g} "
+                             "(an orifice passes at most its ideal flow)")
+        options["discharge_coefficient"] = value
+    if kind not in _MAP_OPTIONS:
+        kind = str((folder / kind).resolve()) if not Path(kind).is_absolute() else kind
+    return kind, options
 
 
 def _effect_from_entry(entry: dict, source: str, index: int) -> Effect:
     where = f"{source}, effect {index}"
-    if not isinstance(entry, dict) or "name" not in entry:
-        raise InputError(f"{where}: needs a name")
+    if not isinstance(entry, dict) or not isinstance(entry.get("name"), str):
+        raise InputError(f"{where}: needs a name = \"...\" (a table under [[effects]])")
+    _unknown_keys(entry, _EFFECT_KEYS, where)
     try:
         cls = effect_class(entry["name"])
     except InputError as error:
         hint = f" (its source was {entry['source']})" if "source" in entry else ""
         raise InputError(f"{where}: {error}{hint}") from None
-    effect = cls.for_parameters(list(entry.get("parameters", {})))
-    for key, spec in entry.get("parameters", {}).items():
+    where = f"{where} ({cls.name})"
+    specs = entry.get("parameters", {})
+    if not isinstance(specs, dict):
+        raise InputError(f"{where}: parameters must be a table of name = {{ value = ..., "
+                         f"unit = ... }}, got {specs!r}")
+    effect = cls.for_parameters(list(specs))
+    for key, spec in specs.items():
         if key not in effect.params:
-            raise InputError(f"{where} ({cls.name}): unknown parameter {key!r}; it has "
-                             f"{', '.join(effect.params)}")
-        parameter = effect.params[key]
-        if not isinstance(spec, dict) or "value" not in spec:
-            raise InputError(f"{where} ({cls.name}): parameter {key!r} needs "
-                             "{ value = ..., unit = ... }")
-        unit = spec.get("unit", parameter.unit)
-        if unit != parameter.unit:
-            raise InputError(f"{where} ({cls.name}): parameter {key!r} is in {parameter.unit}, "
-                             f"not {unit}")
-        try:
-            parameter.value = to_si(float(spec["value"]), unit)
-            if "min" in spec:
-                parameter.min = to_si(float(spec["min"]), unit)
-            if "max" in spec:
-                parameter.max = to_si(float(spec["max"]), unit)
-        except (TypeError, ValueError):
-            raise InputError(f"{where} ({cls.name}): parameter {key!r} needs numbers") from None
-        parameter.vary = bool(spec.get("vary", parameter.vary))
-        if not parameter.min <= parameter.value <= parameter.max:
-            raise InputError(f"{where} ({cls.name}): {key} = {spec['value']} lies outside "
-                             f"[{from_si(parameter.min, unit):g}, {from_si(parameter.max, unit):g}]")
+            raise InputError(f"{where}: unknown parameter {key!r}; it has "
+                             f"{', '.join(effect.params) or 'none'}")
+        _set_parameter(effect.params[key], spec, f"{where}, parameter {key!r}")
     return effect
+
+
+def _set_parameter(parameter, spec, where: str) -> None:
+    """Set value, bounds and vary from a parameter's table (display units)."""
+    if not isinstance(spec, dict) or "value" not in spec:
+        raise InputError(f"{where}: needs {{ value = ..., unit = ... }}, got {spec!r}")
+    _unknown_keys(spec, _PARAMETER_KEYS, where)
+    unit = spec.get("unit", parameter.unit)
+    if unit != parameter.unit:
+        raise InputError(f"{where}: is in {parameter.unit}, not {unit}")
+    value = _number(spec["value"], "value", where)
+    low = _number(spec.get("min", from_si(parameter.min, unit)), "min", where,
+                  allow_infinite=True)
+    high = _number(spec.get("max", from_si(parameter.max, unit)), "max", where,
+                   allow_infinite=True)
+    if "stderr" in spec and _number(spec["stderr"], "stderr", where) < 0:
+        raise InputError(f"{where}: stderr must be >= 0, got {spec['stderr']!r}")
+    vary = spec.get("vary", parameter.vary)
+    if not isinstance(vary, bool):
+        raise InputError(f"{where}: vary must be true or false, got {vary!r}")
+    if not low < high:
+        raise InputError(f"{where}: min = {low:g} must be below max = {high:g} (to hold the "
+                         "parameter fixed, set vary = false and keep the bounds apart)")
+    # the effect's own bounds are physics (friction >= 0, a scale > 0): a file may narrow them
+    own_low, own_high = from_si(parameter.min, unit), from_si(parameter.max, unit)
+    slack = 1e-9 * max(abs(own_low) if own_low > -float("inf") else 0.0,
+                       abs(own_high) if own_high < float("inf") else 0.0, 1.0)
+    if low < own_low - slack or high > own_high + slack:
+        raise InputError(f"{where}: bounds [{low:g}, {high:g}] {unit} reach beyond the effect's "
+                         f"own [{own_low:g}, {own_high:g}]; a model file may narrow them only")
+    if not low <= value <= high:
+        raise InputError(f"{where}: value {value:g} lies outside [min, max] = [{low:g}, "
+                         f"{high:g}] {unit}")
+    parameter.value, parameter.vary = to_si(value, unit), vary
+    parameter.min = max(to_si(low, unit), parameter.min)  # no wider than its own by rounding
+    parameter.max = min(to_si(high, unit), parameter.max)
+    parameter.value = min(max(parameter.value, parameter.min), parameter.max)
 
 
 def model_to_dict(model: ValveModel, valve_reference: str = "shipped") -> dict:

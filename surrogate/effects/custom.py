@@ -37,11 +37,13 @@ from __future__ import annotations
 import importlib.util
 import inspect
 import sys
+import traceback
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..limits import FORCE
 from ..units import known_units, to_si
 from .base import KINDS, Effect, Parameter
 
@@ -119,10 +121,15 @@ def effect_from_function(function, kind: str, units: dict, bounds: dict, title: 
     hook = _HOOKS[kind]
 
     def call(self, *positional):
-        result = function(*positional, **{key: self[key] for key in names})
-        if kind == "sensor":
-            return result
-        return np.asarray(result, dtype=float)
+        values = {key: self[key] for key in names}
+        try:
+            result = function(*positional, **values)
+        except (KeyboardInterrupt, InputError):
+            raise
+        except BaseException as error:  # the user's code, sys.exit() included: say where
+            raise InputError(f"{where} raised {type(error).__name__}: {error} (called with "
+                             f"{_shown(values, specs)})") from None
+        return checked_result(name, kind, result, positional, values, specs)
 
     attributes = {
         "name": name, "kind": kind, "title": title or (doc.splitlines()[0] if doc else name),
@@ -130,6 +137,60 @@ def effect_from_function(function, kind: str, units: dict, bounds: dict, title: 
         "__module__": function.__module__, hook: call, "custom": True, "function": function,
     }
     return type(f"Custom_{name}", (Effect,), attributes)
+
+
+def _shown(values: dict, specs: list[Parameter]) -> str:
+    """Parameter values in their display units, for messages."""
+    return ", ".join(f"{spec.name} = {values[spec.name] / to_si(1.0, spec.unit):.4g} {spec.unit}"
+                     if spec.unit != "degC" else f"{spec.name} = {values[spec.name]:.4g} K"
+                     for spec in specs) or "no parameters"
+
+
+def checked_result(name: str, kind: str, result, positional: tuple, values: dict,
+                   specs: list[Parameter]):
+    """A custom effect's return value, if it is what its kind promises; else InputError.
+
+    Sensor effects return operating points of the same number; the others an array (or a scalar)
+    of finite floats, one per state, with friction >= 0 and forces no larger than a hydraulic
+    force can be (:data:`surrogate.limits.FORCE`).
+    """
+    where = f"custom effect {name!r} ({kind}, called with {_shown(values, specs)})"
+    reference = positional[0]
+    if kind == "sensor":
+        from ..points import OperatingPoints
+
+        if not isinstance(result, OperatingPoints) or len(result) != len(reference):
+            raise InputError(f"{where} must return OperatingPoints of the {len(reference)} points "
+                             f"it was given (e.g. points.replace(p_P=...)), got "
+                             f"{type(result).__name__}")
+        for field in ("q", "p_P", "p_B", "temperature"):
+            if not np.all(np.isfinite(getattr(result, field))):
+                raise InputError(f"{where} returned non-finite {field}")
+        return result
+    shape = np.shape(reference.u if kind in ("force", "friction") else reference)
+    try:
+        array = np.asarray(result, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{where} must return numbers (an array of {shape[0] if shape else 1} "
+                         f"values), got {type(result).__name__} {str(result)[:40]!r}") from None
+    if array.shape not in ((), shape):
+        raise InputError(f"{where} must return one value per state (shape {shape}) or a scalar, "
+                         f"got shape {array.shape}")
+    bad = ~np.isfinite(array)
+    if bad.any():
+        raise InputError(f"{where} returned {int(bad.sum())} non-finite value(s) (NaN or inf) "
+                         f"of {array.size}; guard the function where it divides or takes logs")
+    unit = "m^3/s" if kind in ("flow", "leakage") else "N"
+    if kind in ("friction", "leakage", "flow") and np.any(array < 0):
+        meaning = {"friction": "a half-width of the friction band, >= 0 N",
+                   "leakage": "a flow bypassing the restriction, >= 0 m^3/s",
+                   "flow": "the flow through the restriction, >= 0 m^3/s"}[kind]
+        raise InputError(f"{where} returned {float(array.min()):.4g} {unit}; it must be "
+                         f"{meaning} (bound its parameters in @custom_effect(bounds=...))")
+    if kind in ("force", "friction") and np.any(np.abs(array) > FORCE.high):
+        raise InputError(f"{where} returned {float(np.max(np.abs(array))):.4g} N, beyond any "
+                         f"hydraulic force on a valve piston ({FORCE.describe()})")
+    return array
 
 
 def load_effects_file(path: str | Path) -> list[str]:
@@ -151,8 +212,14 @@ def load_effects_file(path: str | Path) -> list[str]:
         spec.loader.exec_module(module)
     except InputError as error:
         raise InputError(f"{path}: {error}") from None
-    except Exception as error:  # the user's code: say where it failed
-        raise InputError(f"{path}: failed to load ({type(error).__name__}: {error})") from None
+    except KeyboardInterrupt:
+        raise
+    except BaseException as error:  # the user's code, sys.exit() included: say where it failed
+        frames = traceback.extract_tb(error.__traceback__)
+        line = next((f", line {frame.lineno}" for frame in reversed(frames)
+                     if Path(frame.filename).resolve() == path.resolve()), "")
+        raise InputError(f"{path}{line}: failed to load ({type(error).__name__}: "
+                         f"{error})") from None
     added = [name for name in REGISTRY if name not in before]
     if not added:
         raise InputError(f"{path}: defines no effect; decorate a function with "

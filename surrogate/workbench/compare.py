@@ -164,12 +164,13 @@ def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None
     played = played if played is not None else replay_log(model, log)
     if len(played.residual) != len(log):
         raise ValueError(f"the replay has {len(played.residual)} samples, the log {len(log)}")
+    played.require_solved(model.name)
     samples = _samples(played)
     solved = samples[samples["residual"].notna()]
     return Comparison(
         model=model.name,
         played=played,
-        rms=played.rms() if len(solved) else float("nan"),
+        rms=played.rms(),
         noise_floor=noise_floor(played.residual, played.runs),
         runs=_run_table(samples, solved, log.run_ids),
         pivot=_pivot(solved),
@@ -233,8 +234,8 @@ def _run_table(samples: pd.DataFrame, solved: pd.DataFrame, run_ids: list[str]) 
                                 samples["dp_measured"].where(samples["residual"].notna()))
     predicted = hysteresis_width(samples["run"], samples["q"], samples["direction"],
                                  samples["dp_predicted"])
-    noise = pd.Series({run: noise_floor(group["residual"].to_numpy(), group["run"].to_numpy())
-                       for run, group in every})
+    noise = pd.Series({run: noise_floor(group["residual"].to_numpy(), group["run"].to_numpy(),
+                                        required=False) for run, group in every})
     table = pd.DataFrame({
         "temperature_C": _display(every["temperature"].mean(), "degC"),
         "temperature_nominal_C": every["temperature_nominal_C"].first(),

@@ -45,7 +45,7 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from ..data.loaders import BenchLog
-from ..effects import REGISTRY, Effect
+from ..effects import REGISTRY, Effect, effect_class
 from ..fitting import FAILURE_RESIDUAL, free_parameters
 from ..model import ValveModel
 from ..parallel import map_threads
@@ -121,8 +121,14 @@ class Diagnosis:
 
 
 def candidate_effects(model: ValveModel, names: Iterable[str] | None = None) -> list[type[Effect]]:
-    """The registered effects the model does not have (or those named)."""
-    chosen = REGISTRY if names is None else {name: REGISTRY[name] for name in names}
+    """The registered effects the model does not have (or those named).
+
+    Raises
+    ------
+    InputError
+        For a name no effect is registered under.
+    """
+    chosen = REGISTRY if names is None else {name: effect_class(name) for name in names}
     return [cls for name, cls in chosen.items() if not model.has_effect(name)]
 
 

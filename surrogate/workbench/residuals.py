@@ -13,9 +13,11 @@ import numpy as np
 import pandas as pd
 
 from ..data.loaders import BenchLog
+from ..errors import InputError
 from ..model import ValveModel
 from ..points import OperatingPoints
 from ..solver import Replay, replay
+from ..solver.steady import Status
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,17 @@ class LogReplay:
     @property
     def runs(self) -> np.ndarray:
         return self.log.frame["run"].to_numpy()
+
+    def require_solved(self, model: str) -> "LogReplay":
+        """This replay, if the model solved any sample; else an InputError that says why not."""
+        if not self.ok.any():
+            statuses = pd.Series([Status(code).name.lower() for code in self.replay.status]
+                                 ).value_counts()
+            raise InputError(f"model {model!r} solves none of the {len(self.residual)} samples "
+                             f"of {self.log.source} ("
+                             + ", ".join(f"{n} {status}" for status, n in statuses.items())
+                             + "); check its valve and effects")
+        return self
 
     def rms(self) -> float:
         """Root-mean-square residual over the solved samples [Pa]."""
@@ -109,7 +122,11 @@ def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = No
     return LogReplay(log, played, measured, residual)
 
 
-def noise_floor(residual: np.ndarray, runs: np.ndarray) -> float:
+#: solved samples a run needs for its second differences to say anything about the noise
+NOISE_SAMPLES = 5
+
+
+def noise_floor(residual: np.ndarray, runs: np.ndarray, *, required: bool = True) -> float:
     """The residual's white-noise level [same units], from its sample-to-sample scatter.
 
     Within each run the residual's second differences r[k+1] − 2·r[k] + r[k−1] cancel anything
@@ -117,18 +134,29 @@ def noise_floor(residual: np.ndarray, runs: np.ndarray) -> float:
     σ their variance is 6σ². A robust scale (1.4826 × median absolute deviation) ignores the
     occasional jump where the piston breaks away. Runs are pooled by their sample counts. The
     result is the lowest RMS any model fed these noisy inputs could reach.
+
+    Raises
+    ------
+    InputError
+        If no run has :data:`NOISE_SAMPLES` solved samples (with ``required``; otherwise the
+        result is NaN): the log is too short to tell noise from misfit.
     """
     weights, variances = [], []
     for run in dict.fromkeys(runs):
         r = residual[(runs == run) & np.isfinite(residual)]
-        if len(r) < 5:
+        if len(r) < NOISE_SAMPLES:
             continue
         second = r[2:] - 2.0 * r[1:-1] + r[:-2]
         scale = 1.4826 * np.median(np.abs(second - np.median(second))) / np.sqrt(6.0)
         weights.append(len(r))
         variances.append(scale**2)
     if not weights:
-        return float("nan")
+        if not required:
+            return float("nan")
+        longest = max((int(np.sum((runs == run) & np.isfinite(residual)))
+                       for run in dict.fromkeys(runs)), default=0)
+        raise InputError(f"the noise floor needs a run with at least {NOISE_SAMPLES} solved "
+                         f"samples; the longest run here has {longest}")
     return float(np.sqrt(np.average(variances, weights=weights)))
 
 

@@ -30,7 +30,7 @@ from ..effects import (ConstantFriction, FlowForceScale, LoadPressureFriction, P
 from ..errors import InputError
 from ..model import ValveModel
 from ..modelfile import cfda_effects, preset
-from ..units import to_si
+from ..units import from_si, to_si
 from .residuals import replay_log
 
 #: a magnitude an engineer could meet on a real valve, per library effect (display units). The
@@ -203,7 +203,16 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
             _draw_per_run(effect, values, seed)
         else:
             for key, value in values.items():
-                effect.params[key].set_display(value)
+                if key not in effect.params:
+                    raise InputError(f"hidden effect {hidden!r} has no parameter {key!r}; it has "
+                                     f"{', '.join(effect.params)}")
+                parameter = effect.params[key]
+                parameter.set_display(value)
+                if not parameter.min <= parameter.value <= parameter.max:
+                    raise InputError(
+                        f"hidden effect {hidden!r}: {key} = {value:g} {parameter.unit} lies "
+                        f"outside its bounds [{from_si(parameter.min, parameter.unit):g}, "
+                        f"{from_si(parameter.max, parameter.unit):g}]")
         start_effects = [e for e in start_effects if e.name != hidden]
     log = simulate(truth, sequence, noise=noise, seed=seed)
     # the fit starts from the presets' values, not from the truth
