@@ -1,4 +1,11 @@
-"""Writing a command's output files all at once, or not at all."""
+"""Writing a command's output files all at once, or not at all, and never over its inputs.
+
+A command checks where it will write before it computes anything (:func:`check_outputs`): an
+output that is one of its inputs, or that lies where nothing can be written, is refused at once
+instead of after a long fit. The files themselves are written to a temporary name and renamed into
+place (:func:`atomic_file`, :func:`atomic_directory`), with the permissions any other file the
+user creates would get.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +13,89 @@ import contextlib
 import os
 import shutil
 import tempfile
+from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
+
+from .errors import InputError
+
+
+@dataclass(frozen=True)
+class Output:
+    """Where a command will write: ``path`` given by ``option``, a ``"file"`` or a ``"folder"``."""
+
+    option: str
+    path: str | Path
+    kind: str = "file"
+
+
+def check_outputs(outputs: Iterable[Output], inputs: Iterable[str | Path]) -> None:
+    """Refuse, before any work, outputs that would overwrite an input or cannot be written.
+
+    Parameters
+    ----------
+    outputs : iterable of Output
+        What the command will write.
+    inputs : iterable of path
+        Every file or folder the command reads (missing ones are skipped).
+
+    Raises
+    ------
+    InputError
+        Naming the option and the path: an output that is an input (or, for a folder, holds one),
+        a file where a folder is meant or the reverse, a parent that is a file, or a place the
+        user may not write to.
+    """
+    existing = [Path(path) for path in inputs if path is not None and Path(path).exists()]
+    for output in outputs:
+        target = Path(output.path)
+        for source in existing:
+            if _same(target, source):
+                raise InputError(f"{output.option} {target}: that is the input {source}; "
+                                 "refusing to overwrite an input, choose another path")
+            if output.kind == "folder" and _inside(source, target):
+                raise InputError(f"{output.option} {target}: this output folder holds the input "
+                                 f"{source}, which its files could replace; choose another "
+                                 "folder")
+        _check_writable(output.option, target, output.kind)
+
+
+def _same(a: Path, b: Path) -> bool:
+    if a.exists():
+        return os.path.samefile(a, b)
+    return a.resolve() == b.resolve()
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    return folder.resolve() in path.resolve().parents
+
+
+def _check_writable(option: str, target: Path, kind: str) -> None:
+    if target.exists() or target.is_symlink():
+        if kind == "folder" and not target.is_dir():
+            raise InputError(f"{option} {target}: this is a file; give a folder to write into")
+        if kind == "file" and target.is_dir():
+            raise InputError(f"{option} {target}: this is a folder; give the path of a file")
+    # the nearest existing ancestor must be a folder we may create files in
+    ancestor = target.parent if kind == "file" or not target.exists() else target
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise InputError(f"{option} {target}: {ancestor} is a file, not a folder, so nothing "
+                         "can be written under it")
+    try:  # a real probe: permissions, read-only file systems and root all answer truthfully
+        with tempfile.TemporaryFile(dir=ancestor, prefix=".cbv-write-probe-"):
+            pass
+    except OSError as error:
+        raise InputError(f"{option} {target}: cannot write in {ancestor} "
+                         f"({error.strerror or error})") from None
+
+
+def _permissions() -> int:
+    """The mode a new file gets here: 0666 less the process's umask (0644 with the usual 022)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
 
 
 @contextlib.contextmanager
@@ -35,7 +124,8 @@ def atomic_directory(target: str | Path):
 def atomic_file(target: str | Path):
     """Yield a text stream; on success its content replaces ``target`` in one rename.
 
-    If the body raises, the temporary file is removed and ``target`` is left as it was.
+    If the body raises, the temporary file is removed and ``target`` is left as it was. The file
+    gets the usual permissions (mkstemp's own are owner-only).
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -43,6 +133,7 @@ def atomic_file(target: str | Path):
     try:
         with os.fdopen(handle, "w", encoding="utf-8", newline="") as stream:
             yield stream
+        os.chmod(temporary, _permissions())
         os.replace(temporary, target)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

@@ -60,6 +60,7 @@ def test_fit_writes_a_model_file_that_loads_and_compares(capsys, small_log, tmp_
     assert again["rms_bar"] == pytest.approx(result["rms_bar"], rel=1e-3)
 
 
+@pytest.mark.slow
 def test_workflow_json_contract(capsys, small_log, tmp_path):
     out = tmp_path / "workflow"
     result = run_json(capsys, ["workflow", "--data", str(small_log), "--out", str(out),

@@ -15,6 +15,8 @@ from surrogate.workbench.diagnose import diagnose
 from surrogate.workbench.fit import fit_to_log
 from surrogate.workbench.simulate import REALISTIC_MAGNITUDES, hidden_effect_case, noise_free_sequence
 
+pytestmark = pytest.mark.slow  # each case fits and diagnoses a synthetic log: seconds each
+
 RATIO = 1.3  # the RMS after adding the effect must be within 1.3x the noise floor
 EVERY = 8
 

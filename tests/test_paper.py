@@ -30,23 +30,27 @@ def _cell_means(document) -> dict[str, float]:
     return frame.groupby("model")["mean_abs_bar"].mean().to_dict()
 
 
+@pytest.mark.slow
 def test_paper_command_succeeds_and_reports_progress(paper_run):
     code, _, _, stderr = paper_run
     assert code == 0
     assert "Table 6" in stderr  # progress is shown while it works
 
 
+@pytest.mark.slow
 def test_cfda_beats_best_fit_beats_basic_effort_on_average(paper_run):
     means = _cell_means(paper_run[1])
     assert means["CFDA"] < means["BMBEBF"] < means["BMBE"], means
 
 
+@pytest.mark.slow
 def test_cfda_is_within_5_bar_in_most_cells(paper_run):
     cfda = [r for r in paper_run[1]["table5"] if r["model"] == "CFDA"]
     assert len(cfda) == 9
     assert sum(r["mean_abs_bar"] < 5.0 for r in cfda) >= 5
 
 
+@pytest.mark.slow
 def test_json_contract(paper_run):
     document = paper_run[1]
     assert {"model", "p_Pe_bar", "temperature_C", "mean_abs_bar"} <= set(document["table5"][0])
@@ -58,11 +62,13 @@ def test_json_contract(paper_run):
         (t, p) for t in (20, 40, 60) for p in (65, 50)}
 
 
+@pytest.mark.slow
 def test_flow_force_needed_reducing_as_in_the_paper(paper_run):
     scale = paper_run[1]["fitted"]["CFDA_flow_force_scale"]
     assert 0.8 < scale < 1.0  # the paper needed 0.9
 
 
+@pytest.mark.slow
 def test_friction_grows_as_the_oil_cools(paper_run):
     """Table 6's finding: more hysteresis at lower temperature (friction at p_L = 80 bar)."""
     fits = {r["temperature_C"]: r for r in paper_run[1]["table6"] if r["fitted_on_p_Pe_bar"] == 65}
@@ -70,6 +76,7 @@ def test_friction_grows_as_the_oil_cools(paper_run):
     assert friction[0] > friction[1] > friction[2], friction
 
 
+@pytest.mark.slow
 def test_paper_files_are_written(paper_run):
     out = paper_run[2]
     names = {path.name for path in out.iterdir()}

@@ -7,32 +7,41 @@ import sys
 
 from ..data import DataFileError, load_any
 from ..data.summary import format_summary, summarize
+from .common import add_command
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "check-data", help="validate and summarise CFD-sample files and bench logs",
+    parser = add_command(
+        subparsers, "check-data", help="validate and summarise CFD-sample files and bench logs",
         description="Recognise each file as CFD samples or a bench log, validate it against the "
-                    "documented schema and print a summary. Exits 2 if any file is rejected; "
-                    "every problem found is listed with its line and column.")
+                    "documented schema and its plausibility limits, and print a summary. Exits 2 "
+                    "if any file is rejected; every problem found is listed with its line and "
+                    "column.",
+        json_help="print the summaries (or the errors) as JSON on stdout")
     parser.add_argument("paths", nargs="+", metavar="PATH", help="CSV file(s) to check")
-    parser.add_argument("--json", action="store_true", help="print the summaries as JSON")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    summaries, failed = [], False
+    summaries, errors = [], []
     for path in args.paths:
         try:
             table = load_any(path)
         except DataFileError as error:
+            errors.append(error)
             print(f"error: {error}", file=sys.stderr)
-            failed = True
             continue
         summary = summarize(table)
         summaries.append(summary)
         if not args.json:
             print(format_summary(summary))
     if args.json:
-        print(json.dumps(summaries if len(args.paths) > 1 else (summaries or [None])[0], indent=2))
-    return 2 if failed else 0
+        document = summaries if len(args.paths) > 1 else (summaries or [None])[0]
+        if errors:
+            document = {"kind": "bad input", "exit_code": 2,
+                        "message": "\n".join(str(e) for e in errors),
+                        "problems": [vars(p) for e in errors for p in e.problems],
+                        "accepted": summaries}
+            document = {"error": document}
+        print(json.dumps(document, indent=2))
+    return 2 if errors else 0

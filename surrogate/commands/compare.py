@@ -4,28 +4,31 @@ from __future__ import annotations
 
 import json
 
-from ..outputs import atomic_directory
+from ..outputs import Output, atomic_directory
 from ..workbench.compare import compare
 from ..workbench.figures import all_figures
 from ..workbench.report import comparison_section, figure_png, write_html
-from .workbench_options import Progress, add_data_options, load_inputs, print_json
+from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
+                     progress_for)
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "compare", help="compare a model with bench data: residuals per run, region and figure",
+    parser = add_command(
+        subparsers, "compare",
+        help="compare a model with bench data: residuals per run, region and figure",
         description="Replay every run of the bench log with the model (friction as a play) and "
                     "summarise the residual: RMS, bias and hysteresis-width error per run, a "
                     "p_Pe x temperature table, the noise floor of the data, and operating regions "
                     "ranked by error with flags where the maps extrapolate. The model is used as "
                     "given (no fit; see `fit`).")
     add_data_options(parser, out_help="write compare.json, runs.csv, regions.csv, figures and "
-                                      "report.html here")
+                                      "report.html into this folder")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    progress = Progress()
+    guard_outputs(args, Output("--out", args.out, "folder"))
+    progress = progress_for(args)
     model, log = load_inputs(args, progress)
     progress(f"replaying {model.name}")
     comparison = compare(model, log)

@@ -4,19 +4,22 @@ from __future__ import annotations
 
 import json
 
-from ..outputs import atomic_directory
+from ..errors import InputError
+from ..outputs import Output, atomic_directory
 from ..units import from_si
 from ..workbench.compare import compare
-from ..workbench.diagnose import diagnose
+from ..workbench.diagnose import candidate_effects, diagnose
 from ..workbench.fit import fit_to_log
 from ..workbench.report import (comparison_section, diagnosis_figure, diagnosis_section,
                                 diagnosis_table, figure_png, write_html)
-from .workbench_options import Progress, add_data_options, load_inputs, print_json
+from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
+                     progress_for)
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "diagnose", help="rank candidate effects by how much of the residual they explain",
+    parser = add_command(
+        subparsers, "diagnose", help="rank candidate effects by how much of the residual they "
+                                     "explain",
         description="Fit the model's free parameters to the bench log, then refit it with each "
                     "candidate effect (the library and any --effects-file) and report the RMS "
                     "after, ΔBIC, the fitted parameters with standard errors and whether the "
@@ -24,15 +27,19 @@ def register(subparsers) -> None:
                     "residual above 1.1x the noise floor, gain above 0.05x the noise floor). "
                     "Candidates the data cannot tell apart are reported as a group.")
     add_data_options(parser, out_help="write diagnosis.json, candidates.csv, a figure and "
-                                      "report.html here")
+                                      "report.html into this folder")
     parser.add_argument("--candidates", nargs="+", metavar="NAME",
                         help="only these effects (default: every effect the model lacks)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    progress = Progress()
+    guard_outputs(args, Output("--out", args.out, "folder"))
+    progress = progress_for(args)
     model, log = load_inputs(args, progress)
+    if not candidate_effects(model, args.candidates):  # also checks the names, before the fit
+        raise InputError(f"nothing to diagnose: model {model.name!r} has every candidate "
+                         f"({', '.join(args.candidates or ['the whole library'])}) already")
     progress(f"fitting the free parameters of {model.name}")
     model = fit_to_log(model, log).model
     progress(f"diagnosing {model.name}")

@@ -5,38 +5,43 @@ from __future__ import annotations
 from ..effects import effect_class
 from ..errors import InputError
 from ..modelfile import save_model
+from ..outputs import Output
 from ..units import from_si
 from ..workbench.fit import fit_to_log
 from ..workbench.residuals import noise_floor, replay_log
-from .workbench_options import Progress, add_data_options, load_inputs, print_json
+from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
+                     progress_for)
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "fit", help="add effects, refit on a bench log and save the model file",
+    parser = add_command(
+        subparsers, "fit", help="add effects, refit on a bench log and save the model file",
         description="Add the named effects (built-in, or custom from --effects-file) to the "
                     "model, fit all free parameters to every sample of the bench log and write the "
                     "fitted model as a TOML file.")
-    add_data_options(parser, out_help="model file (TOML) to write")
+    add_data_options(parser, out_help="model file (TOML) to write", out_required=True)
     parser.add_argument("--add", action="append", default=[], metavar="NAME",
                         help="effect to add (repeatable)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    if not args.out:
-        raise InputError("fit needs --out MODEL.toml, the model file to write")
-    progress = Progress()
+    guard_outputs(args, Output("--out", args.out, "file"))
+    progress = progress_for(args)
     model, log = load_inputs(args, progress)
     classes = [effect_class(name) for name in args.add]
+    repeated = sorted({name for name in args.add if args.add.count(name) > 1})
+    if repeated:
+        raise InputError(f"--add {', '.join(repeated)} given more than once; add an effect once")
     already = [cls.name for cls in classes if model.has_effect(cls.name)]
     if already:
         raise InputError(f"model {model.name!r} has {', '.join(already)} already")
     name = "+".join([model.name, *args.add])
-    model = model.with_effects([*model.effects, *(cls.for_runs(log.run_ids) for cls in classes)], name=name)
+    model = model.with_effects([*model.effects, *(cls.for_runs(log.run_ids) for cls in classes)],
+                               name=name)
     progress(f"fitting {name}")
     result = fit_to_log(model, log)
-    played = replay_log(result.model, log)
+    played = replay_log(result.model, log).require_solved(result.model.name)
     floor = noise_floor(played.residual, played.runs)
     save_model(result.model, args.out, note=f"fitted to {log.source}: rms "
                                             f"{from_si(played.rms(), 'bar'):.3f} bar")

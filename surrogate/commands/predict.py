@@ -8,28 +8,31 @@ import numpy as np
 
 from ..data.queries import load_queries
 from ..maps.registry import MAP_KINDS, build_maps
-from ..outputs import atomic_file
+from ..outputs import Output, atomic_file
 from ..units import from_si
 from ..valve import load_valve
+from .common import add_command, guard_outputs, print_json, progress_for, required
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "predict", help="evaluate q_sim and f_sim maps at given states",
+    parser = add_command(
+        subparsers, "predict", help="evaluate q_sim and f_sim maps at given states",
         description="Read states (u_mm, p_L_bar, p_B_bar and temperature_C, or nu_cSt and "
                     "rho_kg_m3 for another oil), evaluate the flow and force map, and write the "
                     "input with q_lpm_pred, f_sim_N_pred (GP: also q_lpm_std, f_sim_N_std) and "
                     "extrapolating.")
-    parser.add_argument("--model", required=True,
-                        help=f"map kind ({', '.join(MAP_KINDS)}) or a trained surrogate folder")
-    parser.add_argument("--input", required=True, help="query CSV")
-    parser.add_argument("--output", required=True, help="output CSV")
+    options = required(parser)
+    options.add_argument("--model", required=True,
+                         help=f"map kind ({', '.join(MAP_KINDS)}) or a trained surrogate folder")
+    options.add_argument("--input", required=True, help="query CSV")
+    options.add_argument("--output", required=True, help="output CSV")
     parser.add_argument("--valve", help="valve file (default: the shipped valve)")
     parser.add_argument("--cfd", help="CFD samples for grid maps (default: the shipped ones)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
+    guard_outputs(args, Output("--output", args.output, "file"))
     queries = load_queries(args.input)
     valve = load_valve(args.valve)
     flow_map, force_map = build_maps(args.model, valve, args.cfd)
@@ -46,8 +49,13 @@ def run(args) -> int:
     output["extrapolating"] = np.asarray(flow_map.extrapolating(*state)
                                          | force_map.extrapolating(*state))
     _write_whole(output, Path(args.output))
-    print(f"wrote {len(output)} predictions ({int(output['extrapolating'].sum())} extrapolating) "
-          f"with {args.model} maps to {args.output}")
+    extrapolating = int(output["extrapolating"].sum())
+    if args.json:
+        print_json({"output": str(args.output), "predictions": len(output),
+                    "extrapolating": extrapolating, "maps": args.model})
+    else:
+        progress_for(args)(f"wrote {len(output)} predictions ({extrapolating} extrapolating) "
+                           f"with {args.model} maps to {args.output}")
     return 0
 
 

@@ -2,18 +2,24 @@
 
 from __future__ import annotations
 
+import math
+
 from ..data import load_bench_log
-from ..errors import InputError
-from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..data.writer import write_bench_log
+from ..effects import effect_class
+from ..errors import InputError
+from ..outputs import Output
+from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..workbench.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
-                                  reference_model, noise_free_sequence)
-from .workbench_options import Progress, load_effects
+                                  noise_free_sequence, reference_model)
+from .common import (add_command, guard_outputs, load_effects, non_negative_int, positive_int,
+                     print_json, progress_for, required)
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "simulate", help="write a synthetic bench log with a hidden effect switched on",
+    parser = add_command(
+        subparsers, "simulate", help="write a synthetic bench log with a hidden effect switched "
+                                     "on",
         description="Replay a reference valve (CFDA on grid maps with the shipped bench's fitted "
                     "values) with one effect switched on over the shipped test sequence, add "
                     "sensor noise like the shipped bench's, and write the log as CSV. "
@@ -25,27 +31,39 @@ def register(subparsers) -> None:
                         help="a parameter of the hidden effect, in its display unit")
     parser.add_argument("--effects-file", action="append", default=[], metavar="FILE",
                         help="Python file defining custom effects")
-    parser.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    parser.add_argument("--seed", type=non_negative_int, default=0,
+                        help="noise seed (default 0)")
     parser.add_argument("--noise-scale", type=float, default=1.0,
-                        help="sensor noise relative to the shipped bench's (default 1)")
-    parser.add_argument("--every", type=int, default=1,
+                        help="sensor noise relative to the shipped bench's, 0 to 100 (default 1)")
+    parser.add_argument("--every", type=positive_int, default=1,
                         help="keep every n-th sample of the sequence (default 1: all)")
     parser.add_argument("--sequence", help="bench log whose test sequence to use "
                                            "(default: the shipped one)")
-    parser.add_argument("--out", required=True, help="CSV file to write")
+    required(parser).add_argument("--out", required=True, help="CSV file to write")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    progress = Progress()
+    guard_outputs(args, Output("--out", args.out, "file"))
+    if not (math.isfinite(args.noise_scale) and 0 <= args.noise_scale <= 100):
+        raise InputError(f"--noise-scale {args.noise_scale:g}: expected 0 to 100 (times the "
+                         "shipped bench's sensor noise)")
+    progress = progress_for(args)
     load_effects(args)
+    if args.hidden and args.hidden != "none":
+        effect_class(args.hidden)  # an unknown name is an error before any work
+    elif args.set:
+        raise InputError("--set needs --hidden NAME: the parameters are the hidden effect's")
     values = {}
     for item in args.set:
         key, _, value = item.partition("=")
         try:
-            values[key.strip()] = float(value)
+            number = float(value)
         except ValueError:
-            raise InputError(f"--set {item!r}: expected PARAM=NUMBER") from None
+            number = math.nan
+        if not key.strip() or not math.isfinite(number):
+            raise InputError(f"--set {item!r}: expected PARAM=NUMBER with a finite number")
+        values[key.strip()] = number
     source = load_bench_log(args.sequence or shipped(SHIPPED_BENCH_LOG))
     sequence = noise_free_sequence(source, every=args.every)
     case = hidden_effect_case(args.hidden, values or None, sequence=sequence, seed=args.seed,
@@ -53,4 +71,7 @@ def run(args) -> int:
                               noise=SensorNoise().scaled(args.noise_scale))
     write_bench_log(case.log, args.out)
     progress(f"wrote {len(case.log)} samples to {args.out} (truth: {case.truth!r})")
+    if args.json:
+        print_json({"file": str(args.out), "samples": len(case.log),
+                    "runs": len(case.log.run_ids), "truth": repr(case.truth)})
     return 0

@@ -5,38 +5,41 @@ from __future__ import annotations
 import json
 
 from ..modelfile import save_model
-from ..outputs import atomic_directory
+from ..outputs import Output, atomic_directory
 from ..units import from_si
 from ..workbench.compare import compare
 from ..workbench.figures import all_figures
 from ..workbench.report import (comparison_section, diagnosis_section, figure_png,
                                 staircase_figure, staircase_section, staircase_table, write_html)
 from ..workbench.workflow import MAX_ADDITIONS, run_workflow
-from .workbench_options import Progress, add_data_options, load_inputs, print_json
+from .common import (add_command, add_data_options, guard_outputs, load_inputs,
+                     non_negative_int, print_json, progress_for)
 
 DEFAULT_OUT = "results/workflow"
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "workflow", help="run the loop: paper's models, then diagnose and add until only noise "
-                         "is left; write the error staircase and a report",
+    parser = add_command(
+        subparsers, "workflow",
+        help="run the loop: paper's models, then diagnose and add until only noise is left; "
+             "write the error staircase and a report",
         description="Start from the paper's basic model (BMBE), take the paper's steps (fitted "
                     "C_d, CFD maps with a flow-force scale, Coulomb friction K1 + K2*p_L), then "
                     "repeatedly diagnose the model and add the best significant effect, until "
                     "nothing significant is left. Writes the staircase (table and figure), the "
                     "final model file, its comparison with the data and an HTML report.")
     add_data_options(parser, model=False, out_help=f"output folder (default {DEFAULT_OUT})")
-    parser.add_argument("--max-additions", type=int, default=MAX_ADDITIONS,
+    parser.add_argument("--max-additions", type=non_negative_int, default=MAX_ADDITIONS,
                         help=f"effects the loop may add at most (default {MAX_ADDITIONS})")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    progress = Progress()
+    out = args.out or DEFAULT_OUT
+    guard_outputs(args, Output("--out", out, "folder"))
+    progress = progress_for(args)
     _, log = load_inputs(args, progress)
     workflow = run_workflow(log, max_additions=args.max_additions, progress=progress)
-    out = args.out or DEFAULT_OUT
     final = workflow.final
     comparison = compare(final.model, log, played=final.played)
     with atomic_directory(out) as staging:

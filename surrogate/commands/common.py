@@ -1,0 +1,162 @@
+"""What the subcommands share: their parser conventions, common options, guarding the outputs,
+loading the model and the log, and JSON output."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from ..data import load_bench_log
+from ..effects import load_effects_file
+from ..errors import InputError
+from ..model import ValveModel
+from ..modelfile import PRESETS, load_model
+from ..outputs import Output, check_outputs
+from ..paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, shipped
+from ..progress import Progress
+
+EXIT_CODES = """exit codes:
+  0  success
+  1  internal error: a bug; one line says so and names the file with the details
+  2  bad input or a misused command: the message names the file, line, column, key or
+     option and what was expected; nothing is written"""
+
+#: options whose values are files or folders a command reads
+INPUT_OPTIONS = ("data", "model", "valve", "effects_file", "input", "cfd", "sequence")
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Wraps descriptions as usual but prints the exit-code table as written."""
+
+    def _fill_text(self, text, width, indent):
+        if text.startswith("exit codes:"):
+            return "".join(indent + line for line in text.splitlines(keepends=True))
+        return super()._fill_text(text, width, indent)
+
+
+class UsageError(InputError):
+    """A command line argparse rejects; carries the usage line to print with it."""
+
+    def __init__(self, message: str, usage: str):
+        super().__init__(message)
+        self.usage = usage
+
+
+class CommandParser(argparse.ArgumentParser):
+    """An ArgumentParser that raises :class:`UsageError` instead of exiting, so the command
+    line reports misuse like any other bad input (and as JSON with --json)."""
+
+    def error(self, message: str):
+        raise UsageError(f"{self.prog}: {message}", self.format_usage())
+
+
+def add_command(subparsers, name: str, help: str, description: str, *,
+                json_help: str | None = "print the machine-readable result (or error) as JSON "
+                                        "on stdout") -> argparse.ArgumentParser:
+    """A subcommand's parser with the shared conventions: exit codes in --help, --quiet, and
+    --json unless ``json_help`` is None."""
+    parser = subparsers.add_parser(name, help=help, description=description, epilog=EXIT_CODES,
+                                   formatter_class=HelpFormatter)
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress lines on stderr (errors are still reported)")
+    if json_help:
+        parser.add_argument("--json", action="store_true", help=json_help)
+    return parser
+
+
+def required(parser: argparse.ArgumentParser) -> argparse._ArgumentGroup:
+    """The group that lists a parser's required options under their own heading in --help."""
+    for group in parser._action_groups:
+        if group.title == "required options":
+            return group
+    return parser.add_argument_group("required options")
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {value}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    value = non_negative_int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
+    return value
+
+
+def add_data_options(parser, *, model: bool = True, out_help: str = "output folder",
+                     out_required: bool = False) -> None:
+    """--model, --data, --effects-file, --valve and --out of the workbench commands."""
+    if model:
+        required(parser).add_argument(
+            "--model", required=True,
+            help=f"a preset ({', '.join(PRESETS)}) or a model file (TOML)")
+    parser.add_argument("--data", help="bench log CSV (default: the shipped one)")
+    parser.add_argument("--effects-file", action="append", default=[], metavar="FILE",
+                        help="Python file defining custom effects (repeatable)")
+    parser.add_argument("--valve", help="valve file (default: the model's, or the shipped valve)")
+    (required(parser) if out_required else parser).add_argument("--out", required=out_required,
+                                                                help=out_help)
+
+
+def guard_outputs(args, *outputs: Output) -> None:
+    """Refuse outputs that would overwrite an input or cannot be written, before any work.
+
+    The inputs are every path the command's options name plus the shipped data, which no command
+    may overwrite.
+    """
+    inputs: list[str | Path] = [SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES]
+    for name in INPUT_OPTIONS:
+        value = getattr(args, name, None)
+        inputs += value if isinstance(value, list) else [value]
+    check_outputs([output for output in outputs if output.path], inputs)
+
+
+def progress_for(args) -> Progress:
+    return Progress(quiet=getattr(args, "quiet", False))
+
+
+def load_effects(args) -> list[str]:
+    """Import the --effects-file files (before a model file that names their effects loads)."""
+    names = []
+    for path in args.effects_file:
+        names += load_effects_file(path)
+    return names
+
+
+def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object]:
+    """The custom effects, the model (if the command takes one) and the bench log."""
+    custom = load_effects(args)
+    if custom:
+        progress(f"custom effects: {', '.join(custom)}")
+    model = load_model(args.model, args.valve) if getattr(args, "model", None) else None
+    log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
+    progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")
+    if model is not None:
+        _warn_about_foreign_runs(model, log, args.model)
+    return model, log
+
+
+def _warn_about_foreign_runs(model: ValveModel, log, source: str) -> None:
+    """Per-run parameters of runs the log lacks act on no sample: say so (they are kept)."""
+    runs = set(log.run_ids)
+    for effect in model.effects:
+        foreign = sorted({p.scope for p in effect.params.values()
+                          if p.scope is not None and p.scope not in runs})
+        if foreign:
+            print(f"warning: {source}: {effect.name} has parameters for run(s) "
+                  f"{', '.join(foreign)}, which {log.source} lacks; they act on no sample",
+                  file=sys.stderr)
+
+
+def print_json(document: dict) -> None:
+    print(json.dumps(document, indent=2, allow_nan=False))
