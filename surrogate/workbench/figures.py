@@ -78,14 +78,39 @@ def _temperature_colours(comparison: Comparison) -> dict[float, str]:
             for index, level in enumerate(levels)}
 
 
+#: longest figure title [characters]: titles fit their figure; the model's full name, which can be
+#: long after a workflow, goes into the caption (:func:`caption`)
+TITLE_LENGTH = 60
+
+
 def _title(comparison: Comparison, what: str) -> str:
-    return (f"{comparison.model} vs {Path(comparison.played.log.source).name}: {what} "
-            f"(RMS {from_si(comparison.rms, 'bar'):.2f} {BAR}, "
-            f"noise floor {from_si(comparison.noise_floor, 'bar'):.2f} {BAR})")
+    return (f"{what}: RMS {from_si(comparison.rms, 'bar'):.2f} {BAR}, "
+            f"noise floor {from_si(comparison.noise_floor, 'bar'):.2f} {BAR}")
+
+
+def caption(comparison: Comparison) -> str:
+    """What every figure of the comparison shows, in full: the model and the data."""
+    model = comparison.model.replace("+", " + ")  # so that a long name can wrap
+    return f"Model {model} against {Path(comparison.played.log.source).name}."
+
+
+def _tint(colour, amount: float):
+    """``colour`` mixed with white: 0 keeps it, 1 is white."""
+    from matplotlib.colors import to_rgb
+
+    return tuple(c + (1.0 - c) * amount for c in to_rgb(colour))
+
+
+def _shade(colour, amount: float):
+    """``colour`` mixed with black: 0 keeps it, 1 is black."""
+    from matplotlib.colors import to_rgb
+
+    return tuple(c * (1.0 - amount) for c in to_rgb(colour))
 
 
 def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
-    """Δp(q) of every run, measured (thin) and model (dashed), one panel per temperature."""
+    """Δp(q) of every run, one panel per temperature: measured as light dots, the model as a
+    dark line, both in the set point's hue, so the two differ in marker and in colour."""
     levels = sorted(set(samples["temperature_nominal_C"]))
     set_points = sorted(set(samples["p_Pe_bar"]))
     palette = colormaps["viridis"].resampled(max(len(set_points), 2))
@@ -97,18 +122,20 @@ def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
         for run, group in samples[samples["temperature_nominal_C"] == level].groupby(
                 "run", sort=False):
             c = colour[group["p_Pe_bar"].iloc[0]]
+            ax.plot(group["q_lpm"], group["dp_measured_bar"], "o", color=_tint(c, 0.55),
+                    markersize=1.6, markeredgewidth=0, rasterized=True)
             # time order, so each run draws its loop: up the ramp and back down
-            ax.plot(group["q_lpm"], group["dp_measured_bar"], "-", color=c, linewidth=0.6,
-                    alpha=0.6, rasterized=True)
-            ax.plot(group["q_lpm"], group["dp_model_bar"], "--", color=c, linewidth=1.2)
+            ax.plot(group["q_lpm"], group["dp_model_bar"], "-", color=_shade(c, 0.35),
+                    linewidth=1.3)
         ax.set_title(f"{level:g} {DEGC}")
         ax.set_xlabel(f"q [{LPM}]")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel(f"Δp = p_L − p_B [{BAR}]")
     handles = [Line2D([], [], color=colour[p], linewidth=2.0, label=f"p_Pe {p:g} {BAR}")
                for p in set_points]
-    handles += [Line2D([], [], color="0.3", linewidth=0.8, label="measured"),
-                Line2D([], [], color="0.3", linewidth=1.2, linestyle="--", label="model")]
+    handles += [Line2D([], [], color=_tint("0.2", 0.55), marker="o", linestyle="",
+                       markersize=4, label="measured (dots, light)"),
+                Line2D([], [], color="0.2", linewidth=1.3, label="model (line, dark)")]
     figure.legend(handles=handles, fontsize=8, loc="outside right upper")
     figure.suptitle(_title(comparison, "Δp over q"))
     return figure
@@ -192,5 +219,5 @@ def hysteresis_against_set_point(comparison: Comparison) -> Figure:
                 Line2D([], [], marker="s", linestyle="", markerfacecolor="white",
                        markeredgecolor="0.3", markeredgewidth=1.5, label="model")]
     ax.legend(handles=handles, fontsize=8, loc="best")
-    ax.set_title(f"{comparison.model}: hysteresis width per run")
+    ax.set_title("Hysteresis width per run")
     return figure

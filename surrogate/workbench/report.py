@@ -16,22 +16,29 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from ..outputs import atomic_file
-from ..units import from_si
+from ..units import from_si, label
 from .compare import Comparison
 from .diagnose import BIC_THRESHOLD, GAIN_FRACTION, NOISE_MARGIN, Diagnosis
-from .figures import DPI, all_figures
+from .figures import DPI, all_figures, caption
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1200px; margin: 2em auto; color: #222;
        line-height: 1.45; padding: 0 1em; }
 h1 { font-size: 1.6em; } h2 { font-size: 1.25em; margin-top: 2em; border-bottom: 1px solid #ccc; }
-table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.9em; }
-th, td { border: 1px solid #ddd; padding: 0.25em 0.6em; text-align: right; }
+table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.9em; max-width: 100%; }
+th, td { border: 1px solid #ddd; padding: 0.25em 0.6em; text-align: right; vertical-align: top; }
 th { background: #f3f3f3; } td.text, th.text { text-align: left; }
-img { max-width: 100%; margin: 0.5em 0; }
+td.text { max-width: 32em; overflow-wrap: break-word; }
+figure { margin: 1em 0; } figcaption { color: #555; font-size: 0.9em; max-width: 60em; }
+img { max-width: 100%; }
+details { margin: 0.3em 0; } summary { cursor: pointer; }
 .summary { background: #f5f8ff; border-left: 4px solid #4a7bd0; padding: 0.6em 1em; }
 .yes { color: #0a7a2a; font-weight: 600; } .no { color: #888; }
 """
+
+#: longest text in a table cell [characters]: longer lists are summarised (see
+#: :func:`parameter_summary`) so that every table fits a 1,400-pixel page
+CELL_LENGTH = 120
 
 
 def figure_png(figure: Figure) -> bytes:
@@ -41,20 +48,53 @@ def figure_png(figure: Figure) -> bytes:
     return buffer.getvalue()
 
 
-def _image(png: bytes, alt: str) -> str:
+def _figure(png: bytes, alt: str, caption: str) -> str:
+    """An embedded PNG with its caption (which carries what the short title leaves out)."""
     data = base64.b64encode(png).decode("ascii")
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+    return (f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
-def _table(frame: pd.DataFrame, text_columns: tuple[str, ...] = ()) -> str:
+def parameter_summary(parameters, limit: int = CELL_LENGTH) -> str:
+    """The fitted parameters in one line of at most ``limit`` characters.
+
+    Parameters of one run each (``delta_R01``, ``delta_R02``, ...) are shown as their range; what
+    does not fit is counted, not cut mid-word (every value is in the model file and the JSON).
+    """
+    parameters = [p for p in parameters if p.vary]
+    per_run = [p for p in parameters if p.scope is not None]
+    texts = [str(p) for p in parameters if p.scope is None]
+    if per_run:
+        values = [p.display_value for p in per_run]
+        template = per_run[0].name.rsplit("_", 1)[0]
+        texts.append(f"{template} per run: {min(values):+.3g} to {max(values):+.3g} "
+                     f"{label(per_run[0].unit)} ({len(per_run)} runs)")
+    shown: list[str] = []
+    for index, text in enumerate(texts):
+        remaining = len(texts) - index  # this one and those after it
+        room_for_tail = len(f"; … {remaining - 1} more") if remaining > 1 else 0
+        if len("; ".join([*shown, text])) + room_for_tail > limit:
+            shown.append(f"… {remaining} more")
+            break
+        shown.append(text)
+    return "; ".join(shown)
+
+
+def _table(frame: pd.DataFrame, text_columns: tuple[str, ...] = (),
+           formats: dict[str, str] | None = None) -> str:
+    """An HTML table; numbers as ``formats[column]`` (a format spec such as ``".3f"``) or with
+    four significant digits."""
+    formats = formats or {}
     head = "".join(f'<th class="{"text" if c in text_columns else ""}">{html.escape(str(c))}</th>'
                    for c in frame.columns)
     rows = []
     for row in frame.itertuples(index=False):
         cells = []
         for column, value in zip(frame.columns, row):
-            if isinstance(value, (float, np.floating)):
-                text = "" if not np.isfinite(value) else f"{value:.4g}"
+            if isinstance(value, (bool, np.bool_)):
+                text = "yes" if value else "no"
+            elif isinstance(value, (float, np.floating)):
+                text = "" if not np.isfinite(value) else format(value, formats.get(column, ".4g"))
             else:
                 text = html.escape(str(value))
             cells.append(f'<td class="{"text" if column in text_columns else ""}">{text}</td>')
@@ -62,34 +102,60 @@ def _table(frame: pd.DataFrame, text_columns: tuple[str, ...] = ()) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
 
 
+def readable(name: str) -> str:
+    """A model name that can wrap: ``cfda+friction_viscous`` as ``cfda + friction_viscous``."""
+    return name.replace("+", " + ")
+
+
 def comparison_section(comparison: Comparison, heading: str) -> str:
     """Headline, per-run table, p_Pe × temperature table, worst regions and the figures."""
     rms, floor = from_si(comparison.rms, "bar"), from_si(comparison.noise_floor, "bar")
-    runs = comparison.runs[["run", "temperature_C", "p_Pe_bar", "samples", "rms_bar", "bias_bar",
-                            "hysteresis_measured_bar", "hysteresis_model_bar",
-                            "hysteresis_error_bar", "extrapolating_fraction"]]
+    runs = comparison.runs.assign(extrapolating=100 * comparison.runs["extrapolating_fraction"])
+    runs = runs[["run", "temperature_C", "p_Pe_bar", "samples", "failed", "rms_bar", "bias_bar",
+                 "hysteresis_measured_bar", "hysteresis_model_bar", "hysteresis_error_bar",
+                 "extrapolating"]]
+    runs.columns = ["run", "T [°C]", "p_Pe [bar]", "samples", "not solved", "RMS [bar]",
+                    "bias [bar]", "hysteresis measured [bar]", "hysteresis model [bar]",
+                    "hysteresis error [bar]", "maps extrapolate [%]"]
     pivot = comparison.pivot.reset_index()
     pivot.columns = ["p_Pe [bar]"] + [f"{c:g} °C" for c in comparison.pivot.columns]
-    regions = comparison.regions.head(10)
+    regions = comparison.regions.head(10).assign(
+        extrapolating=lambda r: 100 * r["extrapolating_fraction"])
+    regions = regions[["q_low_lpm", "q_high_lpm", "temperature_C", "p_Pe_bar", "samples",
+                       "rms_bar", "bias_bar", "extrapolating"]]
+    regions.columns = ["q from [L/min]", "q to [L/min]", "T [°C]", "p_Pe [bar]", "samples",
+                       "RMS [bar]", "bias [bar]", "maps extrapolate [%]"]
+    bar = {column: ".2f" for column in [*runs.columns, *regions.columns, *pivot.columns[1:]]
+           if "[bar]" in column or "°C" in column or "L/min" in column}
+    bar.update({"T [°C]": ".1f", "p_Pe [bar]": "g", "maps extrapolate [%]": ".0f",
+                "q from [L/min]": ".1f", "q to [L/min]": ".1f"})
     parts = [
         f"<h2>{html.escape(heading)}</h2>",
-        f"<p>Model <b>{html.escape(comparison.model)}</b> replayed over every run "
+        f"<p>Model <b>{html.escape(readable(comparison.model))}</b> replayed over every run "
         f"(friction as a play). Residual = model − measured Δp. RMS <b>{rms:.3f} bar</b>; noise "
         f"floor estimated from the data's sample-to-sample scatter <b>{floor:.3f} bar</b> "
         f"({comparison.rms_over_noise:.2f}×). The maps extrapolate at "
         f"{100 * comparison.extrapolating_fraction:.0f} % of the samples.</p>",
         "<h3>Per run</h3><p>Bias is the mean residual; hysteresis width is Δp on the ramp up minus "
-        "Δp on the ramp down at equal flow [bar].</p>", _table(runs, ("run",)),
-        "<h3>RMS by pilot set point and temperature [bar]</h3>", _table(pivot),
-        "<h3>Worst operating regions</h3><p>Flow band × temperature × set point, worst first; "
-        "<i>extrapolating_fraction</i> is the share of samples where the model leaves its "
-        "maps' data.</p>", _table(regions),
+        "Δp on the ramp down at equal flow; <i>maps extrapolate</i> is the share of samples where "
+        "the model leaves its maps' data.</p>", _table(runs, ("run",), bar),
+        "<h3>RMS by pilot set point and temperature [bar]</h3>", _table(pivot, (), bar),
+        "<h3>Worst operating regions</h3><p>Flow band × temperature × set point, worst first.</p>",
+        _table(regions, (), bar),
     ]
-    captions = {"dp_vs_q": "Δp over q, measured (solid) against the model (dashed)",
+    headings = {"dp_vs_q": "Δp over q",
                 "residuals": "Residual against the operating variables",
                 "hysteresis": "Hysteresis width against the pilot set point"}
+    captions = {"dp_vs_q": "Measured samples are light dots, the model a dark line, both in the "
+                           "colour of the run's pilot set point.",
+                "residuals": "The grey band is ± the noise floor; structure outside it is what "
+                             "the model misses.",
+                "hysteresis": "Filled circles: measured; open squares: the model; the line "
+                              "between them is the model's error."}
     for name, figure in all_figures(comparison).items():
-        parts.append(f"<h3>{captions.get(name, name)}</h3>" + _image(figure_png(figure), name))
+        parts.append(f"<h3>{headings.get(name, name)}</h3>"
+                     + _figure(figure_png(figure), name,
+                               f"{caption(comparison)} {captions.get(name, '')}"))
     return "\n".join(parts)
 
 
@@ -100,26 +166,46 @@ def diagnosis_table(diagnosis: Diagnosis) -> pd.DataFrame:
         rows.append({"effect": c.name, "what": c.title,
                      "rms after [bar]": from_si(c.rms_after, "bar"), "ΔBIC": c.delta_bic,
                      "significant": "yes" if c.significant else "no",
-                     "parameters": "; ".join(str(p) for p in c.params if p.vary),
+                     "parameters": parameter_summary(c.params),
                      "same as": ", ".join(n for n in c.group if n != c.name)})
     return pd.DataFrame(rows)
 
 
 def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
-    """RMS after adding each candidate, against the current RMS and the noise floor."""
+    """RMS after adding each candidate: a line from the current RMS down to the candidate's, on
+    an axis zoomed to the candidates' range so that close ones can be told apart."""
     table = diagnosis_table(diagnosis)
     figure = Figure(figsize=(8, 0.35 * len(table) + 1.6), layout="constrained")
     axes = figure.subplots()
+    before = float(from_si(diagnosis.rms_before, "bar"))
+    floor = float(from_si(diagnosis.noise_floor, "bar"))
+    after = table["rms after [bar]"].to_numpy(float)
     colours = ["tab:green" if s == "yes" else "tab:gray" for s in table["significant"]]
     positions = np.arange(len(table))[::-1]
-    axes.barh(positions, table["rms after [bar]"], color=colours)
+    axes.hlines(positions, after, before, color=colours, linewidth=2.0)
+    axes.scatter(after, positions, color=colours, zorder=3)
+    for x, y in zip(after, positions):
+        axes.annotate(f"{x:.3f}", (x, y), textcoords="offset points", xytext=(-4, 0),
+                      ha="right", va="center", fontsize=7)
     axes.set_yticks(positions, table["effect"])
-    axes.axvline(from_si(diagnosis.rms_before, "bar"), color="k", label="current model")
-    axes.axvline(from_si(diagnosis.noise_floor, "bar"), color="tab:red", linestyle="--",
-                 label="noise floor")
-    axes.set_xlabel("residual RMS after adding the candidate [bar]")
-    axes.set_title(f"Diagnosis of {diagnosis.model.name} (green: significant)")
-    axes.legend(loc="lower right")
+    axes.axvline(before, color="k", label=f"current model {before:.3f} bar")
+    # zoomed to the candidates and the current RMS (not from 0), so that close candidates stay
+    # apart; the noise floor joins the range only when it is near, else it is named at the edge
+    values = np.concatenate([after[np.isfinite(after)], [before]])
+    span = max(float(values.max() - values.min()), 0.01 * before)
+    if values.min() - floor <= 0.5 * span:
+        values = np.append(values, floor)
+        span = float(values.max() - values.min())
+    low, high = values.min() - 0.15 * span, values.max() + 0.05 * span
+    axes.set_xlim(low, high)
+    if floor >= low:
+        axes.axvline(floor, color="tab:red", linestyle="--", label=f"noise floor {floor:.3f} bar")
+    else:
+        axes.plot([], [], color="tab:red", linestyle="--",
+                  label=f"noise floor {floor:.3f} bar (off the axis, to the left)")
+    axes.set_xlabel("residual RMS after adding the candidate [bar] (axis zoomed)")
+    axes.set_title("Diagnosis: RMS after each candidate (green: significant)")
+    figure.legend(loc="outside lower center", ncols=2, fontsize=8)  # clear of every line
     return figure
 
 
@@ -137,23 +223,41 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
         _table(diagnosis_table(diagnosis), ("effect", "what", "significant", "parameters",
-                                            "same as")),
-        _image(figure_png(diagnosis_figure(diagnosis)), "diagnosis"),
+                                            "same as"), {"rms after [bar]": ".3f", "ΔBIC": ".1f"}),
+        _figure(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
+                f"Diagnosis of {readable(diagnosis.model.name)}: each candidate's line runs from "
+                "the current RMS to the RMS after refitting with it."),
         "<h3>Correlation of the residual with candidate variables</h3><p><i>residual</i>: the "
         "residual itself; <i>hysteresis</i>: the residual signed by the ramp direction (a misfit "
         "of the hysteresis width).</p>",
-        _table(correlations, ("variable", "what")),
+        _table(correlations, ("variable", "what"), {"correlation": "+.3f"}),
     ])
 
 
 def staircase_table(steps) -> pd.DataFrame:
+    """One row per step: what was added and the RMS after it; every fitted parameter too (the
+    CSV keeps them all; the report shows them per step, folded)."""
     rows = []
     for number, step in enumerate(steps, start=1):
         parameters = "; ".join(str(p) for _, p in step.model.parameters() if p.vary)
-        rows.append({"step": number, "model": step.model.name,
-                     "added": ", ".join(step.added) or "—",
+        rows.append({"step": number, "added": ", ".join(step.added) or step.model.name,
                      "rms [bar]": from_si(step.rms, "bar"), "parameters": parameters})
     return pd.DataFrame(rows)
+
+
+def _step_parameters(number: int, step) -> str:
+    """A folded table of one step's fitted parameters."""
+    rows = [{"parameter": f"{effect.name}.{p.name}", "value": p.display_value,
+             "± stderr": p.display_stderr if p.display_stderr is not None else float("nan"),
+             "unit": label(p.unit), "note": "at bound" if p.at_bound else ""}
+            for effect, p in step.model.parameters() if p.vary]
+    what = ", ".join(step.added) or step.model.name
+    if not rows:
+        return f"<details><summary>Step {number} ({html.escape(what)}): no fitted parameters" \
+               "</summary></details>"
+    return (f"<details><summary>Step {number} ({html.escape(what)}): {len(rows)} fitted "
+            f"parameter(s)</summary>{_table(pd.DataFrame(rows), ('parameter', 'unit', 'note'))}"
+            "</details>")
 
 
 def staircase_figure(steps, noise_floor: float) -> Figure:
@@ -175,7 +279,7 @@ def staircase_figure(steps, noise_floor: float) -> Figure:
                     rotation=30, ha="right", fontsize=8)
     axes.set_yscale("log")
     axes.set_ylabel("residual RMS [bar]")
-    axes.set_title("Error staircase: RMS after each step")
+    axes.set_title("Error staircase: RMS after each step")  # short: the steps are the ticks
     axes.legend()
     return figure
 
@@ -192,8 +296,15 @@ def staircase_section(workflow) -> str:
         "<p>Steps 1–4 are the paper's models (BMBE, BMBEBF, CFD maps, CFDA); later steps add the "
         "effect the diagnosis found most likely. Every step refits all free parameters on every "
         "sample.</p>",
-        _table(staircase_table(workflow.steps), ("model", "added", "parameters")),
-        _image(figure_png(staircase_figure(workflow.steps, workflow.noise_floor)), "staircase"),
+        _table(staircase_table(workflow.steps).drop(columns="parameters").assign(
+            **{"× noise floor": [step.rms / workflow.noise_floor for step in workflow.steps]}),
+            ("added",), {"rms [bar]": ".3f", "× noise floor": ".2f"}),
+        "<p>The parameters fitted at each step (all of them are in <i>staircase.csv</i> and the "
+        "final model file):</p>",
+        *(_step_parameters(number, step) for number, step in enumerate(workflow.steps, 1)),
+        _figure(figure_png(staircase_figure(workflow.steps, workflow.noise_floor)), "staircase",
+                f"Residual RMS after each step on {workflow.log.source}; the final model is "
+                f"{readable(workflow.final.model.name)}."),
     ])
 
 
