@@ -1,0 +1,652 @@
+"""Fuzz suite: malformed files and misused commands.
+
+Every case runs the command line on a folder of inputs, one of them broken (or the command
+misused), and must
+
+* exit with code 2 and a message that names what is wrong (the words listed with the case);
+* print no traceback;
+* write nothing: the folder holds exactly the files it held before, byte for byte, so no output
+  appeared and no input changed.
+
+The hand-made table covers CFD samples, bench logs, valve files, model files, effects files and
+command-line misuse; hypothesis adds generated corruptions of each kind of file.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from surrogate.cli import main
+from surrogate.effects import REGISTRY
+from surrogate.modelfile import model_to_dict, preset
+from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.tomlio import dumps
+
+# --- the good inputs every case starts from -------------------------------------------------------
+
+CFD = SHIPPED_CFD_SAMPLES.read_text()
+VALVE = resources.files("surrogate.valves").joinpath("paper_cbv.toml").read_text()
+MODEL = dumps(model_to_dict(preset("cfda")))
+EFFECTS = (PROJECT_ROOT / "examples" / "seat_force.py").read_text()
+
+
+def _small_log() -> str:
+    """Two runs of the shipped log, every 10th sample: valid, and quick to replay."""
+    lines = SHIPPED_BENCH_LOG.read_text().splitlines()
+    kept = [line for index, line in enumerate(lines[1:])
+            if line.split(",")[0] in ("R01", "R06") and index % 10 == 0]
+    return "\n".join([lines[0], *kept]) + "\n"
+
+
+LOG = _small_log()
+QUERIES = "u_mm,p_L_bar,p_B_bar,temperature_C\n0.1,50,5,40\n0.2,80,5,40\n"
+GOOD_FILES = {"cfd.csv": CFD, "log.csv": LOG, "valve.toml": VALVE, "model.toml": MODEL,
+              "effects.py": EFFECTS, "queries.csv": QUERIES}
+
+
+# --- editing the good files ----------------------------------------------------------------------
+
+def set_cell(text: str, line: int, column: str, value: str) -> str:
+    """``text`` with one cell replaced; ``line`` counts from 1 (the header), as editors do."""
+    rows = text.splitlines()
+    header = rows[0].split(",")
+    cells = rows[line - 1].split(",")
+    cells[header.index(column)] = value
+    rows[line - 1] = ",".join(cells)
+    return "\n".join(rows) + "\n"
+
+
+def map_column(text: str, column: str, function) -> str:
+    """``text`` with ``function`` applied to every value of a numeric column."""
+    rows = text.splitlines()
+    index = rows[0].split(",").index(column)
+    out = [rows[0]]
+    for row in rows[1:]:
+        cells = row.split(",")
+        cells[index] = repr(function(float(cells[index])))
+        out.append(",".join(cells))
+    return "\n".join(out) + "\n"
+
+
+def drop_column(text: str, column: str) -> str:
+    rows = [row.split(",") for row in text.splitlines()]
+    index = rows[0].index(column)
+    return "\n".join(",".join(c for i, c in enumerate(row) if i != index) for row in rows) + "\n"
+
+
+def replace(text: str, old: str, new: str) -> str:
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+def effect_file(kind: str, body: str, signature: str = "state, k=1.0", decorator: str = "") -> str:
+    """An effects file with one custom effect ``fuzzed_<kind>`` returning ``body``."""
+    decorator = decorator or f'@custom_effect("{kind}", units={{"k": "1"}})'
+    return ("import numpy as np\nfrom surrogate.effects import custom_effect\n\n\n"
+            f"{decorator}\ndef fuzzed_{kind}({signature}):\n    \"\"\"A fuzzed effect.\"\"\"\n"
+            f"    return {body}\n")
+
+
+@dataclass(frozen=True)
+class Case:
+    """A command line run on the good files with ``files`` replacing or adding some."""
+
+    id: str
+    argv: tuple[str, ...]
+    words: tuple[str, ...]
+    files: dict = field(default_factory=dict)
+
+
+def check(cfd: str = None, *, words=(), id: str) -> Case:
+    return Case(id, ("check-data", "bad.csv"), ("bad.csv", *words), {"bad.csv": cfd})
+
+
+COMPARE = ("compare", "--model", "cfda", "--data", "log.csv", "--out", "out")
+FIT = ("fit", "--model", "cfda", "--data", "log.csv", "--out", "out.toml")
+
+
+def with_log(text: str, *, words=(), id: str) -> Case:
+    return Case(id, COMPARE, ("log.csv", *words), {"log.csv": text})
+
+
+def with_valve(text: str, *, words=(), id: str) -> Case:
+    return Case(id, (*COMPARE, "--valve", "valve.toml"), ("valve.toml", *words),
+                {"valve.toml": text})
+
+
+def with_model(text: str, *, words=(), id: str) -> Case:
+    return Case(id, ("compare", "--model", "model.toml", "--data", "log.csv", "--out", "out"),
+                ("model.toml", *words), {"model.toml": text})
+
+
+def with_effects(text: str, add: str, *, words=(), id: str) -> Case:
+    return Case(id, (*FIT, "--effects-file", "fx.py", "--add", add), words, {"fx.py": text})
+
+
+CASES = [
+    # CFD samples --------------------------------------------------------------------------------
+    check(set_cell(CFD, 7, "q_lpm", "abc"), words=("line 7", "'q_lpm'", "a number"),
+          id="cfd: text for a number"),
+    check(set_cell(CFD, 3, "rho_kg_m3", ""), words=("line 3", "empty"), id="cfd: empty cell"),
+    check(set_cell(CFD, 4, "f_sim_N", "nan"), words=("line 4", "finite"), id="cfd: NaN"),
+    check(set_cell(CFD, 4, "f_sim_N", "-inf"), words=("line 4", "finite"), id="cfd: -inf"),
+    check(set_cell(CFD, 6, "u_mm", "-0.05"), words=("line 6", "'u_mm'"), id="cfd: negative u"),
+    check(set_cell(CFD, 6, "u_mm", "630"), words=("line 6", "µm"), id="cfd: u in micrometres"),
+    check(set_cell(CFD, 8, "q_lpm", "-1"), words=("line 8", "'q_lpm'"), id="cfd: negative q"),
+    check(set_cell(CFD, 8, "q_lpm", "1e6"), words=("line 8", "5000 L/min"), id="cfd: huge q"),
+    check(set_cell(CFD, 9, "p_L_bar", "1e30"), words=("line 9", "1000 bar"), id="cfd: p_L 1e30"),
+    check(map_column(CFD, "p_L_bar", lambda v: v * 14.5038), words=("psi",),
+          id="cfd: p_L in psi"),
+    check(set_cell(CFD, 3, "p_B_bar", "-2"), words=("line 3", "-1.013"),
+          id="cfd: below vacuum"),
+    check(set_cell(CFD, 12, "p_L_bar", "4.0"), words=("line 12", "load pressure >= back"),
+          id="cfd: p_L below p_B"),
+    check(set_cell(CFD, 9, "nu_cSt", "0"), words=("line 9", "'nu_cSt'"), id="cfd: zero nu"),
+    check(set_cell(CFD, 9, "nu_cSt", "4.6e-05"), words=("line 9", "m²/s"),
+          id="cfd: nu in m2/s"),
+    check(set_cell(CFD, 7, "nu_cSt", "5"), words=("line 7", "same viscosity", "20 °C"),
+          id="cfd: nu inconsistent at its temperature"),
+    check(set_cell(CFD, 10, "rho_kg_m3", "86.9"), words=("line 10", "600 to 1200"),
+          id="cfd: density out of range"),
+    check(set_cell(CFD, 10, "rho_kg_m3", "0.86921"), words=("line 10", "g/cm³"),
+          id="cfd: density in g/cm3"),
+    check(set_cell(CFD, 10, "rho_kg_m3", "900"), words=("line 10", "same density"),
+          id="cfd: density inconsistent at its temperature"),
+    check(map_column(CFD, "nu_cSt", lambda v: 200.0 if v == 46.0 else v),
+          words=("viscosity of ISO VG46 HV falling",), id="cfd: viscosity rising with temperature"),
+    check(set_cell(CFD, 11, "temperature_C", "293.15"),
+          words=("line 11", "-40 to 200", "293.15 K = 20 °C"),
+          id="cfd: temperature in kelvin"),
+    check(set_cell(CFD, 4, "p_L_bar", "20"), words=("rising with the flow", "line 3"),
+          id="cfd: pressure drop falling with flow"),
+    check(set_cell(CFD, 5, "f_sim_N", "1e9"), words=("line 5", "'f_sim_N'"),
+          id="cfd: absurd force"),
+    check(set_cell(CFD, 13, "case", "C0002"), words=("line 13", "already on line 3"),
+          id="cfd: duplicate case"),
+    check(drop_column(CFD, "p_B_bar"), words=("'p_B_bar'", "missing"), id="cfd: missing column"),
+    check(replace(CFD, "q_lpm", "Q_lpm"), words=("did you mean 'q_lpm'",),
+          id="cfd: misspelt column"),
+    check("\n".join([CFD.splitlines()[0] + ",mesh"]
+                    + [r + ",fine" for r in CFD.splitlines()[1:]]) + "\n",
+          words=("'mesh'", "only the documented"), id="cfd: extra column"),
+    check(set_cell(CFD, 2, "u_mm", '"0,05"'), words=("decimal point",), id="cfd: decimal comma"),
+    check(CFD.replace(",", ";"), words=("semicolons",), id="cfd: semicolons"),
+    check(CFD.replace(",", "\t"), words=("tabs",), id="cfd: tabs"),
+    check("", words=("empty",), id="cfd: empty file"),
+    check(CFD.splitlines()[0] + "\n", words=("at least one data row",), id="cfd: header only"),
+    check('{"case": "C0001"}\n', words=("JSON",), id="cfd: JSON"),
+    check("\n".join(CFD.splitlines()[:5] + [CFD.splitlines()[5].rsplit(",", 1)[0]]) + "\n",
+          words=("line 6", "10 comma-separated fields"), id="cfd: short row"),
+    Case("cfd: binary file", ("check-data", "bad.csv"), ("bad.csv", "binary"),
+         {"bad.csv": b"\x89PNG\r\n\x1a\n\x00\x00\x00"}),
+    Case("cfd: not UTF-8", ("check-data", "bad.csv"), ("bad.csv", "UTF-8"),
+         {"bad.csv": CFD.replace("ISO VG46 HV", "ISO VG46 HV\xe9", 1).encode("latin-1")}),
+    Case("cfd: broken file for grid maps", ("predict", "--model", "grid", "--cfd", "bad.csv",
+                                            "--input", "queries.csv", "--output", "out.csv"),
+         ("bad.csv", "line 9"), {"bad.csv": set_cell(CFD, 9, "p_L_bar", "1e30")}),
+    Case("cfd: a bench log where CFD samples belong",
+         ("predict", "--model", "grid", "--cfd", "log.csv", "--input", "queries.csv",
+          "--output", "out.csv"), ("log.csv", "bench log")),
+
+    # bench logs ---------------------------------------------------------------------------------
+    with_log(set_cell(LOG, 5, "time_s", "0.5"), words=("line 5", "time increasing"),
+             id="log: time going back"),
+    with_log(set_cell(LOG, 6, "p_Pe_nominal_bar", "65"), words=("line 6", "one set point"),
+             id="log: set point changing in a run"),
+    with_log(set_cell(LOG, 7, "direction", "sideways"), words=("line 7", "'up', 'down'"),
+             id="log: unknown direction"),
+    with_log(set_cell(LOG, 8, "p_L_bar", "1e30"), words=("line 8", "1000 bar"),
+             id="log: p_L 1e30"),
+    with_log(set_cell(LOG, 8, "p_P_bar", "1e30"), words=("line 8", "'p_P_bar'"),
+             id="log: p_P 1e30"),
+    with_log(set_cell(LOG, 9, "p_L_bar", "0.5"), words=("line 9", "load pressure >= back"),
+             id="log: p_L below p_B"),
+    with_log(map_column(map_column(map_column(LOG, "p_L_bar", lambda v: v * 14.5038),
+                                   "p_B_bar", lambda v: v * 14.5038),
+                        "p_P_bar", lambda v: v * 14.5038), words=("psi",), id="log: psi"),
+    with_log(map_column(map_column(LOG, "p_B_bar", lambda v: v * 14.5038),
+                        "p_P_bar", lambda v: v * 14.5038), words=("look like psi",),
+             id="log: pilot and back pressure in psi"),
+    with_log(map_column(LOG, "p_Pe_nominal_bar", lambda v: v * 14.5038),
+             words=("p_Pe_nominal_bar looks like psi",), id="log: set point in psi"),
+    with_log(set_cell(LOG, 10, "p_P_bar", "140"), words=("line 10", "set point"),
+             id="log: pilot far from its set point"),
+    with_log(map_column(LOG, "temperature_C", lambda v: v + 273.15),
+             words=("-40 to 200", "in K or"),
+             id="log: temperature in kelvin"),
+    with_log(set_cell(LOG, 11, "q_lpm", "-3"), words=("line 11", "'q_lpm'"),
+             id="log: negative flow"),
+    with_log(set_cell(LOG, 11, "run", ""), words=("line 11", "'run'", "empty"),
+             id="log: empty run id"),
+    with_log(drop_column(LOG, "direction"), words=("'direction'", "missing"),
+             id="log: missing column"),
+    with_log(LOG.replace("p_B_bar", "p_L_bar", 1), words=("each column name once",),
+             id="log: duplicated column"),
+    with_log(CFD, words=("CFD-sample file",), id="log: CFD samples where a log belongs"),
+    with_log("\n".join(LOG.splitlines()[:4]) + "\n", words=("noise floor", "3"),
+             id="log: too short for a noise floor"),
+    Case("log: too few samples to fit", (*FIT, "--add", "friction_viscous"),
+         ("needs more than 4 samples",), {"log.csv": "\n".join(LOG.splitlines()[:3]) + "\n"}),
+    Case("log: missing file", ("compare", "--model", "cfda", "--data", "nowhere.csv"),
+         ("nowhere.csv",)),
+
+    # valve files --------------------------------------------------------------------------------
+    with_valve(replace(VALVE, "A_L_mm2 = 10.7", "A_L_mm2 = 10.7e-6"), words=("A_L_mm2", "m²"),
+               id="valve: area in m2"),
+    with_valve(replace(VALVE, "U_max_mm = 0.63", "U_max_mm = 0.001"), words=("U_max_mm",),
+               id="valve: stroke of a micrometre"),
+    with_valve(replace(VALVE, "F_cr_N = 226.0", "F_cr_N = 1e30"), words=("F_cr_N",),
+               id="valve: force 1e30"),
+    with_valve(replace(VALVE, "U_max_mm = 0.63", "U_max_mm = inf"), words=("U_max_mm",),
+               id="valve: infinite stroke"),
+    with_valve(replace(VALVE, "w_mm = 12.0", "w_mm = nan"), words=("w_mm",), id="valve: NaN"),
+    with_valve(replace(VALVE, "A_L_mm2 = 10.7", "A_L_mm2 = -10.7"), words=("A_L_mm2",),
+               id="valve: negative area"),
+    with_valve(replace(VALVE, "F_cr_N = 226.0", 'F_cr_N = "226"'), words=("F_cr_N", "number"),
+               id="valve: text for a number"),
+    with_valve(replace(VALVE, "F_cr_N = 226.0", "F_cr_N = true"), words=("F_cr_N", "number"),
+               id="valve: boolean for a number"),
+    with_valve(replace(VALVE, "K_f_N_per_m = 1.14e5", "K_f_N_per_m = 114"),
+               words=("K_f_N_per_m", "N/mm"), id="valve: spring rate in N/mm"),
+    with_valve(replace(VALVE, "K_f_N_per_m", "K_f"), words=("missing K_f_N_per_m",),
+               id="valve: misspelt key"),
+    with_valve(replace(VALVE, "w_mm = 12.0", "w_mm = 12.0\ncolour = 'red'"),
+               words=("unknown colour",), id="valve: unknown key"),
+    with_valve(replace(VALVE, "A_s3_mm2 = 46.0", "A_s3_mm2 = 30.0"), words=("must exceed",),
+               id="valve: spring chamber smaller than A_B"),
+    with_valve(replace(VALVE, "nu100_cSt = 8.0", "nu100_cSt = 80.0"), words=("nu40 > nu100",),
+               id="valve: oil thicker when hot"),
+    with_valve(replace(VALVE, "rho15_kg_m3 = 872.0", "rho15_kg_m3 = 0.872"),
+               words=("rho15",), id="valve: density in g/cm3"),
+    with_valve(replace(VALVE, "expansion_per_K = 6.4e-4", "expansion_per_K = 0.5"),
+               words=("expansion",), id="valve: absurd expansion"),
+    with_valve(replace(VALVE, "[oil]", "[oil"), words=("not valid TOML",),
+               id="valve: not TOML"),
+    with_valve(VALVE.split("[oil]")[0], words=("missing oil",), id="valve: no oil"),
+    Case("valve: missing file", (*COMPARE, "--valve", "nowhere.toml"), ("nowhere.toml",)),
+
+    # model files --------------------------------------------------------------------------------
+    with_model(replace(MODEL, 'K1 = { value = 6.5, unit = "N", min = 0.0, max = 200.0, ',
+                       'K1 = { value = 6.5, unit = "N", min = 6.5, max = 6.5, '),
+               words=("K1", "min = 6.5 must be below max"), id="model: min equals max"),
+    with_model(replace(MODEL, 'K1 = { value = 6.5, unit = "N", min = 0.0, max = 200.0, ',
+                       'K1 = { value = 6.5, unit = "N", min = 10.0, max = 5.0, '),
+               words=("K1", "must be below max"), id="model: min above max"),
+    with_model(replace(MODEL, '[effects.parameters]\nscale = { value = 0.9, unit = "1", min = 0.0, '
+                              'max = 3.0, vary = true }', "parameters = [1, 2]"),
+               words=("parameters must be a table",), id="model: parameters as a list"),
+    with_model(replace(MODEL, 'maps = { kind = "grid" }', "maps = 3"), words=("maps",),
+               id="model: maps as a number"),
+    with_model(replace(MODEL, 'maps = { kind = "grid" }',
+                       'maps = { kind = "orifice", discharge_coefficient = -1 }'),
+               words=("discharge_coefficient",), id="model: negative discharge coefficient"),
+    with_model(replace(MODEL, 'maps = { kind = "grid" }',
+                       'maps = { kind = "orifice", discharge_coefficient = "x" }'),
+               words=("discharge_coefficient", "number"), id="model: text discharge coefficient"),
+    with_model(replace(MODEL, 'maps = { kind = "grid" }',
+                       'maps = { kind = "orifice", discharge_coefficient = 2.5 }'),
+               words=("discharge_coefficient",), id="model: discharge coefficient above 1"),
+    with_model(replace(MODEL, 'maps = { kind = "grid" }', 'maps = { kind = "grid", smooth = 1 }'),
+               words=("'smooth'",), id="model: unknown map option"),
+    with_model(replace(MODEL, 'maps = { kind = "grid" }', 'maps = { cfd = "x.csv" }'),
+               words=("needs a kind",), id="model: map kind missing"),
+    with_model("surprise = 1\n" + MODEL, words=("'surprise'",), id="model: unknown top key"),
+    with_model(replace(MODEL, '[model]\n', '[model]\nauthor = "me"\n'), words=("'author'",),
+               id="model: unknown model key"),
+    with_model(replace(MODEL, 'name = "friction_constant"\n',
+                       'name = "friction_constant"\ncolour = "red"\n'),
+               words=("'colour'",), id="model: unknown effect key"),
+    with_model(replace(MODEL, 'unit = "N", min = 0.0', 'unit = "N", step = 1.0, min = 0.0'),
+               words=("'step'",), id="model: unknown parameter key"),
+    with_model(MODEL + '\n[[effects]]\nname = "friction_constant"\n',
+               words=("already effect",), id="model: duplicated effect"),
+    with_model(replace(MODEL, "max = 200.0, vary = true", 'max = 200.0, vary = "no"'),
+               words=("vary must be true or false",), id="model: vary as text"),
+    with_model(replace(MODEL, "max = 200.0, vary = true", "max = 200.0, vary = 1"),
+               words=("vary must be true or false",), id="model: vary as a number"),
+    with_model(replace(MODEL, "K1 = { value = 6.5,", "K1 = { value = 600.0,"),
+               words=("outside",), id="model: value outside its bounds"),
+    with_model(replace(MODEL, "K1 = { value = 6.5,", "K1 = { value = nan,"),
+               words=("finite",), id="model: NaN value"),
+    with_model(replace(MODEL, "K1 = { value = 6.5,", 'K1 = { value = "6.5",'),
+               words=("number",), id="model: text value"),
+    with_model(replace(MODEL, 'K1 = { value = 6.5, unit = "N"', 'K1 = { value = 6.5, unit = "kN"'),
+               words=("is in N",), id="model: wrong unit"),
+    with_model(replace(MODEL, 'unit = "N", min = 0.0', 'unit = "N", min = -5.0'),
+               words=("beyond the effect's own",), id="model: negative friction allowed"),
+    with_model(replace(MODEL, 'name = "friction_constant"', 'name = "friction_magic"'),
+               words=("unknown effect 'friction_magic'",), id="model: unknown effect"),
+    with_model(replace(MODEL, '[model]\nname = "cfda"', "[model]\nname = 5"),
+               words=("name must be a string",), id="model: name as a number"),
+    with_model(replace(MODEL, 'valve = "shipped"', 'valve = "nowhere.toml"'),
+               words=("nowhere.toml",), id="model: valve file missing"),
+    with_model(MODEL.replace("[[effects]]", "[[effect]]").replace("[effects.", "[effect."),
+               words=("'effect'",),
+               id="model: misspelt effects table"),
+    with_model("[model\n", words=("not a valid TOML",), id="model: not TOML"),
+    with_model('[model]\nname = "x"\n', words=("maps",), id="model: no maps"),
+    Case("model: unknown preset", ("compare", "--model", "cfdaa", "--data", "log.csv"),
+         ("unknown model 'cfdaa'", "preset")),
+
+    # effects files ------------------------------------------------------------------------------
+    with_effects("def broken(:\n", "broken", words=("fx.py", "SyntaxError"),
+                 id="effects: syntax error"),
+    with_effects("raise RuntimeError('no licence')\n", "x",
+                 words=("fx.py", "line 1", "RuntimeError", "no licence"),
+                 id="effects: raises on import"),
+    with_effects("import sys\nsys.exit(0)\n", "x", words=("fx.py", "SystemExit"),
+                 id="effects: sys.exit on import"),
+    with_effects("x = 1\n", "x", words=("fx.py", "defines no effect"),
+                 id="effects: defines none"),
+    with_effects(effect_file("force", "1 / 0"), "fuzzed_force",
+                 words=("fuzzed_force", "ZeroDivisionError"), id="effects: raises when called"),
+    with_effects(effect_file("force", "np.zeros(3)"), "fuzzed_force",
+                 words=("fuzzed_force", "shape"), id="effects: wrong shape"),
+    with_effects(effect_file("force", "'a lot'"), "fuzzed_force",
+                 words=("fuzzed_force", "must return numbers"), id="effects: returns text"),
+    with_effects(effect_file("force", "state.u * np.nan"), "fuzzed_force",
+                 words=("fuzzed_force", "non-finite"), id="effects: returns NaN"),
+    with_effects(effect_file("force", "np.inf + state.u"), "fuzzed_force",
+                 words=("fuzzed_force", "non-finite"), id="effects: returns inf"),
+    with_effects(effect_file("friction", "-k + 0 * state.u"), "fuzzed_friction",
+                 words=("fuzzed_friction", ">= 0"), id="effects: negative friction"),
+    with_effects(effect_file("force", "1e30 + 0 * state.u"), "fuzzed_force",
+                 words=("fuzzed_force", "beyond any hydraulic force"), id="effects: 1e30 N"),
+    with_effects(effect_file("force", "sys.exit(0)", "state, k=1.0").replace(
+        "import numpy", "import sys\nimport numpy"), "fuzzed_force",
+        words=("fuzzed_force", "SystemExit"), id="effects: sys.exit when called"),
+    with_effects(effect_file("sensor", "[1, 2]", "points, k=1.0"), "fuzzed_sensor",
+                 words=("fuzzed_sensor", "OperatingPoints"), id="effects: sensor returns a list"),
+    with_effects(effect_file("leakage", "-k * dp", "dp, state, k=1.0"), "fuzzed_leakage",
+                 words=("fuzzed_leakage", ">= 0"), id="effects: negative leakage"),
+    with_effects(effect_file("force", "k", decorator='@custom_effect("spin")'), "fuzzed_force",
+                 words=("fx.py", "'spin'"), id="effects: unknown kind"),
+    with_effects(effect_file("force", "k", "state, k"), "fuzzed_force",
+                 words=("fx.py", "numeric default"), id="effects: parameter without default"),
+    with_effects(effect_file("force", "k",
+                             decorator='@custom_effect("force", units={"k": "furlong"})'),
+                 "fuzzed_force", words=("fx.py", "unknown unit 'furlong'"),
+                 id="effects: unknown unit"),
+    with_effects(effect_file("force", "k",
+                             decorator='@custom_effect("force", bounds={"j": (0, 1)})'),
+                 "fuzzed_force", words=("fx.py", "unknown parameter"),
+                 id="effects: bounds of an unknown parameter"),
+    with_effects(effect_file("force", "k",
+                             decorator='@custom_effect("force", bounds={"k": (2, 3)})'),
+                 "fuzzed_force", words=("fx.py", "outside its bounds"),
+                 id="effects: default outside its bounds"),
+    with_effects(effect_file("force", "k").replace("fuzzed_force", "friction_constant"),
+                 "friction_constant", words=("fx.py", "friction_constant", "exists already"),
+                 id="effects: a built-in's name"),
+    Case("effects: missing file", (*FIT, "--effects-file", "nowhere.py", "--add", "x"),
+         ("nowhere.py", "not found")),
+
+    # command-line misuse ------------------------------------------------------------------------
+    Case("cli: no command", (), ("required", "COMMAND")),
+    Case("cli: unknown command", ("refit",), ("invalid choice", "'refit'")),
+    Case("cli: unknown option", ("compare", "--model", "cfda", "--frobnicate"),
+         ("unrecognized arguments", "--frobnicate")),
+    Case("cli: fit without --out", ("fit", "--model", "cfda", "--data", "log.csv"),
+         ("--out", "required")),
+    Case("cli: compare without --model", ("compare", "--data", "log.csv"), ("--model",)),
+    Case("cli: fit writing over its bench log", ("fit", "--model", "cfda", "--data", "log.csv",
+                                                 "--add", "friction_viscous", "--out", "log.csv"),
+         ("--out log.csv", "input")),
+    Case("cli: fit writing over its model file",
+         ("fit", "--model", "model.toml", "--data", "log.csv", "--out", "model.toml"),
+         ("--out model.toml", "input")),
+    Case("cli: fit writing over its effects file",
+         (*FIT[:-1], "fx.py", "--effects-file", "fx.py", "--add", "seat_land_force"),
+         ("--out fx.py", "input"), {"fx.py": EFFECTS}),
+    Case("cli: fit writing over its valve file", ("fit", "--model", "cfda", "--data", "log.csv",
+                                                  "--valve", "valve.toml", "--out", "valve.toml"),
+         ("--out valve.toml", "input")),
+    Case("cli: predict writing over its queries",
+         ("predict", "--model", "grid", "--input", "queries.csv", "--output", "queries.csv"),
+         ("--output queries.csv", "input")),
+    Case("cli: simulate writing over its sequence",
+         ("simulate", "--sequence", "log.csv", "--out", "log.csv"), ("--out log.csv", "input")),
+    Case("cli: compare writing into the folder of its log",
+         ("compare", "--model", "cfda", "--data", "logs/log.csv", "--out", "logs"),
+         ("--out logs", "holds the input"), {"logs/log.csv": LOG}),
+    Case("cli: compare --out naming a file", (*COMPARE[:-1], "log.csv"), ("--out", "input")),
+    Case("cli: compare --out naming an existing file", (*COMPARE[:-1], "queries.csv"),
+         ("--out queries.csv", "this is a file")),
+    Case("cli: fit --out naming a folder", (*FIT[:-1], "folder", "--add", "friction_viscous"),
+         ("--out folder", "this is a folder"), {"folder/keep.txt": "kept"}),
+    Case("cli: --out under a file", (*FIT[:-1], "queries.csv/model.toml"),
+         ("queries.csv", "is a file, not a folder")),
+    Case("cli: --out where nothing can be written", (*FIT[:-1], "/proc/cbv/model.toml"),
+         ("/proc/cbv/model.toml", "cannot write")),
+    Case("cli: negative --max-additions", ("workflow", "--data", "log.csv", "--out", "out",
+                                           "--max-additions", "-1"),
+         ("--max-additions", ">= 0")),
+    Case("cli: --max-additions not a number", ("workflow", "--data", "log.csv",
+                                                "--max-additions", "many"),
+         ("--max-additions", "'many'")),
+    Case("cli: simulate --every 0", ("simulate", "--every", "0", "--out", "out.csv"),
+         ("--every", ">= 1")),
+    Case("cli: simulate negative noise", ("simulate", "--noise-scale", "-1", "--out", "out.csv"),
+         ("--noise-scale",)),
+    Case("cli: simulate --set without a number",
+         ("simulate", "--hidden", "friction_viscous", "--set", "K_nu=lots", "--out", "out.csv"),
+         ("--set", "PARAM=NUMBER")),
+    Case("cli: simulate --set of an unknown parameter",
+         ("simulate", "--hidden", "friction_viscous", "--set", "K_mu=1", "--every", "50",
+          "--out", "out.csv"), ("no parameter 'K_mu'",)),
+    Case("cli: simulate --set outside the bounds",
+         ("simulate", "--hidden", "friction_viscous", "--set", "K_nu=-5", "--every", "50",
+          "--out", "out.csv"), ("K_nu", "outside its bounds")),
+    Case("cli: simulate --set without --hidden", ("simulate", "--set", "K_nu=1", "--out",
+                                                  "out.csv"), ("--set needs --hidden",)),
+    Case("cli: simulate an unknown effect", ("simulate", "--hidden", "warp_drive", "--out",
+                                             "out.csv"), ("unknown effect 'warp_drive'",)),
+    Case("cli: diagnose an unknown candidate",
+         ("diagnose", "--model", "cfda", "--data", "log.csv", "--candidates", "friction_magic"),
+         ("unknown effect 'friction_magic'",)),
+    Case("cli: diagnose only what the model has",
+         ("diagnose", "--model", "cfda", "--data", "log.csv", "--candidates",
+          "friction_constant"), ("nothing to diagnose",)),
+    Case("cli: fit an unknown effect", (*FIT, "--add", "warp_drive"),
+         ("unknown effect 'warp_drive'",)),
+    Case("cli: fit an effect the model has", (*FIT, "--add", "friction_constant"),
+         ("friction_constant already",)),
+    Case("cli: fit the same effect twice", (*FIT, "--add", "friction_viscous", "--add",
+                                            "friction_viscous"), ("more than once",)),
+    Case("cli: predict with an unknown map kind",
+         ("predict", "--model", "spline", "--input", "queries.csv", "--output", "out.csv"),
+         ("unknown map kind 'spline'",)),
+    Case("cli: paper with an unknown map kind", ("paper", "--maps", "spline", "--data",
+                                                 "log.csv", "--out", "out"),
+         ("unknown map kind 'spline'",)),
+    Case("cli: predict without a fluid", ("predict", "--model", "grid", "--input", "q.csv",
+                                          "--output", "out.csv"), ("q.csv", "temperature_C"),
+         {"q.csv": "u_mm,p_L_bar,p_B_bar\n0.1,50,5\n"}),
+    Case("cli: check-data of a missing file", ("check-data", "nowhere.csv"), ("nowhere.csv",)),
+]
+
+
+@pytest.fixture
+def registry():
+    """Custom effects a case loads are removed again, so cases cannot leak into each other."""
+    saved = dict(REGISTRY)
+    yield
+    REGISTRY.clear()
+    REGISTRY.update(saved)
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(path.relative_to(folder)): path.read_bytes() if path.is_file() else b"<dir>"
+            for path in sorted(folder.rglob("*"))}
+
+
+def run_case(folder: Path, case: Case, capsys, monkeypatch, *, as_json: bool = False):
+    for name, content in {**GOOD_FILES, **case.files}.items():
+        path = folder / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content, encoding="utf-8")
+    monkeypatch.chdir(folder)
+    before = snapshot(folder)
+    argv = [*case.argv, "--json"] if as_json and case.argv and case.argv[0] != "check-data" \
+        else list(case.argv)
+    code = main(argv)
+    captured = capsys.readouterr()
+    assert snapshot(folder) == before, "an output appeared or an input changed"
+    return code, captured
+
+
+@pytest.mark.parametrize("case", CASES, ids=[case.id for case in CASES])
+def test_bad_input_exits_2_naming_the_problem_and_writes_nothing(case, tmp_path, capsys,
+                                                                 monkeypatch, registry):
+    code, captured = run_case(tmp_path, case, capsys, monkeypatch)
+    assert code == 2, captured.err
+    assert "Traceback" not in captured.err
+    for word in case.words:
+        assert word in captured.err, f"{word!r} missing from: {captured.err}"
+
+
+def test_the_table_has_over_a_hundred_cases():
+    assert len(CASES) >= 100
+    assert len({case.id for case in CASES}) == len(CASES)
+
+
+JSON_CASES = [case for case in CASES if case.id in (
+    "log: p_L 1e30", "model: vary as text", "cli: negative --max-additions",
+    "effects: returns NaN", "cli: fit writing over its bench log")]
+
+
+@pytest.mark.parametrize("case", JSON_CASES, ids=[case.id for case in JSON_CASES])
+def test_json_mode_reports_errors_as_json(case, tmp_path, capsys, monkeypatch, registry):
+    code, captured = run_case(tmp_path, case, capsys, monkeypatch, as_json=True)
+    assert code == 2
+    error = json.loads(captured.out)["error"]
+    assert error["exit_code"] == 2
+    for word in case.words:
+        assert word in error["message"]
+    if case.id == "log: p_L 1e30":
+        assert any(p["line"] == 8 and p["column"] == "p_L_bar" for p in error["problems"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", [CASES[0], JSON_CASES[1], CASES[-1]],
+                         ids=["cfd", "model", "cli"])
+def test_a_real_process_prints_no_traceback(case, tmp_path):
+    for name, content in {**GOOD_FILES, **case.files}.items():
+        (tmp_path / name).write_text(content) if isinstance(content, str) \
+            else (tmp_path / name).write_bytes(content)
+    done = subprocess.run([sys.executable, "-m", "surrogate", *case.argv], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr and case.words[0] in done.stderr
+
+
+def test_an_internal_error_is_one_line_and_a_file_of_details(tmp_path, capsys, monkeypatch):
+    """A bug (simulated here) is not bad input: exit 1, one line, the traceback in a file."""
+    from surrogate.commands import check_data
+
+    def broken(args):
+        raise ZeroDivisionError("simulated bug")
+
+    monkeypatch.setattr(check_data, "run", broken)
+    assert main(["check-data", str(SHIPPED_CFD_SAMPLES)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "internal error" in err and "simulated bug" in err
+    details = Path(err.rsplit("details are in ", 1)[1])
+    assert "Traceback" in details.read_text() and "ZeroDivisionError" in details.read_text()
+    details.unlink()
+
+
+# --- generated cases ----------------------------------------------------------------------------
+
+BAD_NUMBERS = st.one_of(
+    st.sampled_from(["", "abc", "nan", "NaN", "inf", "-inf", "1,5", "0x10", "--1", "1e400",
+                     "1.2.3", "twelve", "∞"]),
+    st.floats(min_value=1e7, max_value=1e300).map(repr),  # beyond every column's limits
+    st.floats(min_value=-1e300, max_value=-1e7).map(repr),
+)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kind=st.sampled_from(["cfd", "log"]), line=st.integers(2, 60), value=BAD_NUMBERS,
+       data=st.data())
+def test_generated_bad_cells_are_located(kind, line, value, data):
+    text = CFD if kind == "cfd" else LOG
+    columns = [c for c in text.splitlines()[0].split(",") if c.endswith(
+        ("_bar", "_mm", "_lpm", "_cSt", "_kg_m3", "_N", "_C"))]
+    column = data.draw(st.sampled_from(columns))
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "bad.csv"
+        path.write_text(set_cell(text, line, column, value))
+        before = path.read_bytes()
+        code = main(["check-data", str(path), "--json"])
+        assert path.read_bytes() == before and sorted(Path(folder).iterdir()) == [path]
+    assert code == 2
+
+
+VALVE_KEYS = ["A_L_mm2", "alpha_P", "A_s3_mm2", "F_cr_N", "K_f_N_per_m", "U_max_mm", "w_mm",
+              "nu40_cSt", "nu100_cSt", "rho15_kg_m3"]
+BAD_TOML_VALUES = st.one_of(
+    st.sampled_from(["0", "-1", "inf", "-inf", "nan", '"12"', "true", "[1, 2]", "{ a = 1 }",
+                     "1e30", "1e-30"]),
+    st.floats(min_value=1e10, max_value=1e300).map(repr),  # beyond every key's limit
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(key=st.sampled_from(VALVE_KEYS), value=BAD_TOML_VALUES)
+def test_generated_bad_valve_values_name_the_key(key, value):
+    lines = [f"{key} = {value}" if line.split("=")[0].strip() == key else line
+             for line in VALVE.splitlines()]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "valve.toml"
+        path.write_text("\n".join(lines) + "\n")
+        from surrogate.errors import InputError
+        from surrogate.valve import load_valve
+
+        with pytest.raises(InputError) as caught:
+            load_valve(path)
+    message = str(caught.value)
+    assert str(path) in message
+    # the key, or for the oil's ordering rule the pair it breaks
+    assert key in message or key.split("_")[0] in message, message
+
+
+MODEL_PLACES = ["top", "model", "effect", "parameter"]
+
+
+@settings(max_examples=30, deadline=None)
+@given(place=st.sampled_from(MODEL_PLACES),
+       key=st.from_regex(r"[a-z][a-z_]{2,12}", fullmatch=True))
+def test_generated_unknown_model_keys_are_refused(place, key):
+    from surrogate.errors import InputError
+    from surrogate.modelfile import _EFFECT_KEYS, _MODEL_KEYS, _PARAMETER_KEYS, _TOP_KEYS
+
+    known = {"top": _TOP_KEYS, "model": _MODEL_KEYS, "effect": _EFFECT_KEYS,
+             "parameter": _PARAMETER_KEYS}[place]
+    if key in known or key in ("scale", "k1", "k2"):
+        return
+    text = {"top": f"{key} = 1\n" + MODEL,
+            "model": MODEL.replace("[model]\n", f"[model]\n{key} = 1\n", 1),
+            "effect": MODEL.replace('name = "flow_force_scale"\n',
+                                    f'name = "flow_force_scale"\n{key} = 1\n', 1),
+            "parameter": MODEL.replace("scale = { value", f"scale = {{ {key} = 1, value", 1)}[place]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "model.toml"
+        path.write_text(text)
+        from surrogate.modelfile import load_model
+
+        with pytest.raises(InputError, match=f"'{key}'"):
+            load_model(str(path))
