@@ -59,6 +59,8 @@ def add_command(subparsers, name: str, help: str, description: str, *,
     --json unless ``json_help`` is None."""
     parser = subparsers.add_parser(name, help=help, description=description, epilog=EXIT_CODES,
                                    formatter_class=HelpFormatter)
+    # listed under their own heading in --help (argparse leaves the heading out while it is empty)
+    parser.required_options = parser.add_argument_group("required options")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="no progress lines on stderr (errors are still reported)")
     if json_help:
@@ -66,12 +68,9 @@ def add_command(subparsers, name: str, help: str, description: str, *,
     return parser
 
 
-def required(parser: argparse.ArgumentParser) -> argparse._ArgumentGroup:
-    """The group that lists a parser's required options under their own heading in --help."""
-    for group in parser._action_groups:
-        if group.title == "required options":
-            return group
-    return parser.add_argument_group("required options")
+def required(parser: argparse.ArgumentParser):
+    """The group of a command's required options (made by :func:`add_command`)."""
+    return parser.required_options
 
 
 def non_negative_int(text: str) -> int:
