@@ -16,7 +16,8 @@ from surrogate.learn import splits
 from surrogate.learn.domain import FeatureDomain
 from surrogate.learn.gaussian_process import NumpyGP, fit_gp
 from surrogate.learn.metrics import map_errors
-from surrogate.learn.monotone_nn import Architecture, NumpyNet, SignConstrainedNet
+from surrogate.learn.monotone_nn import SignConstrainedNet, state_arrays
+from surrogate.maps.network import Architecture, NumpyNet
 from surrogate.learn.monotonicity import random_states, violations
 from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_one_ulp,
                                              prediction_difference)
@@ -78,14 +79,14 @@ def test_constraints_hold_for_any_weights_not_just_trained_ones(seed, spread):
         for parameter in network.parameters():
             parameter.copy_(spread * torch.randn(parameter.shape, generator=generator,
                                                  dtype=torch.float64))
-    numpy_net = NumpyNet(architecture, {k: v.numpy() for k, v in network.state_dict().items()})
+    numpy_net = NumpyNet(architecture, state_arrays(network))
     z = np.random.default_rng(seed).normal(0, 5, (500, 3))
     raw_slope = numpy_net.gradient(z) / np.asarray(architecture.scales)  # ∂R/∂(raw feature)
     assert np.all(np.abs(raw_slope[:, 0]) <= 0.8 + 1e-9)
     assert np.all(np.abs(raw_slope[:, 1]) <= 0.98 + 1e-9)
     assert np.all(raw_slope[:, 2] >= -1e-12)
     with torch.no_grad():
-        # torch.softplus switches to x above 20; numpy keeps the exact log(1 + e^x)
+        # the smooth clamp: torch.softplus switches to x above 20, numpy keeps log(1 + e^x)
         np.testing.assert_allclose(numpy_net(z), network(torch.as_tensor(z)).numpy(), rtol=1e-9,
                                    atol=1e-8)
 
@@ -149,8 +150,8 @@ def test_loading_refuses_pickled_code(tmp_path, valve):
         def __reduce__(self):
             return (print, ("this must never run",))
 
-    (folder / "flow_0.pt").write_bytes(pickle.dumps({"weights": Payload()}))
-    with pytest.raises(InputError, match="plain tensors"):
+    (folder / "flow.npz").write_bytes(pickle.dumps({"weights": Payload()}))
+    with pytest.raises(InputError, match="plain arrays"):
         load_learned_maps(folder)
 
 
@@ -223,3 +224,20 @@ def test_a_broken_training_falls_outside_the_tolerance(kind, retrain, learned_ma
     frame["rho"] *= 1.01
     fresh = retrain(kind, CfdSamples(frame, cfd_samples.source))
     assert not TOLERANCES[kind].admits(_difference(fresh, learned_maps[kind], cfd_samples, valve))
+
+
+def test_evaluating_saved_network_maps_needs_numpy_only():
+    """Loading and evaluating the NN maps never imports PyTorch (1 s of start-up saved)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np\n"
+            "from surrogate import load_valve\n"
+            "from surrogate.maps.registry import build_maps\n"
+            "flow, force = build_maps('nn', load_valve())\n"
+            "fluid = load_valve().oil.state(np.array([313.15]))\n"
+            "assert flow.pressure_drop(np.array([1e-4]), 5e5, 1e-4, fluid)[0] > 0\n"
+            "print('torch' in sys.modules)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"

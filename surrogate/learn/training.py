@@ -114,7 +114,7 @@ def _train_networks(data: Targets, progress, constrained: bool = True
     import torch
     from torch.nn.functional import softplus
 
-    from .monotone_nn import Architecture, SignConstrainedNet, train, widen
+    from .monotone_nn import Architecture, SignConstrainedNet, state_arrays, train, widen
 
     def ensemble(features, signs, bounds, loss, offset, output, name, groups=ADDITIVE_GROUPS,
                  transition=None, knee_features=(), physics_groups=None):
@@ -144,7 +144,7 @@ def _train_networks(data: Targets, progress, constrained: bool = True
                 final = train(network, z, loss, offset=offset, epochs=NN_EPOCHS // 2,
                               learning_rate=2e-3, initialise=False)
             progress(f"NN {name}: member {member + 1}/{NN_MEMBERS} trained, loss {final:.3e}")
-            states.append({k: v.detach().numpy().copy() for k, v in network.state_dict().items()})
+            states.append(state_arrays(network))
         return NetworkEnsemble(architecture(groups), states, mean, std, output)
 
     log_cd = torch.as_tensor(data.log_discharge)

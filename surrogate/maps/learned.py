@@ -30,7 +30,8 @@ from ..learn.domain import FeatureDomain
 from .base import FlowMap, ForceMap, broadcast_query
 
 MANIFEST = "surrogate.json"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: network weights as .npz (1: PyTorch state_dicts, still read)
+_READABLE = (1, 2)
 
 
 def data_hash(path: str | Path) -> str:
@@ -141,7 +142,7 @@ def read_manifest(folder: str | Path) -> dict:
         manifest = json.loads(path.read_text())
     except json.JSONDecodeError as error:
         raise InputError(f"{path}: not valid JSON ({error})") from None
-    if manifest.get("format_version") != FORMAT_VERSION or manifest.get("kind") not in ("nn", "gp"):
+    if manifest.get("format_version") not in _READABLE or manifest.get("kind") not in ("nn", "gp"):
         raise InputError(f"{path}: unknown surrogate format (need format_version "
                          f"{FORMAT_VERSION} and kind 'nn' or 'gp')")
     return manifest

@@ -1,10 +1,11 @@
 """Neural-network predictors for the learned maps: an ensemble of monotone networks.
 
-Each member is a :class:`~surrogate.learn.monotone_nn.SignConstrainedNet`, saved as its
-``state_dict`` (``flow_0.pt``, ...) and read back with ``torch.load(weights_only=True)``, so
-loading never executes code. Inference runs in numpy. The ensemble averages the members'
-corrections R; each member obeys the slope bounds that make the maps monotone, and so does any
-average of them.
+Each member is a network of :mod:`.network`, trained in PyTorch and saved as its raw parameters in
+one ``.npz`` per map (``flow.npz``: ``0/hidden.0``, ``0/bias.0``, ..., ``1/hidden.0``, ...), read
+back with ``allow_pickle=False``: loading never executes code and, like inference, needs NumPy
+only. Folders written before (``flow_0.pt``, ...) still load, through ``torch.load`` with
+``weights_only=True``. The ensemble averages the members' corrections R; each member obeys the
+slope bounds that make the maps monotone, and so does any average of them.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..learn.monotone_nn import Architecture, NumpyNet
+from .network import Architecture, NumpyNet
 
 #: what the network's output R means, and how the map's target follows from it
 OUTPUTS = {"log_discharge": lambda r: r,  # flow: R = ln C_d
@@ -53,32 +54,46 @@ class NetworkEnsemble:
 
 
 def save_ensemble(folder: Path, name: str, ensemble: NetworkEnsemble) -> dict:
-    """Write the members' state_dicts; return the manifest entry describing them."""
-    import torch
-
-    files = []
-    for index, state in enumerate(ensemble.states):
-        path = folder / f"{name}_{index}.pt"
-        torch.save({key: torch.as_tensor(value) for key, value in state.items()}, path)
-        files.append(path.name)
-    return {**ensemble.describe(), "files": files}
+    """Write the members' raw parameters to ``<name>.npz``; return the manifest entry."""
+    path = folder / f"{name}.npz"
+    np.savez(path, **{f"{index}/{key}": np.asarray(value) for index, state in
+                      enumerate(ensemble.states) for key, value in state.items()})
+    return {**ensemble.describe(), "file": path.name}
 
 
 def _load_ensemble(folder: Path, entry: dict) -> NetworkEnsemble:
-    import torch
-
-    states = []
-    for name in entry["files"]:
-        path = folder / name
-        try:
-            state = torch.load(path, weights_only=True, map_location="cpu")
-        except Exception as error:  # missing, truncated, or not plain tensors (pickled code)
-            first_line = str(error).strip().splitlines()[0] if str(error).strip() else ""
-            raise InputError(f"{path}: cannot load network weights as plain tensors "
-                             f"({type(error).__name__}: {first_line})") from None
-        states.append({key: value.numpy() for key, value in state.items()})
+    states = (_load_npz(folder / entry["file"]) if "file" in entry
+              else [_load_legacy(folder / name) for name in entry["files"]])
     return NetworkEnsemble(Architecture.from_dict(entry["architecture"]), states,
                            entry["feature_mean"], entry["feature_std"], entry["output"])
+
+
+def _load_npz(path: Path) -> list[dict[str, np.ndarray]]:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {key: data[key] for key in data.files}
+    except (OSError, ValueError) as error:  # missing, truncated, or object arrays (pickles)
+        raise InputError(f"{path}: cannot load network weights as plain arrays ({error})") from None
+    members: dict[int, dict[str, np.ndarray]] = {}
+    for key, value in arrays.items():
+        index, _, name = key.partition("/")
+        if not index.isdigit() or not name:
+            raise InputError(f"{path}: unexpected array {key!r} (expected '<member>/<name>')")
+        members.setdefault(int(index), {})[name] = value
+    return [members[index] for index in sorted(members)]
+
+
+def _load_legacy(path: Path) -> dict[str, np.ndarray]:
+    """A member saved as a PyTorch state_dict (folders of format 1)."""
+    import torch
+
+    try:
+        state = torch.load(path, weights_only=True, map_location="cpu")
+    except Exception as error:  # missing, truncated, or not plain tensors (pickled code)
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else ""
+        raise InputError(f"{path}: cannot load network weights as plain tensors "
+                         f"({type(error).__name__}: {first_line})") from None
+    return {key: value.numpy() for key, value in state.items()}
 
 
 def load_predictors(folder: Path, manifest: dict) -> tuple[NetworkEnsemble, NetworkEnsemble]:

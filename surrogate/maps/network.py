@@ -1,0 +1,286 @@
+"""Monotone networks evaluated with NumPy: the inference side of the learned NN maps.
+
+Training happens in PyTorch (:mod:`surrogate.learn.monotone_nn`); a trained network is saved as
+plain arrays (its raw parameters, ``.npz``), and this module turns them into the weights the
+network actually uses (signs through softplus, the slope-bounding column scales) and evaluates it.
+Loading and evaluating a saved network therefore needs NumPy only, never PyTorch.
+
+A small additive network with sign- and slope-constrained inputs: monotone by construction.
+
+The learned maps write their output as a physical baseline plus a learned correction R:
+
+    flow:   Δp    = ½ρ·(q / (w·u·e^R))²                        (R = ln C_d, flow features)
+    force:  f_sim = p_L·A_L + p_B·(A_s3 − A_B) + α·A_L·Δp,  1 + α = e^R   (force features)
+
+(or 1 + α = e^(−softplus(−R)) when every sample's flow force closes the valve, which keeps α in
+(−1, 0); softplus rises, so the argument below is unchanged)
+
+with the features of :mod:`surrogate.features`. Flow features: A = ln Re_q (rises by 1 per unit
+of ln q), B = ln(u/U), C = ln σ_q (falls by 2 per unit of ln q, rises by 2 per unit of ln u).
+Force features: a = ln Re (rises by 1/2 per unit of ln Δp), b = ln(u/U), c = ln σ (falls by 1).
+
+Network
+-------
+    R(z) = c0 + β·z' + Σ_g Σ_j v_gj·tanh(W_gj·z'_g + b_gj) − s·softplus(θ0 + θ·z' − sd_r·z'_r),
+    z' = κ ∘ z,
+
+a sum of one-hidden-layer tanh parts on subsets of the standardised features z (the additive
+structure of :mod:`surrogate.features`), a linear term, and optionally a *transition* term on the
+Reynolds feature r: the laminar–turbulent blend of orifice flow,
+ln C_d = ln C_∞ − s·ln(1 + Re_t/Re), with the knee Re_t free to move with the other features (the
+opening) and the depth s fixed by physics: s = 1/2 for C_d(Re_q), whose laminar limit is
+C_d ∝ Re_q^½ (Δp ∝ q). Below the samples' Reynolds numbers the transition term keeps C_d falling
+the way laminar flow does, and the tanh parts see the Reynolds number through a smooth clamp to
+the training range (``held``), so their correction holds its edge value there instead of bending
+the trend: physics extrapolates, corrections do not. That is what lets the map reach colder oil.
+
+The flow networks are trained in two stages (:mod:`surrogate.learn.training`): first the physics
+alone (C_d = C_∞(u, σ)·(1 + Re_t(u)/Re)^(−½)), then, starting from that solution (:func:`widen`),
+with the Reynolds number added to the first tanh part to learn what the blend misses.
+All v >= 0. Each input column k has a *sign*: +1 or −1 forces W_jk and β_k to that sign (through a
+softplus), 0 leaves them free; and optionally a *slope bound* B_k on |∂R/∂f_k| in raw feature units.
+The bound is enforced by the column scale κ_k = min(1, B_k·sd_k/S_k), recomputed from the weights at
+every evaluation, where S_k = |β_k| + Σ_g Σ_j v_gj·|W_gjk| + s·|θ_k| (+ s·sd_r for k = r) bounds
+|∂R/∂z_k| because 0 < tanh' <= 1 and 0 < softplus' < 1. The transition's θ_k obey the column
+signs too (θ_k of the opposite sign, as the term enters with a minus). For a signed column every
+term of S_k has the same sign, so the bound is tight, not conservative.
+
+Why that makes the maps monotone
+--------------------------------
+Flow (q non-decreasing in p_L and in u), with A and B free in sign but |∂R/∂·| <= 0.98, and C
+with sign +1:
+
+    ∂ln Δp/∂ln q       = 2·(1 − ∂R/∂A + 2·∂R/∂C) >= 2·(1 − 0.98) > 0,
+    ∂ln Δp/∂ln u at q  = −2·(1 + ∂R/∂B + 2·∂R/∂C) <= −2·(1 − 0.98) < 0,
+
+so the pressure drop rises with the flow and falls with the opening: the flow through the valve
+rises with p_L and with u.
+
+Force (f_sim non-decreasing in p_L), with a of sign +1, c of sign −1 and b free:
+
+    ∂ln(A_L·Δp·e^R)/∂ln Δp = 1 + (1/2)·∂R/∂a − ∂R/∂c >= 1 > 0.
+
+The signs are physics, stated so they can be checked: the discharge coefficient does not fall as
+the cavitation number rises (a cavitating jet chokes the flow), and it grows more slowly than the
+Reynolds number (in laminar flow C_d ∝ Re^½); the flow force is a smaller fraction of the uniform
+load force at low Reynolds numbers and shrinks as the jet cavitates.
+The guarantees hold for any weights, inside the data and far outside it; they are properties of
+the architecture, not of training. tanh keeps the maps C^∞, so the solver never meets a kink.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: sharpness of the smooth clamp of the held columns (see :attr:`Architecture.held`)
+HOLD_SHARPNESS = 4.0
+#: softplus switches to the identity above this, as ``torch.nn.functional.softplus`` does, so
+#: that NumPy and PyTorch compute the same weights
+_SOFTPLUS_THRESHOLD = 20.0
+
+
+@dataclass(frozen=True)
+class Architecture:
+    """What is needed to rebuild a network from its state_dict.
+
+    Attributes
+    ----------
+    groups : tuple of tuple of int
+        Feature indices of each additive part.
+    width : int
+        Hidden units per part.
+    signs : tuple of int
+        Per feature: +1 (R non-decreasing in it), −1 (non-increasing) or 0 (free).
+    bounds : tuple of float or None
+        Per feature: largest |∂R/∂f| in raw feature units, or None.
+    scales : tuple of float
+        Per feature: the standard deviation sd_k used to standardise it.
+    transition : int or None
+        Index of the Reynolds feature of the transition term; None for no such term.
+    transition_depth : float
+        Its depth s: the slope of R in ln Re far below the knee (1/2 for C_d(Re_q)).
+    knee_features : tuple of int
+        Features the transition's knee may move with (the opening: Re_t(u)); the others do not
+        enter it.
+    linear : bool
+        Whether R has the linear term β·z. Without it R saturates beyond the data (it holds its
+        edge values), which suits a quantity that must stay bounded, like a force fraction.
+    linear_features : tuple of int or None
+        Features of the linear term; None for all.
+    held : dict
+        Feature -> (low, high) in standardised units: the tanh parts see that feature through a
+        smooth clamp to [low, high], so beyond the training data their correction holds its edge
+        value while the transition and linear terms carry the trend. The clamp rises with slope
+        in (0, 1), so signs and slope bounds are kept.
+    """
+
+    groups: tuple[tuple[int, ...], ...]
+    width: int
+    signs: tuple[int, ...]
+    bounds: tuple[float | None, ...]
+    scales: tuple[float, ...]
+    transition: int | None = None
+    transition_depth: float = 0.5
+    knee_features: tuple[int, ...] = ()
+    linear: bool = True
+    linear_features: tuple[int, ...] | None = None
+    held: dict[int, tuple[float, float]] = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.transition is not None and self.signs[self.transition] == -1:
+            raise ValueError("the transition term rises with its Reynolds feature; that column "
+                             "cannot have sign −1")
+
+    def to_dict(self) -> dict:
+        return {"groups": [list(g) for g in self.groups], "width": self.width,
+                "signs": list(self.signs), "bounds": list(self.bounds),
+                "scales": list(self.scales), "transition": self.transition,
+                "transition_depth": self.transition_depth,
+                "knee_features": list(self.knee_features), "linear": self.linear,
+                "linear_features": None if self.linear_features is None
+                else list(self.linear_features),
+                "held": {str(k): list(v) for k, v in self.held.items()}}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "Architecture":
+        return cls(tuple(tuple(int(i) for i in g) for g in data["groups"]), int(data["width"]),
+                   tuple(int(s) for s in data["signs"]),
+                   tuple(None if b is None else float(b) for b in data["bounds"]),
+                   tuple(float(s) for s in data["scales"]), data.get("transition"),
+                   float(data.get("transition_depth", 0.5)),
+                   tuple(int(k) for k in data.get("knee_features", ())),
+                   bool(data.get("linear", True)),
+                   None if data.get("linear_features") is None
+                   else tuple(int(k) for k in data["linear_features"]),
+                   {int(k): (float(v[0]), float(v[1])) for k, v in data.get("held", {}).items()})
+
+    @property
+    def features(self) -> int:
+        return len(self.signs)
+
+    @property
+    def parameter_count(self) -> int:
+        per_part = [len(g) * self.width + 2 * self.width for g in self.groups]
+        knee = 0 if self.transition is None else 1 + len(self.knee_features)  # θ0 and θ
+        return sum(per_part) + self.features + 1 + knee
+
+
+def softplus(x):
+    """log(1 + e^x), the identity above 20 (as PyTorch's softplus)."""
+    x = np.asarray(x, float)
+    with np.errstate(over="ignore"):
+        return np.where(x > _SOFTPLUS_THRESHOLD, x, np.log1p(np.exp(np.minimum(x, 50.0))))
+
+
+def hold(z: np.ndarray, held: dict) -> np.ndarray:
+    """z with the held columns smoothly clamped to their (low, high) range."""
+    if not held:
+        return z
+    columns = [z[:, k] for k in range(z.shape[1])]
+    for k, (low, high) in held.items():
+        c = HOLD_SHARPNESS
+        columns[k] = low + (np.logaddexp(0.0, c * (z[:, k] - low))
+                            - np.logaddexp(0.0, c * (z[:, k] - high))) / c
+    return np.column_stack(columns)
+
+
+def _signed(raw: np.ndarray, signs: np.ndarray) -> np.ndarray:
+    """Weights of signed columns through softplus (sign ±1), free ones as they are (sign 0)."""
+    return np.where(signs == 0, raw, signs * softplus(raw))
+
+
+def knee_weights(architecture: Architecture, knee: np.ndarray) -> np.ndarray:
+    """θ of the transition term (zero if none), its Reynolds entry replaced by −sd_r.
+
+    The term enters R as −s·softplus(θ0 + θ·z'), so its slope along column k is −s·σ·θ_k: a
+    column signed +1 needs θ_k <= 0 and one signed −1 needs θ_k >= 0.
+    """
+    r = architecture.transition
+    features = architecture.features
+    if r is None:
+        return np.zeros(features)
+    signs = np.asarray(architecture.signs, float)
+    weights = np.where(signs == 0, knee[1:], -signs * softplus(knee[1:]))
+    moving = np.zeros(features)
+    moving[list(architecture.knee_features)] = 1.0
+    weights = weights * moving
+    weights[r] = -architecture.scales[r]
+    return weights
+
+
+def effective_weights(architecture: Architecture, state: dict[str, np.ndarray]):
+    """The weights a network with raw parameters ``state`` uses.
+
+    Returns (W per part, biases, v per part, β, κ): the signs applied, and the column scales
+    κ_k = min(1, B_k·sd_k/S_k) that enforce the slope bounds (module docstring).
+    """
+    groups = architecture.groups
+    signs = np.asarray(architecture.signs, float)
+    weights = [_signed(np.asarray(state[f"hidden.{i}"], float), signs[list(group)])
+               for i, group in enumerate(groups)]
+    biases = [np.asarray(state[f"bias.{i}"], float) for i in range(len(groups))]
+    outputs = [softplus(np.asarray(state[f"output.{i}"], float)) for i in range(len(groups))]
+    linear = _signed(np.asarray(state["linear"], float), signs)
+    if not architecture.linear:
+        linear = np.zeros_like(linear)
+    elif architecture.linear_features is not None:
+        keep = np.zeros_like(linear)
+        keep[list(architecture.linear_features)] = 1.0
+        linear = linear * keep
+    depth = 0.0 if architecture.transition is None else architecture.transition_depth
+    knee = knee_weights(architecture, np.asarray(state["knee"], float))
+    bound = np.abs(linear) + depth * np.abs(knee)
+    for weight, output, group in zip(weights, outputs, groups):
+        np.add.at(bound, list(group), output @ np.abs(weight))
+    scale = np.ones(architecture.features)
+    for k, limit in enumerate(architecture.bounds):
+        if limit is not None:
+            scale[k] = min(limit * architecture.scales[k] / max(bound[k], 1e-12), 1.0)
+    return weights, biases, outputs, linear, scale
+
+
+class NumpyNet:
+    """A trained network R(z), evaluated with NumPy from its raw parameters."""
+
+    def __init__(self, architecture: Architecture, state: dict[str, np.ndarray]):
+        weights, biases, outputs, linear, scale = effective_weights(architecture, state)
+        self.offset = float(np.asarray(state["offset"]).ravel()[0])
+        self.linear = linear * scale
+        self.held = architecture.held
+        self.scale = scale
+        self.transition = architecture.transition is not None
+        self.depth = architecture.transition_depth
+        knee = np.asarray(state["knee"], float)
+        self.knee_start = float(knee[0])
+        self.knee = knee_weights(architecture, knee) * scale
+        self.parts = [(list(group), weight * scale[list(group)], bias, output)
+                      for weight, bias, output, group in
+                      zip(weights, biases, outputs, architecture.groups)]
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        total = self.offset + z @ self.linear
+        held = hold(z, self.held)
+        for group, weight, bias, output in self.parts:
+            total = total + np.tanh(held[:, group] @ weight.T + bias) @ output
+        if self.transition:
+            total = total - self.depth * np.logaddexp(0.0, self.knee_start + z @ self.knee)
+        return total
+
+    def gradient(self, z: np.ndarray) -> np.ndarray:
+        """∂R/∂z at each row of z, shape (n, features)."""
+        gradient = np.tile(self.linear, (len(z), 1))
+        held = hold(z, self.held)
+        hold_slope = np.ones_like(z)
+        for k, (low, high) in self.held.items():
+            c = HOLD_SHARPNESS
+            hold_slope[:, k] = (1.0 / (1.0 + np.exp(-c * (z[:, k] - low)))
+                                - 1.0 / (1.0 + np.exp(-c * (z[:, k] - high))))
+        for group, weight, bias, output in self.parts:
+            slope = 1.0 - np.tanh(held[:, group] @ weight.T + bias) ** 2
+            gradient[:, group] += ((slope * output) @ weight) * hold_slope[:, group]
+        if self.transition:
+            sigmoid = 1.0 / (1.0 + np.exp(-(self.knee_start + z @ self.knee)))
+            gradient -= self.depth * sigmoid[:, None] * self.knee
+        return gradient
