@@ -20,7 +20,7 @@ from surrogate.learn.metrics import map_errors
 from surrogate.learn.reproducibility import environment
 from surrogate.learn.splits import HOLDOUT_FRACTION, HOLDOUT_SEED, holdout_mask
 from surrogate.learn.training import KINDS, train_surrogate
-from surrogate.maps.learned import data_hash
+from surrogate.maps.registry import file_hash
 from surrogate.maps.registry import TRAINED
 from surrogate.paths import PROJECT_ROOT, SHIPPED_CFD_SAMPLES
 from surrogate.progress import Progress
@@ -47,7 +47,7 @@ def main() -> int:
         data_file = str(args.cfd)
     training = {
         "data_file": data_file,
-        "data_sha256": data_hash(args.cfd),
+        "data_sha256": file_hash(args.cfd),
         "split": {"holdout_fraction": HOLDOUT_FRACTION, "seed": HOLDOUT_SEED,
                   "held_out_cases": sorted(samples.frame.loc[held_out, "case"])},
         # what decides the rounding: a retraining matches bit for bit only where this does

@@ -11,15 +11,17 @@ import numpy as np
 
 from ..data.loaders import CfdSamples
 from ..features import ADDITIVE_GROUPS, FEATURE_NAMES, FeatureSpec, Targets, targets
-from ..maps.gp import GaussianProcessPredictor, save_predictor
+from ..maps.gp import GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap, write_manifest
-from ..maps.nn import NetworkEnsemble, save_ensemble
+from ..maps.nn import NetworkEnsemble
+from ..maps.registry import MAP_KINDS, map_kind
 from ..outputs import atomic_directory
 from ..valve import ValveParameters
 from .domain import FeatureDomain
 from .gaussian_process import fit_gp
 
-KINDS = ("nn", "gp")
+#: the map kinds that are trained (the registry's learned kinds)
+KINDS = tuple(name for name, kind in MAP_KINDS.items() if kind.learned)
 
 # Network settings: small (a few hundred weights per member), three members averaged.
 NN_WIDTH = 16
@@ -37,17 +39,6 @@ FLOW_KNEE_FEATURES = (1,)
 FORCE_SIGNS, FORCE_BOUNDS = (1, 0, -1), (None, None, None)
 GP_RESTARTS = 10
 
-CONSTRAINTS = {
-    "nn": {"flow": "q non-decreasing in p_L and in u by construction: |dlnCd/dlnRe_q| <= 0.98, "
-                   "|dlnCd/dln(u/U)| <= 0.98, dlnCd/dln(sigma_q) >= 0",
-           "force": "f_sim non-decreasing in p_L by construction: d ln(1+alpha)/dlnRe >= 0, "
-                    "d ln(1+alpha)/dln(sigma) <= 0; alpha kept in (-1, 0) when every training "
-                    "sample's flow force closes the valve"},
-    "gp": {"flow": "none (monotonicity measured, not guaranteed)",
-           "force": "none (monotonicity measured, not guaranteed)"},
-}
-
-
 @dataclass
 class TrainedSurrogate:
     """A flow map and a force map learned together, with what describes them."""
@@ -60,22 +51,19 @@ class TrainedSurrogate:
 
     def save(self, folder: str | Path, training: dict, metrics: dict) -> None:
         """Write the folder (weights plus ``surrogate.json``), all at once or not at all."""
+        kind = map_kind(self.kind)
         with atomic_directory(folder) as staging:
-            if self.kind == "nn":
-                flow_entry = save_ensemble(staging, "flow", self.flow_map.predictor)
-                force_entry = save_ensemble(staging, "force", self.force_map.predictor)
-            else:
-                flow_entry = save_predictor(staging, "flow", self.flow_map.predictor)
-                force_entry = save_predictor(staging, "force", self.force_map.predictor)
+            flow_entry = kind.save_predictor(staging, "flow", self.flow_map.predictor)
+            force_entry = kind.save_predictor(staging, "force", self.force_map.predictor)
             write_manifest(staging, {
                 "kind": self.kind,
                 "feature_names": list(FEATURE_NAMES),
                 "features": self.flow_map.spec.to_dict(),
                 "flow": {"target": "ln C_d from (ln Re_q, ln(u/U), ln sigma_q)",
-                         "constraints": CONSTRAINTS[self.kind]["flow"],
+                         "constraints": kind.constraints["flow"],
                          "predictor": flow_entry, "domain": self.flow_map.domain.to_dict()},
                 "force": {"target": "alpha = f_ff/(A_L*dp) from (ln Re, ln(u/U), ln sigma)",
-                          "constraints": CONSTRAINTS[self.kind]["force"],
+                          "constraints": kind.constraints["force"],
                           "predictor": force_entry, "domain": self.force_map.domain.to_dict()},
                 "training": {**training, "seconds": round(self.seconds, 2), **self.details},
                 "metrics": metrics,
@@ -86,21 +74,19 @@ def train_surrogate(kind: str, samples: CfdSamples, valve: ValveParameters,
                     train: np.ndarray | None = None,
                     progress: Callable[[str], None] = lambda message: None, *,
                     constrained: bool = True) -> TrainedSurrogate:
-    """Train the flow and force map of ``kind`` ("nn" or "gp") on the ``train`` samples.
+    """Train the flow and force map of a learned ``kind`` on the ``train`` samples, with the
+    kind's registered trainer.
 
     ``constrained=False`` drops the network's sign and slope constraints (same architecture
     otherwise): an ablation that shows what the constraints buy; never used for shipped maps.
     """
-    if kind not in KINDS:
-        raise ValueError(f"unknown surrogate kind {kind!r}; choose from {', '.join(KINDS)}")
+    trainer = map_kind(kind).trainer_function()
     frame = samples.frame if train is None else samples.frame[np.asarray(train, bool)]
     spec = FeatureSpec.for_valve(valve)
     data = targets(spec, frame)
     started = time.perf_counter()
-    if kind == "nn":
-        flow_predictor, force_predictor = _train_networks(data, progress, constrained)
-    else:
-        flow_predictor, force_predictor = _train_processes(data, progress)
+    options = {} if constrained else {"constrained": False}
+    flow_predictor, force_predictor = trainer(data, progress, **options)
     seconds = time.perf_counter() - started
     flow_map = LearnedFlowMap(spec, flow_predictor, FeatureDomain.fit(data.flow_features), kind)
     force_map = LearnedForceMap(spec, force_predictor, FeatureDomain.fit(data.force_features),
@@ -109,8 +95,9 @@ def train_surrogate(kind: str, samples: CfdSamples, valve: ValveParameters,
                             {"training_samples": int(len(frame))})
 
 
-def _train_networks(data: Targets, progress, constrained: bool = True
-                    ) -> tuple[NetworkEnsemble, NetworkEnsemble]:
+def train_networks(data: Targets, progress, constrained: bool = True
+                   ) -> tuple[NetworkEnsemble, NetworkEnsemble]:
+    """The monotone network ensembles of the ``nn`` kind (flow: ln C_d; force: α)."""
     import torch
     from torch.nn.functional import softplus
 
@@ -168,7 +155,8 @@ def _train_networks(data: Targets, progress, constrained: bool = True
     return flow, force
 
 
-def _train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, ...]:
+def train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, ...]:
+    """The additive Gaussian processes of the ``gp`` kind (flow: ln C_d; force: α or ln(−α))."""
     flow = GaussianProcessPredictor(
         fit_gp(data.flow_features, data.log_discharge, ADDITIVE_GROUPS, linear_mean=False,
                restarts=GP_RESTARTS), "log_discharge")

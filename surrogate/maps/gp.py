@@ -53,7 +53,8 @@ def save_predictor(folder: Path, name: str, predictor: GaussianProcessPredictor)
     return {**predictor.describe(), "file": path.name}
 
 
-def _load(folder: Path, entry: dict) -> GaussianProcessPredictor:
+def load_predictor(folder: Path, entry: dict) -> GaussianProcessPredictor:
+    """A predictor saved by :func:`save_predictor`."""
     path = folder / entry["file"]
     try:
         with np.load(path, allow_pickle=False) as data:
@@ -61,9 +62,3 @@ def _load(folder: Path, entry: dict) -> GaussianProcessPredictor:
     except (OSError, ValueError, KeyError) as error:
         raise InputError(f"{path}: cannot load GP arrays ({error})") from None
     return GaussianProcessPredictor(arrays, entry["target"])
-
-
-def load_predictors(folder: Path, manifest: dict):
-    """The flow and force predictors of a saved GP surrogate."""
-    return (_load(folder, manifest["flow"]["predictor"]),
-            _load(folder, manifest["force"]["predictor"]))

@@ -17,7 +17,6 @@ constraints, the hash of the training data, held-out metrics) next to plain weig
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 
@@ -32,11 +31,6 @@ from .base import FlowMap, ForceMap, broadcast_query
 MANIFEST = "surrogate.json"
 FORMAT_VERSION = 2  # 2: network weights as .npz (1: PyTorch state_dicts, still read)
 _READABLE = (1, 2)
-
-
-def data_hash(path: str | Path) -> str:
-    """SHA-256 of a file's bytes: which CFD samples a surrogate was trained on."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 class LearnedFlowMap(FlowMap):
@@ -142,21 +136,24 @@ def read_manifest(folder: str | Path) -> dict:
         manifest = json.loads(path.read_text())
     except json.JSONDecodeError as error:
         raise InputError(f"{path}: not valid JSON ({error})") from None
-    if manifest.get("format_version") not in _READABLE or manifest.get("kind") not in ("nn", "gp"):
+    from .registry import MAP_KINDS
+
+    learned = [name for name, kind in MAP_KINDS.items() if kind.learned]
+    if manifest.get("format_version") not in _READABLE or manifest.get("kind") not in learned:
         raise InputError(f"{path}: unknown surrogate format (need format_version "
-                         f"{FORMAT_VERSION} and kind 'nn' or 'gp')")
+                         f"{FORMAT_VERSION} and a learned kind: {', '.join(learned)})")
     return manifest
 
 
 def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceMap]:
     """The flow and force map of a saved surrogate folder (NN or GP)."""
+    from .registry import map_kind
+
     manifest = read_manifest(folder)
-    if manifest["kind"] == "nn":
-        from .nn import load_predictors
-    else:
-        from .gp import load_predictors
+    load = map_kind(manifest["kind"]).load_predictor
     spec = FeatureSpec.from_dict(manifest["features"])
-    flow_predictor, force_predictor = load_predictors(Path(folder), manifest)
+    flow_predictor = load(Path(folder), manifest["flow"]["predictor"])
+    force_predictor = load(Path(folder), manifest["force"]["predictor"])
     return (LearnedFlowMap(spec, flow_predictor,
                            FeatureDomain.from_dict(manifest["flow"]["domain"]), manifest["kind"]),
             LearnedForceMap(spec, force_predictor,

@@ -61,7 +61,8 @@ def save_ensemble(folder: Path, name: str, ensemble: NetworkEnsemble) -> dict:
     return {**ensemble.describe(), "file": path.name}
 
 
-def _load_ensemble(folder: Path, entry: dict) -> NetworkEnsemble:
+def load_ensemble(folder: Path, entry: dict) -> NetworkEnsemble:
+    """An ensemble saved by :func:`save_ensemble` (or as PyTorch state_dicts, format 1)."""
     states = (_load_npz(folder / entry["file"]) if "file" in entry
               else [_load_legacy(folder / name) for name in entry["files"]])
     return NetworkEnsemble(Architecture.from_dict(entry["architecture"]), states,
@@ -94,9 +95,3 @@ def _load_legacy(path: Path) -> dict[str, np.ndarray]:
         raise InputError(f"{path}: cannot load network weights as plain tensors "
                          f"({type(error).__name__}: {first_line})") from None
     return {key: value.numpy() for key, value in state.items()}
-
-
-def load_predictors(folder: Path, manifest: dict) -> tuple[NetworkEnsemble, NetworkEnsemble]:
-    """The flow and force ensembles of a saved NN surrogate."""
-    return (_load_ensemble(folder, manifest["flow"]["predictor"]),
-            _load_ensemble(folder, manifest["force"]["predictor"]))

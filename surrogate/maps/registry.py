@@ -1,46 +1,400 @@
-"""Map kinds by name, as the command line's ``--maps`` option knows them."""
+"""Map kinds by name: how each kind of flow and force map is built, trained, saved and loaded.
+
+A *map kind* is one :class:`MapKind` registered here: its options (with their checks), how to
+build its flow and force maps for a valve, and, for the learned kinds, how to train, save and load
+them. Nothing else in the package branches on kind names; a new kind is one module with its maps
+plus one :func:`register` call (see the README's extension section).
+
+Where a model's maps come from is a :class:`MapSource` (a kind and its options); a model's two
+maps may come from different sources (:class:`MapsSpec`), as in the paper's ablations that pair
+the CFD force map with the orifice equation.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..data.loaders import load_cfd_samples
 from ..errors import InputError
 from ..paths import SHIPPED_CFD_SAMPLES, shipped
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
-from .grid import GridFlowMap, GridForceMap
-from .learned import load_learned_maps
 
-MAP_KINDS = ("grid", "nn", "gp")
 TRAINED = Path(__file__).resolve().parents[1] / "trained"
+SHIPPED = "shipped"  # an option value that names the file or folder the package ships
+
+
+def file_hash(path: str | Path) -> str:
+    """SHA-256 of a file's bytes: which data a map was built or trained from."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+# --- options ---------------------------------------------------------------------------------------
+
+def _number_in(low: float, high: float, what: str):
+    def parse(value, where: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise InputError(f"{where}: must be a number, got {value!r}")
+        if not low < value <= high:
+            raise InputError(f"{where}: must lie in ({low:g}, {high:g}], got {value:g} ({what})")
+        return float(value)
+    return parse
+
+
+def _text(value, where: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise InputError(f"{where}: must be a non-empty string, got {value!r}")
+    return value
+
+
+def _sha256(value, where: str) -> str:
+    text = _text(value, where)
+    if len(text) != 64 or any(c not in "0123456789abcdef" for c in text):
+        raise InputError(f"{where}: must be a SHA-256 in hex (64 characters), got {value!r}")
+    return text
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option of a map kind, as a model file writes it.
+
+    ``parse(value, where)`` checks a value read from a file and returns it (or raises InputError
+    naming ``where``); ``default`` is used when the option is absent (None: no default). A
+    ``path`` option names a file or folder (``"shipped"`` for the package's own): files write it
+    relative to themselves, so a model and its data move together.
+    """
+
+    name: str
+    description: str
+    parse: Callable[[object, str], object] = _text
+    default: object = None
+    path: bool = False
+
+
+# --- kinds -----------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class MapKind:
+    """A kind of map, by name.
+
+    Attributes
+    ----------
+    name : str
+        The name files and the command line use (``--maps``).
+    description : str
+        What the maps are, in a line.
+    build : callable
+        ``build(options, valve, base)`` -> (flow map, force map); ``options`` checked by
+        :meth:`parse_options`, relative paths resolved against the folder ``base``.
+    options : tuple of Option
+        The options the kind takes; any other is an error.
+    trainer : str or None
+        ``"module:function"`` that trains the kind's predictors (learned kinds), imported only to
+        train: training may need PyTorch, evaluation never does.
+    save_predictor, load_predictor : callable or None
+        Write a trained predictor into a surrogate folder (returning its manifest entry) and read
+        it back (learned kinds).
+    constraints : mapping
+        What the learned flow and force maps guarantee by construction, for the manifest.
+    data : callable or None
+        ``data(cfd)`` -> the options that record which CFD samples the maps are built from (a
+        path or ``None`` for the shipped ones); None for kinds that are not built from samples.
+    """
+
+    name: str
+    description: str
+    build: Callable[[Mapping, ValveParameters, Path], tuple[FlowMap, ForceMap]]
+    options: tuple[Option, ...] = ()
+    trainer: str | None = None
+    save_predictor: Callable | None = None
+    load_predictor: Callable | None = None
+    constraints: Mapping[str, str] = field(default_factory=dict)
+    data: Callable[[str | Path | None], dict] | None = None
+
+    @property
+    def learned(self) -> bool:
+        return self.trainer is not None
+
+    def source(self, cfd: str | Path | None = None, **options) -> "MapSource":
+        """A source of this kind: ``options`` plus, for a kind built from CFD samples, the file
+        (default: the shipped one) and its SHA-256."""
+        if self.data is not None:
+            options = {**self.data(cfd), **options}
+        elif cfd is not None:
+            raise InputError(f"map kind {self.name!r} is not built from CFD samples; --cfd "
+                             "applies to grid maps")
+        return MapSource.of(self.name, **self.parse_options(options, f"maps {self.name}"))
+
+    def parse_options(self, raw: Mapping, where: str) -> dict:
+        """The options of a file's map table, checked; unknown ones are an error."""
+        known = {option.name: option for option in self.options}
+        unknown = sorted(set(raw) - set(known))
+        if unknown:
+            allowed = ", ".join(known) or "none"
+            raise InputError(f"{where}: unknown option(s) {', '.join(map(repr, unknown))} for "
+                             f"map kind {self.name!r} (it takes: {allowed})")
+        return {name: known[name].parse(value, f"{where} {name}") for name, value in raw.items()}
+
+    def trainer_function(self) -> Callable:
+        """The training function (imports it: the only place PyTorch may come in)."""
+        if self.trainer is None:
+            raise InputError(f"map kind {self.name!r} is not trained; it is built from "
+                             f"{', '.join(o.name for o in self.options) or 'nothing'}")
+        module, _, function = self.trainer.partition(":")
+        return getattr(importlib.import_module(module), function)
+
+
+MAP_KINDS: dict[str, MapKind] = {}
+
+
+def register(kind: MapKind) -> MapKind:
+    """Add a map kind to :data:`MAP_KINDS` under its name."""
+    if kind.name in MAP_KINDS:
+        raise InputError(f"a map kind named {kind.name!r} exists already")
+    MAP_KINDS[kind.name] = kind
+    return kind
+
+
+def map_kind(name: str) -> MapKind:
+    """The registered kind called ``name``."""
+    try:
+        return MAP_KINDS[name]
+    except (KeyError, TypeError):
+        raise InputError(f"unknown map kind {name!r}: choose one of {', '.join(MAP_KINDS)}, or "
+                         "give the folder of a trained surrogate") from None
+
+
+@dataclass(frozen=True)
+class MapSource:
+    """Where maps come from: a kind and its (checked) options, as a file records them."""
+
+    kind: str
+    options: tuple[tuple[str, object], ...] = ()
+
+    @classmethod
+    def of(cls, kind: str, **options) -> "MapSource":
+        return cls(kind, tuple(sorted(options.items())))
+
+    @property
+    def settings(self) -> dict:
+        return dict(self.options)
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **self.settings}
+
+    @classmethod
+    def from_dict(cls, table, where: str, base: Path = Path(".")) -> "MapSource":
+        """Read ``{kind = ..., options...}`` (or a kind name, or the folder of a trained
+        surrogate, as older files wrote it), checking the options against the kind."""
+        if isinstance(table, str):
+            table = {"kind": table}
+        if not isinstance(table, Mapping):
+            raise InputError(f"{where}: expected a map kind ({', '.join(MAP_KINDS)}) or a table "
+                             f"{{ kind = ... }}, got {table!r}")
+        kind = table.get("kind")
+        if not isinstance(kind, str):
+            raise InputError(f"{where}: needs a kind ({', '.join(MAP_KINDS)}, or the folder of a "
+                             "trained surrogate)")
+        options = {key: value for key, value in table.items() if key != "kind"}
+        if kind not in MAP_KINDS and not options and _is_surrogate_folder(kind, base):
+            folder = kind  # a surrogate folder as the kind: the learned kind it holds
+            from .learned import read_manifest
+
+            kind, options = read_manifest(_resolve(folder, base))["kind"], {"folder": folder}
+        return cls.of(kind, **map_kind(kind).parse_options(options, where))
+
+
+def _is_surrogate_folder(text: str, base: Path) -> bool:
+    return (_resolve(text, base) / "surrogate.json").is_file()
+
+
+@dataclass(frozen=True)
+class MapsSpec:
+    """The sources of a model's flow map and force map (usually one source for both)."""
+
+    flow: MapSource
+    force: MapSource
+
+    @classmethod
+    def both(cls, kind: str, **options) -> "MapsSpec":
+        source = MapSource.of(kind, **options)
+        return cls(source, source)
+
+    def to_dict(self) -> dict:
+        if self.flow == self.force:
+            return self.flow.to_dict()
+        return {"flow": self.flow.to_dict(), "force": self.force.to_dict()}
+
+    @classmethod
+    def from_dict(cls, table, where: str, base: Path = Path(".")) -> "MapsSpec":
+        """``{kind = ...}`` for both maps, or ``{flow = {...}, force = {...}}``."""
+        if isinstance(table, Mapping) and "kind" not in table and {"flow", "force"} & set(table):
+            unknown = sorted(set(table) - {"flow", "force"})
+            if unknown or set(table) != {"flow", "force"}:
+                raise InputError(f"{where}: give kind = ... for both maps, or both flow = {{...}} "
+                                 f"and force = {{...}}; got keys {', '.join(sorted(table))}")
+            return cls(MapSource.from_dict(table["flow"], f"{where} flow", base),
+                       MapSource.from_dict(table["force"], f"{where} force", base))
+        source = MapSource.from_dict(table, where, base)
+        return cls(source, source)
+
+
+def build_maps(source: MapSource | MapsSpec | str, valve: ValveParameters,
+               base: str | Path = ".") -> tuple[FlowMap, ForceMap]:
+    """The flow and force map of a source (a kind name, a :class:`MapSource` or a
+    :class:`MapsSpec`) for ``valve``; relative paths in the options resolve against ``base``.
+
+    Maps are cached by source, valve and file contents, so the models of a workflow or of the
+    paper's comparison share one grid and one loaded surrogate.
+    """
+    if isinstance(source, MapsSpec):
+        flow = build_maps(source.flow, valve, base)[0]
+        return flow, build_maps(source.force, valve, base)[1]
+    if isinstance(source, str):
+        source = MapSource.from_dict(source, "maps", Path(base))
+    kind = map_kind(source.kind)
+    base = Path(base)
+    key = (source, valve, str(base.resolve()), _fingerprint(source, base))
+    if key not in _CACHE:
+        if len(_CACHE) >= _CACHE_SIZE:
+            _CACHE.pop(next(iter(_CACHE)))
+        _CACHE[key] = kind.build(source.settings, valve, base)
+    return _CACHE[key]
+
+
+_CACHE: dict = {}
+_CACHE_SIZE = 16
+
+
+def _fingerprint(source: MapSource, base: Path) -> tuple:
+    """Modification times and sizes of the files a source names, so an edited file rebuilds."""
+    stamps = []
+    for _, value in source.options:
+        if isinstance(value, str) and value != SHIPPED:
+            path = _resolve(value, base)
+            if path.exists():
+                stat = path.stat()
+                stamps.append((str(path), stat.st_mtime_ns, stat.st_size))
+    return tuple(stamps)
+
+
+def _resolve(text: str, base: Path) -> Path:
+    path = Path(text).expanduser()
+    return path if path.is_absolute() else base / path
+
+
+def resolve_file(value: str, base: Path, shipped_path: Path) -> Path:
+    """The path an option names: the shipped file for ``"shipped"``, else relative to ``base``."""
+    if value == SHIPPED:
+        return shipped(shipped_path)
+    return _resolve(value, base)
+
+
+# --- the built-in kinds ----------------------------------------------------------------------------
+
+def _build_orifice(options, valve, base):
+    from .orifice import OrificeFlowMap, UniformPressureForceMap
+
+    return (OrificeFlowMap(options.get("discharge_coefficient", BASIC_DISCHARGE_COEFFICIENT),
+                           valve.w), UniformPressureForceMap(valve))
+
+
+def _grid_data(cfd) -> dict:
+    reference = SHIPPED if cfd is None else str(Path(cfd).resolve())
+    return {"cfd": reference,
+            "cfd_sha256": file_hash(resolve_file(reference, Path("."), SHIPPED_CFD_SAMPLES))}
+
+
+def _build_grid(options, valve, base):
+    from ..data.loaders import load_cfd_samples
+    from .grid import GridFlowMap, GridForceMap
+
+    path = resolve_file(options.get("cfd", SHIPPED), base, SHIPPED_CFD_SAMPLES)
+    expected = options.get("cfd_sha256")
+    if expected is not None and path.is_file() and file_hash(path) != expected:
+        raise InputError(f"{path}: these CFD samples are not the ones the model was built from "
+                         f"(SHA-256 {file_hash(path)[:12]}…, the model records {expected[:12]}…); "
+                         "refit the model on them, or point cfd = ... at the original file")
+    samples = load_cfd_samples(path)
+    return GridFlowMap.from_samples(samples), GridForceMap.from_samples(samples, valve)
 
 
 def trained_folder(kind: str) -> Path:
-    """Folder of the committed surrogate of a learned kind ("nn" or "gp")."""
-    return TRAINED / kind
+    """Folder of the committed surrogate of a learned kind."""
+    return TRAINED / map_kind(kind).name
 
 
-def build_maps(kind: str, valve: ValveParameters, cfd_samples: str | Path | None = None
-               ) -> tuple[FlowMap, ForceMap]:
-    """The flow and force map of a kind.
+def _learned_builder(kind: str):
+    def build(options, valve, base):
+        from .learned import load_learned_maps
 
-    Parameters
-    ----------
-    kind : str
-        ``"grid"``: interpolation of the CFD samples; ``"nn"`` or ``"gp"``: the committed learned
-        surrogates (``surrogate/trained/``); or the path of a surrogate folder written by
-        ``training/train.py``.
-    valve : ValveParameters
-    cfd_samples : path, optional
-        CFD-sample file for the grid; default the shipped one.
-    """
-    if kind == "grid":
-        samples = load_cfd_samples(cfd_samples or shipped(SHIPPED_CFD_SAMPLES))
-        return GridFlowMap.from_samples(samples), GridForceMap.from_samples(samples, valve)
-    if kind in ("nn", "gp"):
-        return load_learned_maps(trained_folder(kind))
-    if Path(kind).is_dir():
-        return load_learned_maps(kind)
-    raise InputError(f"unknown map kind {kind!r}: choose one of {', '.join(MAP_KINDS)} or give "
-                     "the folder of a trained surrogate")
+        folder = options.get("folder", SHIPPED)
+        path = trained_folder(kind) if folder == SHIPPED else _resolve(folder, base)
+        flow, force = load_learned_maps(path)
+        if flow.kind != kind:
+            raise InputError(f"{path}: holds a {flow.kind!r} surrogate, not {kind!r}")
+        return flow, force
+    return build
+
+
+BASIC_DISCHARGE_COEFFICIENT = 0.4  # the paper's BMBE choice, from C_d at u = 0.63 mm
+
+_FOLDER = Option("folder", "the trained surrogate's folder (default: the committed one)",
+                 default=SHIPPED, path=True)
+
+
+def _load_network(folder, entry):
+    from .nn import load_ensemble
+
+    return load_ensemble(folder, entry)
+
+
+def _save_network(folder, name, predictor):
+    from .nn import save_ensemble
+
+    return save_ensemble(folder, name, predictor)
+
+
+def _load_process(folder, entry):
+    from .gp import load_predictor
+
+    return load_predictor(folder, entry)
+
+
+def _save_process(folder, name, predictor):
+    from .gp import save_predictor
+
+    return save_predictor(folder, name, predictor)
+
+
+register(MapKind(
+    "orifice", "the paper's basic model: the orifice equation (eq. 4) with a constant discharge "
+               "coefficient, and a uniform pressure on the piston (eq. 6, no flow force)",
+    _build_orifice,
+    (Option("discharge_coefficient", "C_d [-], constant",
+            _number_in(0.0, 1.0, "an orifice passes at most its ideal flow"),
+            BASIC_DISCHARGE_COEFFICIENT),)))
+register(MapKind(
+    "grid", "interpolation of the CFD samples (surrogate/maps/grid.py)", _build_grid,
+    (Option("cfd", "the CFD-sample file (default: the shipped one)", default=SHIPPED, path=True),
+     Option("cfd_sha256", "SHA-256 of the CFD-sample file the model was built from", _sha256)),
+    data=_grid_data))
+register(MapKind(
+    "nn", "monotone neural-network ensemble on dimensionless features", _learned_builder("nn"),
+    (_FOLDER,), trainer="surrogate.learn.training:train_networks",
+    save_predictor=_save_network, load_predictor=_load_network,
+    constraints={
+        "flow": "q non-decreasing in p_L and in u by construction: |dlnCd/dlnRe_q| <= 0.98, "
+                "|dlnCd/dln(u/U)| <= 0.98, dlnCd/dln(sigma_q) >= 0",
+        "force": "f_sim non-decreasing in p_L by construction: d ln(1+alpha)/dlnRe >= 0, "
+                 "d ln(1+alpha)/dln(sigma) <= 0; alpha kept in (-1, 0) when every training "
+                 "sample's flow force closes the valve"}))
+register(MapKind(
+    "gp", "additive Gaussian processes on dimensionless features, with a standard deviation",
+    _learned_builder("gp"), (_FOLDER,), trainer="surrogate.learn.training:train_processes",
+    save_predictor=_save_process, load_predictor=_load_process,
+    constraints={"flow": "none (monotonicity measured, not guaranteed)",
+                 "force": "none (monotonicity measured, not guaranteed)"}))
