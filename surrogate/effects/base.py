@@ -17,7 +17,9 @@ and an effect may take part in any of them through a hook (each returns None to 
 The solver never sees effects; a new effect is one new class with a ``name``, registered in
 :mod:`surrogate.effects` or loaded from a user's file (:mod:`.custom`).
 
-Parameters are stored in SI units; each carries the unit it is shown and written in.
+Parameters (:mod:`surrogate.parameters`) are stored in SI units and cross the boundary in the
+unit each carries: an effect is made with display-unit values, ``LoadPressureFriction(K2=0.05)``
+for 0.05 N/bar.
 """
 
 from __future__ import annotations
@@ -29,77 +31,10 @@ from typing import ClassVar
 import numpy as np
 
 from ..fluid import FluidState
-from ..units import from_si, label, to_si
+from ..parameters import Parameter
 from ..valve import ValveParameters
 
 KINDS = ("sensor", "flow", "leakage", "force", "friction")
-
-
-@dataclass
-class Parameter:
-    """A named model parameter, in the manner of ``lmfit.Parameter``.
-
-    Attributes
-    ----------
-    name : str
-        Name, unique within its effect.
-    value : float
-        Value in SI units.
-    unit : str
-        Unit it is displayed and written in (a key of :mod:`surrogate.units`).
-    min, max : float
-        Bounds in SI units.
-    vary : bool
-        Whether fitting may change it.
-    description : str
-        What it means, in words.
-    stderr : float or None
-        Standard error from the last fit [SI], if any.
-    scope : str or None
-        The bench run it acts on, for a parameter that changes only that run's samples (see
-        :mod:`.per_run`); a fit then differentiates it by replaying that run alone.
-    """
-
-    name: str
-    value: float
-    unit: str = "1"
-    min: float = -np.inf
-    max: float = np.inf
-    vary: bool = True
-    description: str = ""
-    stderr: float | None = None
-    scope: str | None = None
-
-    @property
-    def display_value(self) -> float:
-        """The value in :attr:`unit`."""
-        return float(from_si(self.value, self.unit))
-
-    @property
-    def display_stderr(self) -> float | None:
-        if self.stderr is None:
-            return None
-        return float(abs(from_si(self.stderr, self.unit) - from_si(0.0, self.unit)))
-
-    @property
-    def at_bound(self) -> bool:
-        """True when the value sits on a bound, within a millionth of the allowed range (a fit
-        pushed it there, and its curvature then says nothing about the uncertainty)."""
-        span = self.max - self.min
-        slack = 1e-6 * span if np.isfinite(span) else 1e-12 * max(abs(self.value), 1.0)
-        return self.value <= self.min + slack or self.value >= self.max - slack
-
-    def set_display(self, value: float) -> None:
-        """Set the value from :attr:`unit`."""
-        self.value = float(to_si(value, self.unit))
-
-    def __str__(self) -> str:
-        text = f"{self.name} = {self.display_value:.5g}"
-        if self.stderr is not None:
-            text += f" ± {self.display_stderr:.2g}"
-        if self.unit != "1":
-            text = f"{text} {label(self.unit)}"
-        return text + " (at bound)" if self.at_bound else text
 
 
 @dataclass(frozen=True)
@@ -113,6 +48,11 @@ class FlowState:
     temperature: np.ndarray
     fluid: FluidState
     valve: ValveParameters
+
+    def subset(self, index) -> "FlowState":
+        """The state at some of its points (numpy indexing)."""
+        return FlowState(self.u[index], self.q[index], self.p_B[index], self.p_P[index],
+                         self.temperature[index], self.fluid[index], self.valve)
 
 
 @dataclass(frozen=True)
@@ -154,6 +94,8 @@ class Effect:
         Parameters with their default values ("effect off"), units, bounds and descriptions.
     validity : str
         Where the term holds and where it does not.
+    custom, source : bool, str or None
+        Whether it is a user's effect, and the file that defined it.
     """
 
     name: ClassVar[str] = ""
@@ -161,9 +103,14 @@ class Effect:
     title: ClassVar[str] = ""
     parameter_specs: ClassVar[tuple[Parameter, ...]] = ()
     validity: ClassVar[str] = ""
+    #: a user's effect (from an effects file), and the file it came from: model files record it
+    #: as a hint, since they never run code
+    custom: ClassVar[bool] = False
+    source: ClassVar[str | None] = None
 
     def __init__(self, **values: float):
-        """Parameters take their default values unless given here, in SI units."""
+        """Parameters take their default values unless given here, in their display units
+        (``K2=0.05`` for 0.05 N/bar)."""
         self.params: dict[str, Parameter] = {spec.name: copy.copy(spec)
                                              for spec in self.parameter_specs}
         unknown = set(values) - set(self.params)
@@ -172,10 +119,10 @@ class Effect:
                             f"{', '.join(sorted(unknown))}; it has "
                             f"{', '.join(self.params) or 'none'}")
         for key, value in values.items():
-            self.params[key].value = float(value)
+            self.params[key].set_display(value)
 
     def __getitem__(self, key: str) -> float:
-        """A parameter's SI value."""
+        """A parameter's SI value (what the hooks compute with)."""
         return self.params[key].value
 
     def __repr__(self) -> str:

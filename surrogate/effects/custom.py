@@ -2,7 +2,8 @@
 
 Like ``lmfit.Model``, the function's keyword arguments with defaults become the effect's
 parameters; :func:`custom_effect` declares which stage of the model it acts in, and the units and
-bounds of the parameters (defaults and bounds in those units)::
+bounds of the parameters (defaults and bounds in those units), and turns the function into an
+:class:`~surrogate.effects.base.Effect` class::
 
     # my_effects.py
     from surrogate.effects import custom_effect
@@ -13,8 +14,10 @@ bounds of the parameters (defaults and bounds in those units)::
         return k * (state.fluid.nu / 46e-6) ** 2
 
 Then ``python -m surrogate diagnose --effects-file my_effects.py ...`` offers it next to the
-built-in ones, and ``fit --add cold_seal_friction`` adds it. The function receives the state in SI
-units and its parameters in SI units too (a default of 0.05 "N/bar" arrives as 5e-7 N/Pa).
+built-in ones, and ``fit --add cold_seal_friction`` adds it; in Python,
+``LIBRARY + load_effects_file("my_effects.py")`` is the library with it. The function receives the
+state in SI units and its parameters in SI units too (a default of 0.05 "N/bar" arrives as
+5e-7 N/Pa). A file may also define :class:`~surrogate.effects.base.Effect` subclasses directly.
 
 What the function gets and returns, by kind:
 
@@ -55,7 +58,7 @@ _HOOKS = {"sensor": "correct_inputs", "flow": "restriction_flow", "leakage": "le
 def custom_effect(kind: str, *, units: dict[str, str] | None = None,
                   bounds: dict[str, tuple[float, float]] | None = None,
                   title: str | None = None, validity: str = "user-defined"):
-    """Decorator: turn a function into an :class:`Effect` class and register it.
+    """Decorator: turn a function into an :class:`Effect` class (named after the function).
 
     Parameters
     ----------
@@ -74,12 +77,8 @@ def custom_effect(kind: str, *, units: dict[str, str] | None = None,
         raise InputError(f"custom effect kind {kind!r} is not one of {', '.join(KINDS)}")
     units, bounds = dict(units or {}), dict(bounds or {})
 
-    def make(function):
-        from . import register
-
-        cls = effect_from_function(function, kind, units, bounds, title, validity)
-        register(cls)
-        return function
+    def make(function) -> type[Effect]:
+        return effect_from_function(function, kind, units, bounds, title, validity)
 
     return make
 
@@ -135,6 +134,7 @@ def effect_from_function(function, kind: str, units: dict, bounds: dict, title: 
         "name": name, "kind": kind, "title": title or (doc.splitlines()[0] if doc else name),
         "parameter_specs": tuple(specs), "validity": validity, "__doc__": doc or name,
         "__module__": function.__module__, hook: call, "custom": True, "function": function,
+        "source": function.__module__,
     }
     return type(f"Custom_{name}", (Effect,), attributes)
 
@@ -193,21 +193,22 @@ def checked_result(name: str, kind: str, result, positional: tuple, values: dict
     return array
 
 
-def load_effects_file(path: str | Path) -> list[str]:
-    """Import a user's effects file; return the names of the effects it registered.
+def load_effects_file(path: str | Path):
+    """The effects a user's file defines, as an :class:`~.library.EffectLibrary`.
 
-    The file is the user's own Python code, run because they asked for it (``--effects-file``).
+    The file is the user's own Python code, run because they asked for it (``--effects-file``);
+    its effects are the functions decorated with :func:`custom_effect` and any
+    :class:`~.base.Effect` subclasses it defines. Nothing outside the returned library changes.
     """
-    from . import REGISTRY
+    from .library import EffectLibrary
 
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: effects file not found")
-    before = set(REGISTRY)
     module_name = f"surrogate_user_effects_{abs(hash(path.resolve()))}"
     spec = importlib.util.spec_from_file_location(module_name, path)
     module = importlib.util.module_from_spec(spec)
-    sys.modules[module_name] = module
+    sys.modules[module_name] = module  # while it runs: dataclasses and pickling look it up
     try:
         spec.loader.exec_module(module)
     except InputError as error:
@@ -220,8 +221,17 @@ def load_effects_file(path: str | Path) -> list[str]:
                      if Path(frame.filename).resolve() == path.resolve()), "")
         raise InputError(f"{path}{line}: failed to load ({type(error).__name__}: "
                          f"{error})") from None
-    added = [name for name in REGISTRY if name not in before]
-    if not added:
+    finally:
+        sys.modules.pop(module_name, None)
+    found = [value for value in vars(module).values()
+             if isinstance(value, type) and issubclass(value, Effect) and value.name
+             and value.__module__ == module_name]
+    if not found:
         raise InputError(f"{path}: defines no effect; decorate a function with "
                          "@custom_effect(kind, ...) (see surrogate.effects.custom)")
-    return added
+    for cls in found:
+        cls.source = str(path)
+    try:
+        return EffectLibrary(found)
+    except InputError as error:
+        raise InputError(f"{path}: {error}") from None

@@ -29,7 +29,7 @@ class PerRunEffect(Effect):
 
     def __init__(self, runs: tuple[str, ...] = (), **values: float):
         """One parameter per run in ``runs`` (default value: the template's, the effect off);
-        ``values`` in SI units by parameter name, e.g. ``delta_R01=2e4``."""
+        ``values`` in the display unit by parameter name, e.g. ``delta_R01=0.2`` (bar)."""
         self.params = {}
         for run in runs:
             parameter = copy.copy(self.template)
@@ -40,7 +40,7 @@ class PerRunEffect(Effect):
             raise TypeError(f"{type(self).__name__} has no parameter(s) "
                             f"{', '.join(sorted(unknown))} for runs {', '.join(runs) or 'none'}")
         for key, value in values.items():
-            self.params[key].value = float(value)
+            self.params[key].set_display(value)
 
     @classmethod
     def parameter_name(cls, run: str) -> str:
