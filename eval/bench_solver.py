@@ -19,13 +19,13 @@ from scipy.optimize import brentq
 
 from surrogate import load_valve
 from surrogate.data import load_bench_log
-from surrogate.effects import ConstantFriction, FlowForceScale, LoadPressureFriction
-from surrogate.maps.registry import build_maps
-from surrogate.model import ValveModel
+from surrogate.effects import FlowForceScale
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import Status, replay, solve_steady
+from surrogate.presets import cfda
 from surrogate.solver.steady import _OPENING_FLOOR, _U_RTOL
+from surrogate.spec import EffectSpec, ModelSpec
 
 
 def random_points(count: int, seed: int = 0) -> OperatingPoints:
@@ -74,8 +74,9 @@ def main() -> None:
     args = parser.parse_args()
 
     valve = load_valve()
-    flow_map, force_map = build_maps("grid", valve)
-    model = ValveModel(valve, flow_map, force_map, [FlowForceScale(scale=0.9)], name="CFDA")
+    with_friction = cfda().build()  # the paper's CFDA: scale 0.9, K1 6.5 N, K2 0.05 N/bar
+    model = ModelSpec("CFDA", maps=with_friction.to_spec().maps,
+                      effects=(EffectSpec.start(FlowForceScale, scale=0.9),)).build()
     points = random_points(args.points)
 
     batch_time, batch = best_time(lambda: solve_steady(model, points), args.repeats)
@@ -86,9 +87,6 @@ def main() -> None:
     agreement = np.nanmax(np.abs(batch.u[: args.loop_points] - loop_u)) / valve.U_max
 
     log = load_bench_log(SHIPPED_BENCH_LOG)
-    with_friction = ValveModel(valve, flow_map, force_map,
-                               [FlowForceScale(scale=0.9), ConstantFriction(K1=6.5),
-                                LoadPressureFriction(K2=5e-7)])
     run = log.run("R06")
     run_points = OperatingPoints.from_bench(run.frame)
     run_time, _ = best_time(lambda: replay(with_friction, run_points), args.repeats)

@@ -17,20 +17,19 @@ balance at candidate piston positions. For measured inputs and an opening u the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from .effects import BalanceState, Effect, FlowState, Parameter
+from .effects import BalanceState, Effect, FlowState
+from .errors import InputError
 from .fluid import FluidState
+from .leakage import shared_pressure_drop
 from .maps.base import FlowMap, ForceMap
+from .parameters import Parameters
 from .points import OperatingPoints
 from .valve import ValveParameters
 
-_LEAKAGE_STEPS = 80  # safeguarded secant steps at most
-# the leakage split ends when the power law's error in ln Δp is below 1e-9 for |f''| <= 20:
-# the grid's sweeps have |f''| <= 1.4, an orifice 0, laminar flow 0
-_SETTLED = 1e-10
 
 
 @dataclass(frozen=True)
@@ -55,18 +54,6 @@ class Balance:
     friction: np.ndarray
 
 
-@dataclass(frozen=True)
-class MapsSource:
-    """Where a model's maps come from, so it can be written to a file and rebuilt.
-
-    ``kind`` is ``"orifice"`` (with ``discharge_coefficient``), ``"grid"``, ``"nn"``, ``"gp"`` or
-    the path of a surrogate folder.
-    """
-
-    kind: str
-    options: dict = field(default_factory=dict)
-
-
 def _uses(effect: Effect, hook: str) -> bool:
     return getattr(type(effect), hook) is not getattr(Effect, hook)
 
@@ -86,19 +73,21 @@ class ValveModel:
         Extra terms (sensor corrections, flow, leakage, forces, friction).
     name : str
         Display name, e.g. ``"CFDA"``.
-    maps_source : MapsSource, optional
-        Where the maps come from (needed to save the model to a file).
+    origin : (ValveSource, MapsSpec), optional
+        Where the valve and the maps come from, for a model built from a
+        :class:`~surrogate.spec.ModelSpec` (the way the package builds its models); it lets the
+        model describe itself as a spec again (:meth:`to_spec`), to be saved and rebuilt.
     """
 
     def __init__(self, valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap,
                  effects: tuple[Effect, ...] | list[Effect] = (), name: str = "model",
-                 maps_source: MapsSource | None = None):
+                 origin: tuple | None = None):
         self.valve = valve
         self.flow_map = flow_map
         self.force_map = force_map
         self.effects = list(effects)
         self.name = name
-        self.maps_source = maps_source
+        self.origin = origin
         self._back_area = valve.A_s3 - valve.A_B
 
     def __repr__(self) -> str:
@@ -109,13 +98,31 @@ class ValveModel:
         """A copy whose effects (and so parameters) can change without touching this one."""
         return ValveModel(self.valve, self.flow_map, self.force_map,
                           [effect.copy() for effect in self.effects], name or self.name,
-                          self.maps_source)
+                          self.origin)
 
     def with_effects(self, effects, name: str | None = None) -> "ValveModel":
         """A copy with other effects (copied) on the same maps."""
         return ValveModel(self.valve, self.flow_map, self.force_map,
                           [effect.copy() for effect in effects], name or self.name,
-                          self.maps_source)
+                          self.origin)
+
+    def to_spec(self, description: str = ""):
+        """The :class:`~surrogate.spec.ModelSpec` of the model as it is now (its parameters'
+        current values, bounds and standard errors), to save or rebuild it.
+
+        Raises
+        ------
+        InputError
+            For a model assembled from maps directly, which cannot say where they came from.
+        """
+        from .spec import EffectSpec, ModelSpec
+
+        if self.origin is None:
+            raise InputError(f"model {self.name!r} was assembled from maps directly and does not "
+                             "record where they come from; build it from a ModelSpec to save it")
+        valve, maps = self.origin
+        return ModelSpec(self.name, valve, maps, tuple(EffectSpec.of(e) for e in self.effects),
+                         description)
 
     def effect(self, name: str) -> Effect:
         """The effect registered as ``name``."""
@@ -128,9 +135,11 @@ class ValveModel:
     def has_effect(self, name: str) -> bool:
         return any(effect.name == name for effect in self.effects)
 
-    def parameters(self) -> list[tuple[Effect, Parameter]]:
-        """All parameters with the effect they belong to."""
-        return [(effect, p) for effect in self.effects for p in effect.params.values()]
+    def parameters(self) -> Parameters:
+        """All parameters, keyed ``"effect.parameter"`` (the model's own objects: setting a value
+        there sets it in the model)."""
+        return Parameters((f"{effect.name}.{p.name}", p) for effect in self.effects
+                          for p in effect.params.values())
 
     @property
     def has_friction(self) -> bool:
@@ -149,14 +158,17 @@ class ValveModel:
         return points
 
     def pressure_drop(self, u, points: OperatingPoints, fluid: FluidState) -> np.ndarray:
-        """Δp [Pa] across the valve at opening ``u`` [m] for the (true) points' flow."""
+        """Δp [Pa] across the valve at opening ``u`` [m] for the (true) points' flow.
+
+        With leakage effects the flow splits between the restriction and the leakage paths at
+        a common Δp (:func:`surrogate.leakage.shared_pressure_drop`)."""
         state = FlowState(np.broadcast_to(u, points.q.shape), points.q, points.p_B, points.p_P,
                           points.temperature, fluid, self.valve)
         flow_effects = [e for e in self.effects if _uses(e, "restriction_flow")]
         leaks = [e for e in self.effects if _uses(e, "leakage")]
 
         def through_restriction(q, index=slice(None)):
-            sub = state if isinstance(index, slice) else _subset(state, index)
+            sub = state if isinstance(index, slice) else state.subset(index)
             for effect in flow_effects:
                 q = effect.restriction_flow(q, sub)
             return self.flow_map.pressure_drop(q, sub.p_B, sub.u, sub.fluid)
@@ -165,60 +177,11 @@ class ValveModel:
         if not leaks:
             return dp
 
-        # the leakage path and the restriction see the same Δp and share the flow q: find the
-        # restriction's share q_r in [0, q] with g(q_r) = q_r + leak(Δp_r(q_r)) − q = 0, which
-        # rises with q_r. Each step solves that equation with Δp_r(q_r) replaced by the power law
-        # through the last two evaluations of the map (an orifice is close to one), kept inside
-        # the bracket on q_r. The power law is the secant of ln Δp(ln q_r) through those two
-        # evaluations, so at the step its error is ½·f''·ln(step/current)·ln(step/previous) with
-        # f'' = d²ln Δp/d(ln q)²; once that product is below _SETTLED, the law's Δp at the step
-        # stands in for the map's, which saves the map call that would only confirm it. On the
-        # shipped log almost every sample settles after three map calls.
-        def leak(x, sub):
-            return sum(effect.leakage(x, sub) for effect in leaks)
+        def leak_at(index):
+            sub = state.subset(index)
+            return lambda drop: sum(effect.leakage(drop, sub) for effect in leaks)
 
-        flowing = np.flatnonzero((points.q > 0) & np.isfinite(dp) & (dp > 0))
-        q = points.q[flowing]
-        g_full = leak(dp[flowing], _subset(state, flowing))  # g at q_r = q
-        if not np.any(g_full > 0):
-            return dp
-        dp = dp.copy()
-        low, high = np.zeros(flowing.size), q.copy()
-        previous, previous_drop = q.copy(), dp[flowing]
-        share = np.clip(q - g_full, 0.0, q)
-        active = np.arange(flowing.size)  # points not converged yet: only these are iterated
-        for _ in range(_LEAKAGE_STEPS):
-            index = flowing[active]
-            sub = _subset(state, index)
-            current, wanted = share[active], q[active]
-            drop = through_restriction(current, index)
-            g = current + leak(drop, sub) - wanted
-            lower = np.where(g < 0, current, low[active])
-            upper = np.where(g >= 0, current, high[active])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                secant = (np.log(drop / previous_drop[active])
-                          / np.log(current / previous[active]))
-            exponent = np.where(np.isfinite(secant), np.clip(secant, 0.5, 4.0), 2.0)
-            step = _power_law_step(current, drop, exponent, wanted, lambda x: leak(x, sub))
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                predicted = drop * (step / current) ** exponent
-                # the secant's error at the step, in ln Δp: ½·f''·ln(step/current)·ln(step/prev)
-                spread = np.abs(np.log(step / current) * np.log(step / previous[active]))
-            settled = ((spread <= _SETTLED) & (exponent == secant) & (step > lower)
-                       & (step < upper) & np.isfinite(predicted))
-            dp[index] = np.where(settled, predicted, drop)
-            # converged: the flows balance to 1e-9 of q (so the leak, and Δp, to ~1e-9), the
-            # power law's next step is settled, or the bracket is down to rounding (the
-            # restriction passes almost nothing)
-            done = (np.abs(g) <= 1e-9 * wanted) | settled | (upper - lower <= 1e-12 * upper)
-            low[active], high[active] = lower, upper
-            previous[active], previous_drop[active] = current, drop
-            share[active] = np.where((step > lower) & (step < upper), step,
-                                     0.5 * (lower + upper))
-            active = active[~done]
-            if not active.size:
-                break
-        return dp
+        return shared_pressure_drop(points.q, dp, through_restriction, leak_at)
 
     def balance(self, u, points: OperatingPoints, fluid: FluidState) -> Balance:
         """The force balance with the piston at ``u`` [m] while the points' flow passes."""
@@ -267,21 +230,3 @@ class ValveModel:
                 q = effect.restriction_flow(q, state)
         return (self.flow_map.extrapolating_at_flow(q, points.p_B, u, fluid)
                 | self.force_map.extrapolating(p_L, points.p_B, u, fluid))
-
-
-def _power_law_step(share, drop, exponent, q, leak, newton_steps: int = 3) -> np.ndarray:
-    """Root x of x + leak(Δp(x)) = q with Δp(x) = drop·(x/share)^exponent (no map call)."""
-    x = share
-    for _ in range(newton_steps):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            pressure = drop * (x / share) ** exponent
-            nudge = 1e-6 * pressure
-            slope = (leak(pressure + nudge) - leak(pressure)) / nudge  # d leak / dΔp
-            derivative = 1.0 + slope * exponent * pressure / x
-            x = x - (x + leak(pressure) - q) / derivative
-    return x
-
-
-def _subset(state: FlowState, index) -> FlowState:
-    return FlowState(state.u[index], state.q[index], state.p_B[index], state.p_P[index],
-                     state.temperature[index], state.fluid[index], state.valve)

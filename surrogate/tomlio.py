@@ -69,7 +69,8 @@ def dumps(document: dict, header: str = "") -> str:
 def _table(lines: list[str], name: str, table: dict, array: bool) -> None:
     lines.append("")
     lines.append(f"[[{name}]]" if array else f"[{name}]")
-    nested = {k: v for k, v in table.items() if isinstance(v, dict) and not _inline(v)}
+    nested = {k: v for k, v in table.items()
+              if isinstance(v, dict) and not _inline(v, len(_key(k)) + 3)}
     for key, value in table.items():
         if key not in nested:
             lines.append(f"{_key(key)} = {_value(value)}")
@@ -79,6 +80,12 @@ def _table(lines: list[str], name: str, table: dict, array: bool) -> None:
             lines.append(f"{_key(inner_key)} = {_value(inner)}")
 
 
-def _inline(table: dict) -> bool:
-    """Tables of scalars only are written inline; tables of tables get a section."""
-    return not any(isinstance(v, dict) for v in table.values())
+_LINE = 100
+
+
+def _inline(table: dict, indent: int = 0) -> bool:
+    """Short tables of scalars are written inline; tables of tables, and tables too long for a
+    line, get a section."""
+    if any(isinstance(v, dict) for v in table.values()):
+        return False
+    return indent + len(_value(table)) <= _LINE

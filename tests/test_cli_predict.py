@@ -12,7 +12,7 @@ ANOTHER_OIL = "case,u_mm,p_L_bar,p_B_bar,nu_cSt,rho_kg_m3\nA,0.1,50,5,32,870\nB,
 def test_predict_with_another_oils_viscosity_and_density(tmp_path, model, capsys):
     source, target = tmp_path / "in.csv", tmp_path / "out.csv"
     source.write_text(ANOTHER_OIL)
-    assert main(["predict", "--model", model, "--input", str(source),
+    assert main(["predict", "--maps", model, "--input", str(source),
                  "--output", str(target)]) == 0
     out = pd.read_csv(target)
     assert list(out.columns[:6]) == ["case", "u_mm", "p_L_bar", "p_B_bar", "nu_cSt", "rho_kg_m3"]
@@ -26,7 +26,7 @@ def test_predict_with_another_oils_viscosity_and_density(tmp_path, model, capsys
 def test_predict_at_temperatures_of_the_valves_oil(tmp_path):
     source, target = tmp_path / "in.csv", tmp_path / "out.csv"
     source.write_text("u_mm,p_L_bar,p_B_bar,temperature_C\n0.1,88.5221,5,40\n")
-    assert main(["predict", "--model", "nn", "--input", str(source),
+    assert main(["predict", "--maps", "nn", "--input", str(source),
                  "--output", str(target)]) == 0
     assert pd.read_csv(target)["q_lpm_pred"][0] == pytest.approx(6.0, rel=0.02)  # CFD C0062
 
@@ -39,7 +39,7 @@ def test_predict_at_temperatures_of_the_valves_oil(tmp_path):
 def test_bad_query_file_exits_2_and_writes_nothing(tmp_path, content, words, capsys):
     source, target = tmp_path / "in.csv", tmp_path / "out.csv"
     source.write_text(content)
-    assert main(["predict", "--model", "grid", "--input", str(source),
+    assert main(["predict", "--maps", "grid", "--input", str(source),
                  "--output", str(target)]) == 2
     assert words in capsys.readouterr().err
     assert not target.exists()
@@ -48,6 +48,6 @@ def test_bad_query_file_exits_2_and_writes_nothing(tmp_path, content, words, cap
 def test_unknown_model_is_named(tmp_path, capsys):
     source = tmp_path / "in.csv"
     source.write_text(ANOTHER_OIL)
-    assert main(["predict", "--model", "spline", "--input", str(source),
+    assert main(["predict", "--maps", "spline", "--input", str(source),
                  "--output", str(tmp_path / "o.csv")]) == 2
     assert "unknown map kind 'spline'" in capsys.readouterr().err

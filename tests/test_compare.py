@@ -15,9 +15,9 @@ RUNS = ["R01", "R04", "R06", "R11"]  # 20, 40 and 60 °C; set points 50, 65, 80 
 
 @pytest.fixture(scope="module")
 def model():
-    from surrogate.modelfile import preset
+    from surrogate.modelfile import load_model
 
-    return preset("cfda")
+    return load_model("cfda")
 
 
 @pytest.fixture(scope="module")

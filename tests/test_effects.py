@@ -8,10 +8,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from surrogate import load_valve
-from surrogate.effects import BalanceState, LaminarLeakage, NearSeatFlowForce
+from surrogate.effects import (BUILT_IN, BalanceState, LaminarLeakage, NearSeatFlowForce,
+                               load_effects_file)
 from surrogate.fluid import FluidState
 from surrogate.model import ValveModel
 from surrogate.points import OperatingPoints
+from surrogate.testing import check_effect
 from surrogate.units import to_si
 
 
@@ -24,7 +26,7 @@ def balance_state(u, flow_force):
 
 
 def test_near_seat_flow_force_acts_only_below_the_reference_opening():
-    effect = NearSeatFlowForce(k=1.0, u_ref=0.05e-3)
+    effect = NearSeatFlowForce(k=1.0, u_ref=0.05)  # u_ref in mm
     u = np.array([0.0125e-3, 0.025e-3, 0.05e-3, 0.2e-3])
     extra = effect.force(balance_state(u, -40.0))
     # k = 1: the flow force scales with u/u_ref below u_ref, so the extra force cancels
@@ -44,7 +46,7 @@ def test_laminar_leakage_splits_the_flow_between_restriction_and_clearance(
         valve, grid_maps, q_lpm, u_mm, leak_lpm_per_bar, temperature_C):
     flow_map, force_map = grid_maps
     model = ValveModel(valve, flow_map, force_map,
-                       [LaminarLeakage(G=to_si(leak_lpm_per_bar, "L/min/bar"))])
+                       [LaminarLeakage(G=leak_lpm_per_bar)])
     points = OperatingPoints.from_display(np.array([q_lpm]), np.array([60.0]), np.array([5.0]),
                                           np.array([temperature_C]))
     fluid = model.fluid(points)
@@ -56,3 +58,39 @@ def test_laminar_leakage_splits_the_flow_between_restriction_and_clearance(
     assert 0.0 < through_restriction[0] <= points.q[0]
     expected = flow_map.pressure_drop(through_restriction, points.p_B, np.array([u]), fluid)
     assert dp == pytest.approx(expected, rel=1e-7)
+
+
+@pytest.mark.parametrize("cls", BUILT_IN, ids=[cls.name for cls in BUILT_IN])
+def test_every_built_in_effect_meets_the_effect_contract(cls):
+    check_effect(cls)
+
+
+def test_the_custom_effect_example_meets_the_effect_contract():
+    from surrogate.paths import PROJECT_ROOT
+
+    for cls in load_effects_file(PROJECT_ROOT / "examples" / "seat_force.py").values():
+        check_effect(cls)
+
+
+def test_the_effect_contract_catches_a_broken_effect():
+    """An effect that is on at its defaults, or whose friction turns negative, fails the check."""
+    from surrogate.effects import Effect, Parameter
+
+    class AlwaysOn(Effect):
+        name, kind, title = "always_on", "force", "a force that never switches off"
+        parameter_specs = (Parameter("f", 5.0, "N", min=0.0, max=10.0),)
+
+        def force(self, state):
+            return np.full(state.u.shape, self["f"])
+
+    class NegativeFriction(Effect):
+        name, kind, title = "negative_friction", "friction", "friction below zero"
+        parameter_specs = (Parameter("k", 0.0, "N", min=-5.0, max=5.0),)
+
+        def friction(self, state):
+            return np.full(state.u.shape, self["k"])
+
+    with pytest.raises(AssertionError, match="switch the effect off"):
+        check_effect(AlwaysOn)
+    with pytest.raises(AssertionError, match="negative friction"):
+        check_effect(NegativeFriction)

@@ -27,16 +27,31 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from surrogate.cli import main
-from surrogate.effects import REGISTRY
-from surrogate.modelfile import model_to_dict, preset
+from surrogate.effects import LIBRARY
 from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
-from surrogate.tomlio import dumps
+from surrogate.presets import preset
 
 # --- the good inputs every case starts from -------------------------------------------------------
 
 CFD = SHIPPED_CFD_SAMPLES.read_text()
 VALVE = resources.files("surrogate.valves").joinpath("paper_cbv.toml").read_text()
-MODEL = dumps(model_to_dict(preset("cfda")))
+MODEL = preset("cfda").to_toml()
+#: a model file in the first format, which still loads: [model] holds the valve and the maps
+MODEL_V1 = """[model]
+name = "cfda"
+valve = "shipped"
+maps = { kind = "grid" }
+
+[[effects]]
+name = "flow_force_scale"
+[effects.parameters]
+scale = { value = 0.9, unit = "1", min = 0.0, max = 3.0, vary = true }
+
+[[effects]]
+name = "friction_constant"
+[effects.parameters]
+K1 = { value = 6.5, unit = "N", min = 0.0, max = 200.0, vary = true }
+"""
 EFFECTS = (PROJECT_ROOT / "examples" / "seat_force.py").read_text()
 
 
@@ -191,11 +206,11 @@ CASES = [
          {"bad.csv": b"\x89PNG\r\n\x1a\n\x00\x00\x00"}),
     Case("cfd: not UTF-8", ("check-data", "bad.csv"), ("bad.csv", "UTF-8"),
          {"bad.csv": CFD.replace("ISO VG46 HV", "ISO VG46 HV\xe9", 1).encode("latin-1")}),
-    Case("cfd: broken file for grid maps", ("predict", "--model", "grid", "--cfd", "bad.csv",
+    Case("cfd: broken file for grid maps", ("predict", "--maps", "grid", "--cfd", "bad.csv",
                                             "--input", "queries.csv", "--output", "out.csv"),
          ("bad.csv", "line 9"), {"bad.csv": set_cell(CFD, 9, "p_L_bar", "1e30")}),
     Case("cfd: a bench log where CFD samples belong",
-         ("predict", "--model", "grid", "--cfd", "log.csv", "--input", "queries.csv",
+         ("predict", "--maps", "grid", "--cfd", "log.csv", "--input", "queries.csv",
           "--output", "out.csv"), ("log.csv", "bench log")),
 
     # bench logs ---------------------------------------------------------------------------------
@@ -285,20 +300,20 @@ CASES = [
     with_model(replace(MODEL, '[effects.parameters]\nscale = { value = 0.9, unit = "1", min = 0.0, '
                               'max = 3.0, vary = true }', "parameters = [1, 2]"),
                words=("parameters must be a table",), id="model: parameters as a list"),
-    with_model(replace(MODEL, 'maps = { kind = "grid" }', "maps = 3"), words=("maps",),
+    with_model(replace(MODEL_V1, 'maps = { kind = "grid" }', "maps = 3"), words=("maps",),
                id="model: maps as a number"),
-    with_model(replace(MODEL, 'maps = { kind = "grid" }',
+    with_model(replace(MODEL_V1, 'maps = { kind = "grid" }',
                        'maps = { kind = "orifice", discharge_coefficient = -1 }'),
                words=("discharge_coefficient",), id="model: negative discharge coefficient"),
-    with_model(replace(MODEL, 'maps = { kind = "grid" }',
+    with_model(replace(MODEL_V1, 'maps = { kind = "grid" }',
                        'maps = { kind = "orifice", discharge_coefficient = "x" }'),
                words=("discharge_coefficient", "number"), id="model: text discharge coefficient"),
-    with_model(replace(MODEL, 'maps = { kind = "grid" }',
+    with_model(replace(MODEL_V1, 'maps = { kind = "grid" }',
                        'maps = { kind = "orifice", discharge_coefficient = 2.5 }'),
                words=("discharge_coefficient",), id="model: discharge coefficient above 1"),
-    with_model(replace(MODEL, 'maps = { kind = "grid" }', 'maps = { kind = "grid", smooth = 1 }'),
+    with_model(replace(MODEL_V1, 'maps = { kind = "grid" }', 'maps = { kind = "grid", smooth = 1 }'),
                words=("'smooth'",), id="model: unknown map option"),
-    with_model(replace(MODEL, 'maps = { kind = "grid" }', 'maps = { cfd = "x.csv" }'),
+    with_model(replace(MODEL_V1, 'maps = { kind = "grid" }', 'maps = { cfd = "x.csv" }'),
                words=("needs a kind",), id="model: map kind missing"),
     with_model("surprise = 1\n" + MODEL, words=("'surprise'",), id="model: unknown top key"),
     with_model(replace(MODEL, '[model]\n', '[model]\nauthor = "me"\n'), words=("'author'",),
@@ -323,13 +338,25 @@ CASES = [
     with_model(replace(MODEL, 'K1 = { value = 6.5, unit = "N"', 'K1 = { value = 6.5, unit = "kN"'),
                words=("is in N",), id="model: wrong unit"),
     with_model(replace(MODEL, 'unit = "N", min = 0.0', 'unit = "N", min = -5.0'),
-               words=("beyond the effect's own",), id="model: negative friction allowed"),
+               words=("reach beyond the parameter's own",), id="model: negative friction allowed"),
     with_model(replace(MODEL, 'name = "friction_constant"', 'name = "friction_magic"'),
                words=("unknown effect 'friction_magic'",), id="model: unknown effect"),
     with_model(replace(MODEL, '[model]\nname = "cfda"', "[model]\nname = 5"),
                words=("name must be a string",), id="model: name as a number"),
-    with_model(replace(MODEL, 'valve = "shipped"', 'valve = "nowhere.toml"'),
-               words=("nowhere.toml",), id="model: valve file missing"),
+    with_model(replace(MODEL_V1, 'valve = "shipped"', 'valve = "nowhere.toml"'),
+               words=("nowhere.toml",), id="model: valve file missing (format 1)"),
+    with_model(MODEL.split("[valve]")[0] + '[valve]\nsource = "nowhere.toml"\n\n[maps]'
+               + MODEL.split("[maps]")[1], words=("nowhere.toml",),
+               id="model: valve file missing"),
+    with_model(replace(MODEL, "A_L_mm2 = 10.7", "A_L_mm2 = 10.7e-6"), words=("A_L_mm2", "m²"),
+               id="model: valve area in m2"),
+    with_model(replace(MODEL, 'cfd_sha256 = "', 'cfd_sha256 = "0'), words=("cfd_sha256",),
+               id="model: a malformed CFD hash"),
+    with_model(replace(MODEL, 'cfd_sha256 = "d', 'cfd_sha256 = "e'),
+               words=("not the ones the model was built from",),
+               id="model: CFD samples other than the model's"),
+    with_model(replace(MODEL, "format = 2", "format = 7"), words=("format 7",),
+               id="model: a future format"),
     with_model(MODEL.replace("[[effects]]", "[[effect]]").replace("[effects.", "[effect."),
                words=("'effect'",),
                id="model: misspelt effects table"),
@@ -412,7 +439,7 @@ CASES = [
                                                   "--valve", "valve.toml", "--out", "valve.toml"),
          ("--out valve.toml", "input")),
     Case("cli: predict writing over its queries",
-         ("predict", "--model", "grid", "--input", "queries.csv", "--output", "queries.csv"),
+         ("predict", "--maps", "grid", "--input", "queries.csv", "--output", "queries.csv"),
          ("--output queries.csv", "input")),
     Case("cli: simulate writing over its sequence",
          ("simulate", "--sequence", "log.csv", "--out", "log.csv"), ("--out log.csv", "input")),
@@ -464,12 +491,12 @@ CASES = [
     Case("cli: fit the same effect twice", (*FIT, "--add", "friction_viscous", "--add",
                                             "friction_viscous"), ("more than once",)),
     Case("cli: predict with an unknown map kind",
-         ("predict", "--model", "spline", "--input", "queries.csv", "--output", "out.csv"),
+         ("predict", "--maps", "spline", "--input", "queries.csv", "--output", "out.csv"),
          ("unknown map kind 'spline'",)),
     Case("cli: paper with an unknown map kind", ("paper", "--maps", "spline", "--data",
                                                  "log.csv", "--out", "out"),
          ("unknown map kind 'spline'",)),
-    Case("cli: predict without a fluid", ("predict", "--model", "grid", "--input", "q.csv",
+    Case("cli: predict without a fluid", ("predict", "--maps", "grid", "--input", "q.csv",
                                           "--output", "out.csv"), ("q.csv", "temperature_C"),
          {"q.csv": "u_mm,p_L_bar,p_B_bar\n0.1,50,5\n"}),
     Case("cli: check-data of a missing file", ("check-data", "nowhere.csv"), ("nowhere.csv",)),
@@ -478,11 +505,10 @@ CASES = [
 
 @pytest.fixture
 def registry():
-    """Custom effects a case loads are removed again, so cases cannot leak into each other."""
-    saved = dict(REGISTRY)
+    """Loading a user's effects changes nothing global: the built-in library stays as it was."""
+    before = dict(LIBRARY)
     yield
-    REGISTRY.clear()
-    REGISTRY.update(saved)
+    assert dict(LIBRARY) == before
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
@@ -632,7 +658,8 @@ MODEL_PLACES = ["top", "model", "effect", "parameter"]
        key=st.from_regex(r"[a-z][a-z_]{2,12}", fullmatch=True))
 def test_generated_unknown_model_keys_are_refused(place, key):
     from surrogate.errors import InputError
-    from surrogate.modelfile import _EFFECT_KEYS, _MODEL_KEYS, _PARAMETER_KEYS, _TOP_KEYS
+    from surrogate.parameters import _RECORD_KEYS as _PARAMETER_KEYS
+    from surrogate.spec import _EFFECT_KEYS, _MODEL_KEYS, _TOP_KEYS
 
     known = {"top": _TOP_KEYS, "model": _MODEL_KEYS, "effect": _EFFECT_KEYS,
              "parameter": _PARAMETER_KEYS}[place]

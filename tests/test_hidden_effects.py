@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from surrogate.effects import REGISTRY, load_effects_file
+from surrogate.effects import LIBRARY, load_effects_file
 from surrogate.workbench.diagnose import diagnose
-from surrogate.workbench.fit import fit_to_log
+from surrogate.workbench.logfit import fit_to_log
 from surrogate.workbench.simulate import REALISTIC_MAGNITUDES, hidden_effect_case, noise_free_sequence
 
 pytestmark = pytest.mark.slow  # each case fits and diagnoses a synthetic log: seconds each
@@ -26,10 +26,10 @@ def sequence(bench_log):
     return noise_free_sequence(bench_log, every=EVERY)
 
 
-def find(case, candidates=None):
-    """Fit the starting model, diagnose it; return the diagnosis."""
+def find(case, library=LIBRARY):
+    """Fit the starting model, diagnose it over ``library``; return the diagnosis."""
     fitted = fit_to_log(case.start, case.log).model
-    return diagnose(fitted, case.log, candidates=candidates)
+    return diagnose(fitted, case.log, library)
 
 
 def identified(diagnosis, hidden: str) -> bool:
@@ -50,8 +50,7 @@ def test_every_library_effect_is_found_at_a_realistic_magnitude(sequence, hidden
 
 
 def test_every_library_effect_has_a_realistic_magnitude():
-    built_in = {name for name, cls in REGISTRY.items() if not getattr(cls, "custom", False)}
-    assert built_in <= set(REALISTIC_MAGNITUDES)
+    assert set(LIBRARY) <= set(REALISTIC_MAGNITUDES)
 
 
 def test_indistinguishable_candidates_are_reported_as_one_group(sequence):
@@ -84,23 +83,20 @@ def jet_side_load_friction(state, k=0.0):
 
 
 @pytest.fixture
-def custom_effect_file(tmp_path):
+def custom_library(tmp_path):
     path = tmp_path / "my_effects.py"
     path.write_text(CUSTOM)
-    names = load_effects_file(path)
-    yield names
-    for name in names:  # keep the registry as the other tests expect it
-        REGISTRY.pop(name, None)
+    return load_effects_file(path)
 
 
-def test_a_custom_effect_explains_what_the_library_cannot(sequence, custom_effect_file):
-    (name,) = custom_effect_file
-    case = hidden_effect_case(name, {"k": 8.0}, sequence=sequence, seed=5)
-    library = [n for n in REGISTRY if n != name]
-    without = find(case, candidates=library)
+def test_a_custom_effect_explains_what_the_library_cannot(sequence, custom_library):
+    (name,) = custom_library
+    library = LIBRARY + custom_library
+    case = hidden_effect_case(name, {"k": 8.0}, sequence=sequence, seed=5, library=library)
+    without = find(case, LIBRARY)
     assert without.candidates[0].rms_after > RATIO * without.noise_floor
 
-    with_custom = find(case)
+    with_custom = find(case, library)
     assert identified(with_custom, name), with_custom.summary
     assert with_custom.candidates[0].rms_after <= RATIO * with_custom.noise_floor
     assert with_custom.candidates[0].rms_after < without.candidates[0].rms_after

@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from surrogate.effects import PilotZeroDrift, effect_class
+from surrogate.effects import LIBRARY, PilotZeroDrift
 from surrogate.errors import InputError
-from surrogate.modelfile import load_model, preset, save_model
+from surrogate.modelfile import load_model, save_model
 from surrogate.points import OperatingPoints
 from surrogate.units import to_si
-from surrogate.workbench.fit import fit_to_log
+from surrogate.workbench.logfit import fit_to_log
 from surrogate.workbench.residuals import replay_log, run_rows
 
 
@@ -40,7 +40,7 @@ def test_each_run_gets_its_own_offset_and_points_without_a_run_get_none():
 
 
 def test_a_run_replays_alone_as_within_its_log_and_only_its_offset_moves_it(short_log):
-    model = preset("cfda")
+    model = load_model("cfda")
     whole = replay_log(model, short_log)
     rows = run_rows(short_log, "R06")
     alone = replay_log(model, short_log.take(rows))
@@ -58,7 +58,7 @@ def test_a_run_replays_alone_as_within_its_log_and_only_its_offset_moves_it(shor
 
 def test_fit_recovers_offsets_of_the_sliding_runs_and_leaves_the_stop_run_alone(short_log):
     truth_offsets = {"R01": 0.3, "R06": -0.4, "R11": 0.2, "R04": 0.0}
-    model = preset("cfda")
+    model = load_model("cfda")
     drifting = PilotZeroDrift.for_runs(short_log.run_ids)
     for run, value in truth_offsets.items():
         drifting.params[f"delta_{run}"].set_display(value)
@@ -78,8 +78,8 @@ def test_fit_recovers_offsets_of_the_sliding_runs_and_leaves_the_stop_run_alone(
 
 
 def test_per_run_parameters_survive_a_model_file(tmp_path):
-    model = preset("cfda")
-    drifting = effect_class("pilot_zero_drift").for_runs(["R01", "R02"])
+    model = load_model("cfda")
+    drifting = LIBRARY.effect("pilot_zero_drift").for_runs(["R01", "R02"])
     drifting.params["delta_R02"].value = to_si(-0.25, "bar")
     path = tmp_path / "m.toml"
     save_model(model.with_effects([*model.effects, drifting]), path)

@@ -149,7 +149,7 @@ def cfda_model(valve, grid_maps, K1=0.0, K2=0.0):
        direction=st.sampled_from([-1, 0, 1]))
 def test_solutions_stay_within_the_stroke(valve, grid_maps, q, p_Pe, p_B, temperature,
                                           direction):
-    model = cfda_model(valve, grid_maps, K1=8.0, K2=5e-7)
+    model = cfda_model(valve, grid_maps, K1=8.0, K2=0.05)  # K2 in N/bar
     points = OperatingPoints.from_display(q, p_Pe + p_B, p_B, temperature, direction)
     solution = solve_steady(model, points)
     assert solution.ok.all(), solution.failure_summary()
@@ -164,7 +164,7 @@ def test_solutions_stay_within_the_stroke(valve, grid_maps, q, p_Pe, p_B, temper
 def test_a_guess_changes_how_fast_not_what(valve, grid_maps, q, p_Pe, temperature, direction,
                                            factor):
     # guesses within the first ±2 % bracket, within the wider ones, and beyond all of them
-    model = cfda_model(valve, grid_maps, K1=8.0, K2=5e-7)
+    model = cfda_model(valve, grid_maps, K1=8.0, K2=0.05)  # K2 in N/bar
     points = OperatingPoints.from_display(q, p_Pe + 5.0, 5.0, temperature, direction)
     cold = solve_steady(model, points)
     warm = solve_steady(model, points, guess=cold.u * factor)

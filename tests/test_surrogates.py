@@ -21,7 +21,8 @@ from surrogate.maps.network import Architecture, NumpyNet
 from surrogate.learn.monotonicity import random_states, violations
 from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_one_ulp,
                                              prediction_difference)
-from surrogate.maps.learned import data_hash, load_learned_maps, read_manifest
+from surrogate.maps.learned import load_learned_maps, read_manifest
+from surrogate.maps.registry import file_hash
 from surrogate.maps.registry import build_maps, trained_folder
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 from surrogate.testing import check_flow_map, check_force_map
@@ -37,7 +38,7 @@ def learned_maps(valve):
 @pytest.mark.parametrize("kind", LEARNED)
 def test_committed_surrogates_are_current_with_the_shipped_samples(kind, cfd_samples):
     manifest = read_manifest(trained_folder(kind))
-    assert manifest["training"]["data_sha256"] == data_hash(SHIPPED_CFD_SAMPLES), (
+    assert manifest["training"]["data_sha256"] == file_hash(SHIPPED_CFD_SAMPLES), (
         "cfd_samples.csv changed since the surrogates were trained: run python training/train.py")
     held_out = cfd_samples.frame.loc[splits.holdout_mask(cfd_samples.frame), "case"]
     assert manifest["training"]["split"]["held_out_cases"] == sorted(held_out)

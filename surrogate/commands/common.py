@@ -9,8 +9,9 @@ import sys
 from pathlib import Path
 
 from ..data import load_bench_log
-from ..effects import load_effects_file
+from ..effects import LIBRARY, EffectLibrary, load_effects_file
 from ..errors import InputError
+from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, map_kind
 from ..model import ValveModel
 from ..modelfile import PRESETS, load_model
 from ..outputs import Output, check_outputs
@@ -107,6 +108,19 @@ def add_data_options(parser, *, model: bool = True, out_help: str = "output fold
                                                                 help=out_help)
 
 
+def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
+    """The maps a --maps option names: a kind (with --cfd for maps built from CFD samples) or
+    the folder of a trained surrogate."""
+    if kind in MAP_KINDS:
+        source = map_kind(kind).source(cfd)
+    else:
+        source = MapSource.from_dict(kind, "--maps", Path.cwd())
+        if cfd is not None:
+            raise InputError("--cfd applies to maps built from CFD samples, not to a trained "
+                             "surrogate folder")
+    return MapsSpec(source, source)
+
+
 def guard_outputs(args, *outputs: Output) -> None:
     """Refuse outputs that would overwrite an input or cannot be written, before any work.
 
@@ -124,25 +138,39 @@ def progress_for(args) -> Progress:
     return Progress(quiet=getattr(args, "quiet", False))
 
 
-def load_effects(args) -> list[str]:
-    """Import the --effects-file files (before a model file that names their effects loads)."""
-    names = []
+def effect_library(args, progress: Progress | None = None) -> EffectLibrary:
+    """The built-in effects plus those of the --effects-file files (run: they are the user's
+    own code, named on the command line), each checked against the effect contract
+    (:func:`surrogate.testing.check_effect`) as it loads."""
+    from ..testing import check_effect
+
+    library = LIBRARY
     for path in args.effects_file:
-        names += load_effects_file(path)
-    return names
+        custom = load_effects_file(path)
+        try:
+            library = library + custom
+        except InputError as error:
+            raise InputError(f"{path}: {error}") from None
+        for cls in custom.values():  # the contract the built-in effects pass, before any work
+            try:
+                check_effect(cls)
+            except (AssertionError, InputError) as error:
+                raise InputError(f"{path}: {error}") from None
+        if progress is not None:
+            progress(f"custom effects from {path}: {', '.join(custom)}")
+    return library
 
 
-def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object]:
-    """The custom effects, the model (if the command takes one) and the bench log."""
-    custom = load_effects(args)
-    if custom:
-        progress(f"custom effects: {', '.join(custom)}")
-    model = load_model(args.model, args.valve) if getattr(args, "model", None) else None
+def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, EffectLibrary]:
+    """The model (if the command takes one), the bench log and the effect library."""
+    library = effect_library(args, progress)
+    model = (load_model(args.model, args.valve, library) if getattr(args, "model", None)
+             else None)
     log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
     progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")
     if model is not None:
         _warn_about_foreign_runs(model, log, args.model)
-    return model, log
+    return model, log, library
 
 
 def _warn_about_foreign_runs(model: ValveModel, log, source: str) -> None:

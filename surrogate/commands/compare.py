@@ -29,7 +29,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     guard_outputs(args, Output("--out", args.out, "folder"))
     progress = progress_for(args)
-    model, log = load_inputs(args, progress)
+    model, log, _ = load_inputs(args, progress)
     progress(f"replaying {model.name}")
     comparison = compare(model, log)
     if args.out:

@@ -9,7 +9,7 @@ from ..outputs import Output, atomic_directory
 from ..units import from_si
 from ..workbench.compare import compare
 from ..workbench.diagnose import candidate_effects, diagnose
-from ..workbench.fit import fit_to_log
+from ..workbench.logfit import fit_to_log
 from ..workbench.report import (comparison_section, diagnosis_figure, diagnosis_section,
                                 diagnosis_table, figure_png, write_html)
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
@@ -36,16 +36,16 @@ def register(subparsers) -> None:
 def run(args) -> int:
     guard_outputs(args, Output("--out", args.out, "folder"))
     progress = progress_for(args)
-    model, log = load_inputs(args, progress)
-    if not candidate_effects(model, args.candidates):  # also checks the names, before the fit
+    model, log, library = load_inputs(args, progress)
+    if not candidate_effects(model, library, args.candidates):  # checks names before the fit
         raise InputError(f"nothing to diagnose: model {model.name!r} has every candidate "
                          f"({', '.join(args.candidates or ['the whole library'])}) already")
     progress(f"fitting the free parameters of {model.name}")
     model = fit_to_log(model, log).model
     progress(f"diagnosing {model.name}")
     comparison = compare(model, log)
-    diagnosis = diagnose(model, log, base=comparison.played, candidates=args.candidates,
-                         progress=progress)
+    diagnosis = diagnose(model, log, library, base=comparison.played,
+                         candidates=args.candidates, progress=progress)
     progress(f"done in {progress.elapsed:.1f} s")
     if args.out:
         with atomic_directory(args.out) as staging:

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from ..effects import effect_class
 from ..errors import InputError
 from ..modelfile import save_model
 from ..outputs import Output
 from ..units import from_si
-from ..workbench.fit import fit_to_log
+from ..workbench.logfit import fit_to_log
 from ..workbench.residuals import noise_floor, replay_log
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)
@@ -28,8 +27,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     guard_outputs(args, Output("--out", args.out, "file"))
     progress = progress_for(args)
-    model, log = load_inputs(args, progress)
-    classes = [effect_class(name) for name in args.add]
+    model, log, library = load_inputs(args, progress)
+    classes = [library.effect(name) for name in args.add]
     repeated = sorted({name for name in args.add if args.add.count(name) > 1})
     if repeated:
         raise InputError(f"--add {', '.join(repeated)} given more than once; add an effect once")
@@ -51,9 +50,7 @@ def run(args) -> int:
             "model": result.model.name, "added": args.add, "file": str(args.out),
             "rms_bar": round(float(from_si(played.rms(), "bar")), 4),
             "noise_floor_bar": round(float(from_si(floor, "bar")), 4),
-            "parameters": {f"{e.name}.{p.name}": {"value": p.display_value, "unit": p.unit,
-                                                  "stderr": p.display_stderr}
-                           for e, p in result.model.parameters() if p.vary}})
+            "parameters": result.model.parameters().to_records(free_only=True)})
     else:
         print(result.report())
         print(f"  noise floor {from_si(floor, 'bar'):.3f} bar; model written to {args.out}")

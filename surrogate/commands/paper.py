@@ -5,13 +5,13 @@ from __future__ import annotations
 import json
 
 from ..data import load_bench_log
-from ..maps.registry import MAP_KINDS, build_maps
+from ..maps.registry import MAP_KINDS
 from ..outputs import Output
 from ..paper.comparison import reproduce
 from ..paper.report import write_report
 from ..paths import SHIPPED_BENCH_LOG, shipped
-from ..valve import load_valve
-from .common import add_command, guard_outputs, progress_for
+from ..spec import ValveSource
+from .common import add_command, guard_outputs, maps_from_args, progress_for
 
 DEFAULT_OUT = "results/paper"
 
@@ -34,10 +34,9 @@ def run(args) -> int:
     out = args.out or (None if args.json else DEFAULT_OUT)
     guard_outputs(args, Output("--out", out, "folder"))
     progress = progress_for(args)
-    valve = load_valve(args.valve)
+    valve = ValveSource.read(args.valve)
     log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
-    flow_map, force_map = build_maps(args.maps, valve, args.cfd)
-    comparison = reproduce(valve, flow_map, force_map, log, progress)
+    comparison = reproduce(valve, maps_from_args(args.maps, args.cfd), log, progress)
     if out:
         progress(f"writing tables and figures to {out}")
         written = write_report(comparison, out, args.maps)

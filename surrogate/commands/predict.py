@@ -11,7 +11,8 @@ from ..maps.registry import MAP_KINDS, build_maps
 from ..outputs import Output, atomic_file
 from ..units import from_si
 from ..valve import load_valve
-from .common import add_command, guard_outputs, print_json, progress_for, required
+from .common import (add_command, guard_outputs, maps_from_args, print_json, progress_for,
+                     required)
 
 
 def register(subparsers) -> None:
@@ -22,7 +23,7 @@ def register(subparsers) -> None:
                     "input with q_lpm_pred, f_sim_N_pred (GP: also q_lpm_std, f_sim_N_std) and "
                     "extrapolating.")
     options = required(parser)
-    options.add_argument("--model", required=True,
+    options.add_argument("--maps", required=True,
                          help=f"map kind ({', '.join(MAP_KINDS)}) or a trained surrogate folder")
     options.add_argument("--input", required=True, help="query CSV")
     options.add_argument("--output", required=True, help="output CSV")
@@ -35,7 +36,7 @@ def run(args) -> int:
     guard_outputs(args, Output("--output", args.output, "file"))
     queries = load_queries(args.input)
     valve = load_valve(args.valve)
-    flow_map, force_map = build_maps(args.model, valve, args.cfd)
+    flow_map, force_map = build_maps(maps_from_args(args.maps, args.cfd), valve)
     fluid = queries.fluid(valve.oil)
     state = (queries.p_L, queries.p_B, queries.u, fluid)
     output = queries.raw.copy()
@@ -52,10 +53,10 @@ def run(args) -> int:
     extrapolating = int(output["extrapolating"].sum())
     if args.json:
         print_json({"output": str(args.output), "predictions": len(output),
-                    "extrapolating": extrapolating, "maps": args.model})
+                    "extrapolating": extrapolating, "maps": args.maps})
     else:
         progress_for(args)(f"wrote {len(output)} predictions ({extrapolating} extrapolating) "
-                           f"with {args.model} maps to {args.output}")
+                           f"with {args.maps} maps to {args.output}")
     return 0
 
 

@@ -6,13 +6,12 @@ import math
 
 from ..data import load_bench_log
 from ..data.writer import write_bench_log
-from ..effects import effect_class
 from ..errors import InputError
 from ..outputs import Output
 from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..workbench.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
-                                  noise_free_sequence, reference_model)
-from .common import (add_command, guard_outputs, load_effects, non_negative_int, positive_int,
+                                  noise_free_sequence, reference_spec)
+from .common import (add_command, effect_library, guard_outputs, non_negative_int, positive_int,
                      print_json, progress_for, required)
 
 
@@ -49,9 +48,10 @@ def run(args) -> int:
         raise InputError(f"--noise-scale {args.noise_scale:g}: expected 0 to 100 (times the "
                          "shipped bench's sensor noise)")
     progress = progress_for(args)
-    load_effects(args)
-    if args.hidden and args.hidden != "none":
-        effect_class(args.hidden)  # an unknown name is an error before any work
+    library = effect_library(args, progress)
+    hidden = None if args.hidden in (None, "none") else args.hidden
+    if hidden:
+        library.effect(hidden)  # an unknown name is an error before any work
     elif args.set:
         raise InputError("--set needs --hidden NAME: the parameters are the hidden effect's")
     values = {}
@@ -66,8 +66,8 @@ def run(args) -> int:
         values[key.strip()] = number
     source = load_bench_log(args.sequence or shipped(SHIPPED_BENCH_LOG))
     sequence = noise_free_sequence(source, every=args.every)
-    case = hidden_effect_case(args.hidden, values or None, sequence=sequence, seed=args.seed,
-                              reference=reference_model(),
+    case = hidden_effect_case(hidden, values or None, sequence=sequence, seed=args.seed,
+                              reference=reference_spec(), library=library,
                               noise=SensorNoise().scaled(args.noise_scale))
     write_bench_log(case.log, args.out)
     progress(f"wrote {len(case.log)} samples to {args.out} (truth: {case.truth!r})")

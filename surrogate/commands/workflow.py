@@ -6,6 +6,7 @@ import json
 
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
+from ..spec import ValveSource
 from ..units import from_si
 from ..workbench.compare import compare
 from ..workbench.figures import all_figures
@@ -38,8 +39,9 @@ def run(args) -> int:
     out = args.out or DEFAULT_OUT
     guard_outputs(args, Output("--out", out, "folder"))
     progress = progress_for(args)
-    _, log = load_inputs(args, progress)
-    workflow = run_workflow(log, max_additions=args.max_additions, progress=progress)
+    _, log, library = load_inputs(args, progress)
+    workflow = run_workflow(log, library=library, valve=ValveSource.read(args.valve),
+                            max_additions=args.max_additions, progress=progress)
     final = workflow.final
     comparison = compare(final.model, log, played=final.played)
     with atomic_directory(out) as staging:

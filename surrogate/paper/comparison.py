@@ -14,12 +14,12 @@ import pandas as pd
 
 from ..data.loaders import BenchLog, BenchRun
 from ..errors import InputError
-from ..fitting import fit
-from ..maps.base import FlowMap, ForceMap
+from ..leastsquares import fit
+from ..maps.registry import MapsSpec
 from ..points import OperatingPoints
 from ..solver import replay
-from ..units import from_si, to_si
-from ..valve import ValveParameters
+from ..spec import ValveSource
+from ..units import from_si
 from .median import median_line
 from .models import FIT_P_PE, FIT_TEMPERATURE, PaperModels, build_paper_models, mean_abs_distance
 
@@ -81,13 +81,13 @@ class PaperComparison:
         }
 
 
-def reproduce(valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap, log: BenchLog,
+def reproduce(valve: ValveSource, maps: MapsSpec, log: BenchLog,
               progress: Callable[[str], None] = lambda message: None) -> PaperComparison:
     """Fit the paper's models on ``log`` and compute Tables 5 and 6.
 
     Parameters
     ----------
-    valve, flow_map, force_map
+    valve, maps
         The valve and its CFD maps (grid or learned).
     log : BenchLog
         Needs runs at p_Pe = 50, 65 and 80 bar and 20, 40 and 60 °C.
@@ -99,7 +99,7 @@ def reproduce(valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap, lo
     lines = {run.run: median_line(run) for run in runs.values()}
     fit_run = runs[(from_si(FIT_P_PE, "bar"), from_si(FIT_TEMPERATURE, "degC"))]
     progress(f"fitting BMBEBF and CFDA to the median line of run {fit_run.run}")
-    models = build_paper_models(valve, flow_map, force_map, lines[fit_run.run])
+    models = build_paper_models(valve, maps, lines[fit_run.run])
     comparison = PaperComparison(models, lines, runs)
 
     progress("Table 5: mean distance from the median lines")
@@ -132,8 +132,7 @@ def reproduce(valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap, lo
 
 def fit_friction(models: PaperModels, run: BenchRun):
     """K1 and K2 of CFDA's Coulomb friction, fitted to every sample of ``run`` by replay."""
-    start = models.cfda_with_friction(to_si(_FRICTION_START["K1"], "N"),
-                                      to_si(_FRICTION_START["K2"], "N/bar"))
+    start = models.cfda_with_friction(_FRICTION_START["K1"], _FRICTION_START["K2"])
     points = OperatingPoints.from_bench(run.frame)
     measured = measured_dp(run)
     return fit(start, lambda model: replay(model, points).dp - measured,

@@ -20,17 +20,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize_scalar
 
-from ..effects import ConstantFriction, FlowForceScale, LoadPressureFriction
-from ..maps.base import FlowMap, ForceMap
-from ..maps.orifice import OrificeFlowMap, UniformPressureForceMap
+from ..effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
+from ..leastsquares import fit
+from ..maps.registry import BASIC_DISCHARGE_COEFFICIENT, MapsSpec
 from ..model import ValveModel
+from ..presets import basic_maps, bmbe
 from ..solver import solve_steady
-from ..valve import ValveParameters
+from ..spec import EffectSpec, ModelSpec, ValveSource
 from .median import median_points
 
-BASIC_DISCHARGE_COEFFICIENT = 0.4  # the paper's BMBE choice, from C_d at u = 0.63 mm
 FIT_P_PE = 65e5  # [Pa] set point of the run the paper fits to
 FIT_TEMPERATURE = 313.15  # [K] (40 °C)
 
@@ -56,10 +55,11 @@ class PaperModels:
         return {"CFDA": self.cfda, "CFDAForce": self.cfda_force, "CFDARes": self.cfda_res}
 
     def cfda_with_friction(self, K1: float, K2: float) -> ValveModel:
-        """CFDA plus Coulomb friction s·(K1 + K2·p_L), K1 [N], K2 [N/Pa]."""
-        model = self.cfda.copy("CFDA with friction")
-        model.effects += [ConstantFriction(K1=K1), LoadPressureFriction(K2=K2)]
-        return model
+        """CFDA plus Coulomb friction s·(K1 + K2·p_L), K1 [N], K2 [N/bar]."""
+        spec = self.cfda.to_spec().adding(EffectSpec.start(ConstantFriction, K1=K1),
+                                          EffectSpec.start(LoadPressureFriction, K2=K2),
+                                          name="CFDA with friction")
+        return spec.build()
 
 
 def median_line_error(model: ValveModel, line: pd.DataFrame) -> np.ndarray:
@@ -75,46 +75,31 @@ def mean_abs_distance(model: ValveModel, line: pd.DataFrame) -> float:
     return float(np.mean(np.abs(error))) if np.all(np.isfinite(error)) else float("inf")
 
 
-def _fit_scalar(build, line: pd.DataFrame, bounds: tuple[float, float]) -> float:
-    """The value in ``bounds`` whose model ``build(value)`` is closest to the line (least squares)."""
-
-    def cost(value):
-        error = median_line_error(build(value), line)
-        error = np.where(np.isfinite(error), error, 1e9)
-        return float(np.mean(error**2))
-
-    return float(minimize_scalar(cost, bounds=bounds, method="bounded",
-                                 options={"xatol": 1e-5}).x)
+def _fitted(spec: ModelSpec, line: pd.DataFrame) -> ValveModel:
+    """The model of ``spec`` with its free parameter fitted to the median line (least squares,
+    as every fit in the package)."""
+    return fit(spec.build(), lambda model: median_line_error(model, line), tolerance=1e-10).model
 
 
-def build_paper_models(valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap,
-                       fit_line: pd.DataFrame) -> PaperModels:
-    """Build and fit the five models.
+def build_paper_models(valve: ValveSource, maps: MapsSpec, fit_line: pd.DataFrame
+                       ) -> PaperModels:
+    """Build and fit the five models, all from specs.
 
     Parameters
     ----------
-    valve : ValveParameters
-    flow_map, force_map : FlowMap, ForceMap
+    valve : ValveSource
+    maps : MapsSpec
         The CFD maps (grid or learned).
     fit_line : pandas.DataFrame
         Median line of the run to fit to (the paper: 40 °C, p_Pe = 65 bar).
     """
-    uniform = UniformPressureForceMap(valve)
-
-    def orifice_model(discharge_coefficient, name):
-        return ValveModel(valve, OrificeFlowMap(discharge_coefficient, valve.w), uniform,
-                          name=name)
-
-    bmbe = orifice_model(BASIC_DISCHARGE_COEFFICIENT, "BMBE")
-    fitted_cd = _fit_scalar(lambda cd: orifice_model(cd, "BMBEBF"), fit_line, (0.05, 2.0))
-    bmbebf = orifice_model(fitted_cd, "BMBEBF")
-
-    def cfda_model(scale):
-        return ValveModel(valve, flow_map, force_map, [FlowForceScale(scale=scale)], name="CFDA")
-
-    scale = _fit_scalar(cfda_model, fit_line, (0.0, 2.0))
-    cfda = cfda_model(scale)
-    cfda_force = ValveModel(valve, OrificeFlowMap(BASIC_DISCHARGE_COEFFICIENT, valve.w), force_map,
-                            [FlowForceScale(scale=scale)], name="CFDAForce")
-    cfda_res = ValveModel(valve, flow_map, uniform, name="CFDARes")
-    return PaperModels(bmbe, bmbebf, cfda, cfda_force, cfda_res, fitted_cd, scale)
+    basic = bmbe(valve)
+    bmbebf = _fitted(basic.adding(EffectSpec.start(DischargeScale), name="BMBEBF"), fit_line)
+    cfda = _fitted(ModelSpec("CFDA", valve, maps, (EffectSpec.start(FlowForceScale),)), fit_line)
+    scale_spec = EffectSpec.of(cfda.effect(FlowForceScale.name))
+    cfda_force = ModelSpec("CFDAForce", valve, MapsSpec(basic_maps().flow, maps.force),
+                           (scale_spec,)).build()
+    cfda_res = ModelSpec("CFDARes", valve, MapsSpec(maps.flow, basic_maps().force)).build()
+    discharge = BASIC_DISCHARGE_COEFFICIENT * bmbebf.effect(DischargeScale.name)["c"]
+    return PaperModels(basic.named("BMBE").build(), bmbebf, cfda, cfda_force, cfda_res,
+                       discharge, cfda.effect(FlowForceScale.name)["scale"])

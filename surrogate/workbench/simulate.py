@@ -25,12 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.loaders import BenchLog
-from ..effects import (ConstantFriction, FlowForceScale, LoadPressureFriction, PerRunEffect,
-                       effect_class)
+from ..effects import LIBRARY, Effect, EffectLibrary, PerRunEffect
 from ..errors import InputError
+from ..maps.registry import MapsSpec
 from ..model import ValveModel
-from ..modelfile import cfda_effects, preset
-from ..units import from_si, to_si
+from ..presets import cfda, cfda_effects
+from ..spec import EffectSpec, ModelSpec, ValveSource
+from ..units import to_si
 from .residuals import replay_log
 
 #: a magnitude an engineer could meet on a real valve, per library effect (display units). The
@@ -142,15 +143,15 @@ def simulate(truth: ValveModel, sequence: BenchLog, *, noise: SensorNoise | None
     return BenchLog(frame, f"simulated by {truth.name!r} (seed {seed})")
 
 
-def reference_model(maps: str = "cfda") -> ValveModel:
-    """The valve the synthetic logs start from: a preset with the shipped bench's fitted values
-    (flow-force scale 0.83, K1 6.3 N, K2 0.08 N/bar)."""
-    model = preset(maps)
-    model.effect(FlowForceScale.name).params["scale"].value = 0.83
-    model.effect(ConstantFriction.name).params["K1"].value = 6.3
-    model.effect(LoadPressureFriction.name).params["K2"].set_display(0.08)
-    model.name = "reference"
-    return model
+#: CFDA's values fitted to the shipped bench: flow-force scale [-], K1 [N], K2 [N/bar]
+REFERENCE_VALUES = {"scale": 0.83, "K1": 6.3, "K2": 0.08}
+
+
+def reference_spec(maps_spec: MapsSpec | None = None, valve: ValveSource | None = None
+                   ) -> ModelSpec:
+    """The valve the synthetic logs start from: CFDA with the shipped bench's fitted values
+    (:data:`REFERENCE_VALUES`), on ``maps_spec`` (default: the grid maps)."""
+    return cfda(valve, maps_spec, "reference").with_effects(cfda_effects(**REFERENCE_VALUES))
 
 
 @dataclass
@@ -177,48 +178,57 @@ class HiddenEffectCase:
 
 
 def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = None, *,
-                       sequence: BenchLog, seed: int = 0, reference: ValveModel | None = None,
+                       sequence: BenchLog, seed: int = 0, reference: ModelSpec | None = None,
+                       library: EffectLibrary = LIBRARY,
                        noise: SensorNoise | None = None) -> HiddenEffectCase:
-    """Make a synthetic log with effect ``hidden`` at ``values`` (display units; default its
-    :data:`REALISTIC_MAGNITUDES`), or with nothing hidden when ``hidden`` is None.
+    """Make a synthetic log with effect ``hidden`` (from ``library``) at ``values`` (display
+    units; default its :data:`REALISTIC_MAGNITUDES`), or with nothing hidden when ``hidden`` is
+    None.
 
-    ``reference`` is the valve without the effect (default :func:`reference_model`); an effect
+    ``reference`` is the valve without the effect (default :func:`reference_spec`); an effect
     the reference already has (the flow-force scale, say) is set to ``values`` in the truth and
     removed from the starting model.
     """
-    reference = reference or reference_model()
-    truth = reference.copy(name=f"reference + {hidden}" if hidden else "reference")
-    start_effects = [effect.copy() for effect in reference.effects]
+    reference = reference or reference_spec()
+    truth = reference.named(f"reference + {hidden}" if hidden else "reference")
+    start_effects = list(reference.effects)
     if hidden:
-        cls = effect_class(hidden)
         values = REALISTIC_MAGNITUDES.get(hidden, {}) if values is None else values
         if not values:
             raise InputError(f"give the values of hidden effect {hidden!r}'s parameters")
-        if truth.has_effect(hidden):
-            effect = truth.effect(hidden)
-        else:
-            effect = cls.for_runs(sequence.run_ids)
-            truth.effects.append(effect)
-        if isinstance(effect, PerRunEffect):
-            _draw_per_run(effect, values, seed)
-        else:
-            for key, value in values.items():
-                if key not in effect.params:
-                    raise InputError(f"hidden effect {hidden!r} has no parameter {key!r}; it has "
-                                     f"{', '.join(effect.params)}")
-                parameter = effect.params[key]
-                parameter.set_display(value)
-                if not parameter.min <= parameter.value <= parameter.max:
-                    raise InputError(
-                        f"hidden effect {hidden!r}: {key} = {value:g} {parameter.unit} lies "
-                        f"outside its bounds [{from_si(parameter.min, parameter.unit):g}, "
-                        f"{from_si(parameter.max, parameter.unit):g}]")
+        effect = _hidden_effect(library.effect(hidden), truth, sequence, values, seed)
+        truth = truth.with_effects([*(e for e in truth.effects if e.name != hidden),
+                                    EffectSpec.of(effect)])
         start_effects = [e for e in start_effects if e.name != hidden]
-    log = simulate(truth, sequence, noise=noise, seed=seed)
+    log = simulate(truth.build(library), sequence, noise=noise, seed=seed)
     # the fit starts from the presets' values, not from the truth
     starting = {effect.name: effect for effect in cfda_effects()}
-    start = reference.with_effects([starting.get(e.name, e) for e in start_effects], name="start")
-    return HiddenEffectCase(hidden or "", truth, start, log)
+    start = reference.with_effects([starting.get(e.name, e) for e in start_effects],
+                                   name="start")
+    return HiddenEffectCase(hidden or "", truth.build(library), start.build(library), log)
+
+
+def _hidden_effect(cls: type[Effect], truth: ModelSpec, sequence: BenchLog,
+                   values: dict[str, float], seed: int) -> Effect:
+    """The hidden effect at ``values`` (display units): the truth's own, changed, or a new one
+    for the sequence's runs."""
+    existing = next((e for e in truth.effects if e.name == cls.name), None)
+    effect = (existing.build(EffectLibrary([cls]), f"the reference's {cls.name}") if existing
+              else cls.for_runs(sequence.run_ids))
+    if isinstance(effect, PerRunEffect):
+        _draw_per_run(effect, values, seed)
+        return effect
+    for key, value in values.items():
+        if key not in effect.params:
+            raise InputError(f"hidden effect {cls.name!r} has no parameter {key!r}; it has "
+                             f"{', '.join(effect.params)}")
+        parameter = effect.params[key]
+        parameter.set_display(value)
+        if not parameter.min <= parameter.value <= parameter.max:
+            low, high = parameter.display_bounds
+            raise InputError(f"hidden effect {cls.name!r}: {key} = {value:g} {parameter.unit} "
+                             f"lies outside its bounds [{low:g}, {high:g}]")
+    return effect
 
 
 def _draw_per_run(effect: PerRunEffect, values: dict[str, float], seed: int) -> None:

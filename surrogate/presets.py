@@ -1,0 +1,98 @@
+"""The package's own models as specs: the presets, the paper's models and their starting values.
+
+* ``bmbe``: the paper's basic model, orifice equation with C_d = 0.4 and a uniform pressure.
+* ``cfda``: CFD maps (grid by default), a flow-force scale, and Coulomb friction K1 + K2·p_L with
+  one K1 and one K2 for all temperatures, starting from the paper's 0.9, 6.5 N and 0.05 N/bar.
+* ``cfda-<kind>``: the same on the maps of another kind (``cfda-nn``, ``cfda-gp``).
+
+Everything here returns a :class:`~surrogate.spec.ModelSpec`; build it with ``.build()``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
+from .errors import InputError
+from .maps.registry import BASIC_DISCHARGE_COEFFICIENT, MAP_KINDS, MapsSpec, map_kind
+from .spec import EffectSpec, ModelSpec, ValveSource
+
+#: the paper's CFDA starting values: flow-force scale, K1 [N], K2 [N/bar]
+CFDA_START = {"scale": 0.9, "K1": 6.5, "K2": 0.05}
+
+
+def maps(kind: str = "grid", cfd: str | Path | None = None) -> MapsSpec:
+    """Both maps of ``kind``; maps built from CFD samples record the file (default: the shipped
+    one) and its SHA-256, so that a model built on them names the data it needs."""
+    source = map_kind(kind).source(cfd)
+    return MapsSpec(source, source)
+
+
+def basic_maps(discharge_coefficient: float = BASIC_DISCHARGE_COEFFICIENT) -> MapsSpec:
+    """The basic model's maps: the orifice equation and a uniform pressure."""
+    return MapsSpec.both("orifice", discharge_coefficient=discharge_coefficient)
+
+
+def bmbe(valve: ValveSource | None = None) -> ModelSpec:
+    """The paper's basic model BMBE."""
+    return ModelSpec("bmbe", valve or ValveSource.shipped(), basic_maps(), (),
+                     "the paper's basic model: orifice equation with C_d = 0.4, uniform pressure")
+
+
+def cfda_effects(scale: float = CFDA_START["scale"], K1: float = CFDA_START["K1"],
+                 K2: float = CFDA_START["K2"]) -> tuple[EffectSpec, ...]:
+    """CFDA's effects: flow-force scale [-], K1 [N], K2 [N/bar]."""
+    return (EffectSpec.start(FlowForceScale, scale=scale),
+            EffectSpec.start(ConstantFriction, K1=K1),
+            EffectSpec.start(LoadPressureFriction, K2=K2))
+
+
+def cfda(valve: ValveSource | None = None, maps_spec: MapsSpec | None = None,
+         name: str = "cfda") -> ModelSpec:
+    """The paper's CFDA on ``maps_spec`` (default: the grid maps of the shipped samples)."""
+    maps_spec = maps_spec or maps("grid")
+    return ModelSpec(name, valve or ValveSource.shipped(), maps_spec, cfda_effects(),
+                     f"{maps_kind_name(maps_spec)} maps, flow-force scale, Coulomb friction "
+                     "K1 + K2*p_L (one pair for all temperatures)")
+
+
+def maps_kind_name(spec: MapsSpec) -> str:
+    return spec.flow.kind if spec.flow == spec.force else f"{spec.flow.kind}/{spec.force.kind}"
+
+
+def bmbebf_step(previous: ModelSpec) -> ModelSpec:
+    """The paper's best-fit basic model: the orifice's discharge coefficient scaled (fitted)."""
+    return previous.adding(EffectSpec.start(DischargeScale), name="bmbebf")
+
+
+def cfd_maps_step(previous: ModelSpec, maps_spec: MapsSpec) -> ModelSpec:
+    """CFD maps replace the orifice equation and the uniform pressure, with a flow-force scale."""
+    return ModelSpec("cfd-maps", previous.valve, maps_spec,
+                     (EffectSpec.start(FlowForceScale, scale=CFDA_START["scale"]),))
+
+
+def cfda_step(previous: ModelSpec) -> ModelSpec:
+    """Coulomb friction K1 + K2·p_L added, one pair for all temperatures."""
+    friction = cfda_effects()[1:]
+    return previous.adding(*friction, name="cfda")
+
+
+PRESET_DESCRIPTIONS = {
+    "bmbe": "the paper's basic model: orifice equation with C_d = 0.4, uniform pressure",
+    "cfda": "grid maps, flow-force scale, Coulomb friction K1 + K2*p_L",
+    **{f"cfda-{name}": f"as cfda on the {name} maps" for name, kind in MAP_KINDS.items()
+       if kind.learned},
+}
+PRESETS = tuple(PRESET_DESCRIPTIONS)
+
+
+def preset(name: str, valve: ValveSource | None = None) -> ModelSpec:
+    """A preset by name (see the module docstring)."""
+    if name == "bmbe":
+        return bmbe(valve)
+    if name == "cfda":
+        return cfda(valve)
+    if name in PRESET_DESCRIPTIONS and name.startswith("cfda-"):
+        kind = name.removeprefix("cfda-")
+        return cfda(valve, maps(kind), name)
+    raise InputError(f"unknown preset {name!r}; presets: {', '.join(PRESETS)}")
