@@ -23,13 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from surrogate.data import load_bench_log
-from surrogate.modelfile import preset
+from surrogate.modelfile import load_model
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import replay
 from surrogate.units import from_si
 from surrogate.workbench.diagnose import diagnose
-from surrogate.workbench.fit import fit_to_log
+from surrogate.workbench.logfit import fit_to_log
 from surrogate.workbench.residuals import (measured_dp, noise_floor, replay_log,
                                            state_smoothing_samples)
 from surrogate.workbench.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case,
@@ -71,7 +71,7 @@ def main() -> None:
     args = parser.parse_args()
     log = load_bench_log(SHIPPED_BENCH_LOG)
 
-    fitted = fit_to_log(preset("cfda"), log).model
+    fitted = fit_to_log(load_model("cfda"), log).model
     base, replay_seconds = timed(replay_log, fitted, log)
     diagnosis, diagnose_seconds = timed(diagnose, fitted, log, base=base)
     print(f"diagnose over {len(diagnosis.candidates)} candidates on {len(log)} samples: "

@@ -10,7 +10,7 @@ Procedure
    squares on the linearisation, then up to four Gauss–Newton steps in which every new point is
    replayed for real and the Jacobian is corrected by Broyden's update (one replay per step
    instead of one per parameter); a step that lowers the RSS by less than
-   :data:`SETTLED_GAIN` of it ends the refit. Only the four front runners after the first real
+   :data:`..leastsquares.SETTLED_GAIN` of it ends the refit. Only the four front runners after the first real
    replay (and any as good as the last of them) take those steps; the others keep the RMS of
    that first replay, an upper bound, as they are far behind. The reported RMS is that of a real
    replay at the reported parameters, never a linear estimate. Standard errors come from the
@@ -42,15 +42,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from ..data.loaders import BenchLog
-from ..effects import REGISTRY, Effect, effect_class
-from ..fitting import FAILURE_RESIDUAL, free_parameters
+from ..effects import LIBRARY, Effect, EffectLibrary
+from ..leastsquares import Evaluation, FitProblem, Minimizer, free_parameters, split_key
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
-from .fit import felt, probe_change
+from .logfit import felt, probe_change
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
 
 BIC_THRESHOLD = -10.0
@@ -120,21 +119,22 @@ class Diagnosis:
                 "residual_correlations": {k: round(v, 3) for k, v in self.correlations.items()}}
 
 
-def candidate_effects(model: ValveModel, names: Iterable[str] | None = None) -> list[type[Effect]]:
-    """The registered effects the model does not have (or those named).
+def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
+                      names: Iterable[str] | None = None) -> list[type[Effect]]:
+    """The effects of ``library`` the model does not have (or those of them named).
 
     Raises
     ------
     InputError
-        For a name no effect is registered under.
+        For a name the library does not hold.
     """
-    chosen = REGISTRY if names is None else {name: effect_class(name) for name in names}
+    chosen = library if names is None else {name: library.effect(name) for name in names}
     return [cls for name, cls in chosen.items() if not model.has_effect(name)]
 
 
-def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | None = None,
-             base: LogReplay | None = None, steps: int = REFINE_STEPS,
-             progress=None, workers: int | None = None) -> Diagnosis:
+def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY, *,
+             candidates: Iterable[str] | None = None, base: LogReplay | None = None,
+             steps: int = REFINE_STEPS, progress=None, workers: int | None = None) -> Diagnosis:
     """Rank the candidate effects by how much of the residual they explain (see module doc).
 
     Parameters
@@ -142,8 +142,10 @@ def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | No
     model : ValveModel
         The current model, with its free parameters already fitted to ``log``.
     log : BenchLog
+    library : EffectLibrary
+        The effects to choose from (default: the built-in ones).
     candidates : iterable of str, optional
-        Effect names to try; default every registered effect the model lacks.
+        Names of the library's effects to try; default every one the model lacks.
     base : LogReplay, optional
         The model's replay of ``log``, if already computed.
     steps : int
@@ -156,44 +158,14 @@ def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | No
     """
     say = progress or (lambda message: None)
     base = base or replay_log(model, log)
-    residual = base.residual
-    ok = np.isfinite(residual)
-    rss_before = float(np.sum(residual[ok] ** 2))
-    rms_before = float(np.sqrt(rss_before / ok.sum()))
-    floor = noise_floor(residual, base.runs)
-    n_eff = effective_samples(residual, base.runs)
-    problem = _Problem(log, base, ok, n_eff, rss_before)
-
+    problem = _DiagnosisProblem(log, base)
+    floor = noise_floor(base.residual, base.runs)
     own = free_parameters(model)
     say(f"linearising the replay in the model's {len(own)} free parameter(s)")
     own_columns = [column for column in map_threads(
-        lambda entry: problem.column(model, entry[1].name, entry[2].name), own, workers=workers)
-        if column.felt]
-    classes = candidate_effects(model, candidates)
-
-    def linearise(cls: type[Effect]) -> tuple[type[Effect], ValveModel, list[_Column]]:
-        trial = model.copy()
-        trial.effects.append(cls.for_runs(log.run_ids))
-        columns = [problem.column(trial, cls.name, name)
-                   for name, parameter in trial.effect(cls.name).params.items() if parameter.vary]
-        # a parameter the data do not feel (a run's pilot offset while its piston sits on the
-        # stop) stays where it is: an empty column leaves the linear step undetermined
-        return cls, trial, [c for c in columns if c.felt]
-
-    def first_step(entry) -> _Refit:
-        cls, trial, columns = entry
-        return _Refit(problem, cls, trial, own_columns + columns, len(columns)).advance(1)
-
-    # the candidates are independent: linearise and refit them side by side. Every candidate gets
-    # its linear solution replayed for real; only the front runners are refined further, the
-    # others keep that first real RMS (an upper bound: refining only lowers it)
-    linearised = list(map_threads(linearise, classes, workers=workers))
-    refits = list(map_threads(first_step, linearised, workers=workers))
-    first = [refit.candidate() for refit in refits]
-    chosen = _front_runners(first)
-    refined = dict(zip(chosen, map_threads(lambda i: refits[i].advance(steps).candidate(),
-                                           chosen, workers=workers)))
-    results = [refined.get(i, candidate) for i, candidate in enumerate(first)]
+        lambda entry: problem.column_of(model, entry[0]), own, workers=workers) if column.felt]
+    classes = candidate_effects(model, library, candidates)
+    results, refined = _refit_candidates(model, classes, problem, own_columns, steps, workers)
     for number, candidate in enumerate(results, start=1):
         say(f"  [{number}/{len(classes)}] {candidate.name}: rms "
             f"{from_si(candidate.rms_after, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
@@ -203,42 +175,96 @@ def diagnose(model: ValveModel, log: BenchLog, *, candidates: Iterable[str] | No
     results.sort(key=lambda c: (c.delta_bic, c.rms_after))
     for candidate in results:
         candidate.significant = (candidate.delta_bic < BIC_THRESHOLD
-                                 and rms_before > NOISE_MARGIN * floor
-                                 and rms_before - candidate.rms_after > GAIN_FRACTION * floor)
-    _group(results, n_eff)
-    correlations = residual_correlations(base)
-    diagnosis = Diagnosis(model, base, rms_before, floor, n_eff, results, correlations, "")
+                                 and problem.rms_before > NOISE_MARGIN * floor
+                                 and problem.rms_before - candidate.rms_after
+                                 > GAIN_FRACTION * floor)
+    _group(results, problem.n_eff)
+    diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, results,
+                          residual_correlations(base), "")
     diagnosis.summary = summarise(diagnosis)
     return diagnosis
 
 
+def _refit_candidates(model: ValveModel, classes: list[type[Effect]],
+                      problem: "_DiagnosisProblem", own_columns: list["_Column"], steps: int,
+                      workers: int | None) -> tuple[list[Candidate], set[int]]:
+    """Every candidate refitted with the model's free parameters (module docstring, step 3):
+    the candidates are independent, so they are linearised and refitted side by side. Each gets
+    its linear solution evaluated for real; only the front runners are refined further, the
+    others keep that first real RMS (an upper bound: refining only lowers it)."""
+
+    def linearise(cls: type[Effect]) -> tuple[Minimizer, int]:
+        trial = model.copy()
+        trial.effects.append(cls.for_runs(problem.log.run_ids))
+        columns = [problem.column_of(trial, f"{cls.name}.{name}")
+                   for name, parameter in trial.effect(cls.name).params.items() if parameter.vary]
+        # a parameter the data do not feel (a run's pilot offset while its piston sits on the
+        # stop) stays where it is: an empty column leaves the linear step undetermined
+        columns = [c for c in columns if c.felt]
+        every = own_columns + columns
+        minimizer = Minimizer(trial, problem, [c.key for c in every])
+        minimizer.linearise([c.change for c in every], [c.step for c in every],
+                            problem.base_evaluation).refine(1)
+        return minimizer, len(columns)
+
+    refits = list(map_threads(linearise, classes, workers=workers))
+    first = [_candidate(cls, *refit, problem) for cls, refit in zip(classes, refits)]
+    chosen = _front_runners(first)
+    refined = dict(zip(chosen, map_threads(
+        lambda i: _candidate(classes[i], refits[i][0].refine(steps), refits[i][1], problem),
+        chosen, workers=workers)))
+    return [refined.get(i, candidate) for i, candidate in enumerate(first)], set(refined)
+
+
+def _candidate(cls: type[Effect], minimizer: Minimizer, extra: int,
+               problem: "_DiagnosisProblem") -> Candidate:
+    """The candidate at its refinement's best point, with standard errors; ``extra`` of its
+    parameters are the candidate's own (the data inform them)."""
+    evaluation, rss = minimizer.refined
+    minimizer.refinement_errors()
+    change = np.zeros(len(problem.ok))
+    change[problem.ok] = evaluation.residual - problem.base_evaluation.residual
+    trial = minimizer.model
+    return Candidate(cls.name, cls.title, cls.describe(), cls.kind,
+                     float(np.sqrt(rss / problem.ok.sum())),
+                     _delta_bic(rss, problem.rss_before, problem.n_eff, extra),
+                     params=list(trial.effect(cls.name).params.values()), change=change,
+                     model=trial, replay=evaluation.payload)
+
+
 @dataclass
 class _Column:
-    """One parameter's column of the replay's Jacobian: (Δp change per step) and the step [SI]."""
+    """One parameter's column of the replay's Jacobian: the Δp change for a step [SI]."""
 
-    effect: str
-    parameter: str
+    key: str
     step: float
     change: np.ndarray
-    felt: bool = True  # whether the data determine the parameter (:func:`.fit.felt`)
+    felt: bool = True  # whether the data determine the parameter (:func:`.logfit.felt`)
 
 
-@dataclass
-class _Problem:
-    """The log, the base replay and what the refits share."""
+class _DiagnosisProblem(FitProblem):
+    """The log's residual on the samples the model solves, every replay warm-started from the
+    model's own (the candidates' refits never move it, so they do not depend on each other)."""
 
-    log: BenchLog
-    base: LogReplay
-    ok: np.ndarray
-    n_eff: float
-    rss_before: float
+    def __init__(self, log: BenchLog, base: LogReplay):
+        self.log, self.base = log, base
+        self.ok = np.isfinite(base.residual)
+        self.rss_before = float(np.sum(base.residual[self.ok] ** 2))
+        self.rms_before = float(np.sqrt(self.rss_before / self.ok.sum()))
+        self.n_eff = effective_samples(base.residual, base.runs)
+        self.base_evaluation = Evaluation(base.residual[self.ok], base)
 
-    def replay(self, model: ValveModel) -> LogReplay:
-        return replay_log(model, self.log, guess=self.base, extrapolation=False)
+    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
+        played = replay_log(model, self.log, guess=self.base, extrapolation=False)
+        return Evaluation(played.residual[self.ok], played)
 
-    def column(self, model: ValveModel, effect_name: str, parameter_name: str) -> _Column:
+    def effective_samples(self, evaluation: Evaluation) -> float:
+        return self.n_eff
+
+    def column_of(self, model: ValveModel, key: str) -> _Column:
         """∂Δp/∂parameter · step by a forward difference, warm-started from the base replay; a
         parameter scoped to one run replays that run only."""
+        effect_name, parameter_name = split_key(key)
         scope = model.effect(effect_name).params[parameter_name].scope
         if scope is None:
             step, change = probe_change(model, effect_name, parameter_name, self.log, self.base)
@@ -250,105 +276,8 @@ class _Problem:
             determined = felt(in_run, scoped=True)
             change = np.zeros(len(self.ok))
             change[rows] = in_run
-        return _Column(effect_name, parameter_name, step,
-                       np.where(np.isfinite(change), change, 0.0)[self.ok], determined)
-
-
-#: a Gauss–Newton step that lowers the RSS by less than this share of it ends a refit: the RMS
-#: is then settled to 5e-5 of itself, and ΔBIC to ~1e-4·n_eff, a fraction of its threshold
-SETTLED_GAIN = 1e-4
-
-
-class _Refit:
-    """Bounded Gauss–Newton with Broyden updates in z = (parameter − start)/step, which can be
-    resumed: every candidate takes its first step, the front runners take more."""
-
-    def __init__(self, problem: _Problem, cls, trial: ValveModel, columns: list[_Column],
-                 extra: int):
-        self.problem, self.cls, self.trial, self.extra = problem, cls, trial, extra
-        self.parameters = [trial.effect(c.effect).params[c.parameter] for c in columns]
-        self.start = np.array([p.value for p in self.parameters])
-        self.scale = np.array([c.step for c in columns])
-        lower = np.array([(p.min - p.value) / c.step for p, c in zip(self.parameters, columns)])
-        upper = np.array([(p.max - p.value) / c.step for p, c in zip(self.parameters, columns)])
-        self.lower, self.upper = np.minimum(lower, upper), np.maximum(lower, upper)
-        self.jacobian = np.column_stack([c.change for c in columns])
-        self.base_residual = problem.base.residual[problem.ok]
-        self.best_z = np.zeros(len(columns))
-        self.best_residual, self.best_replay = self.base_residual, problem.base
-        self.best_rss = problem.rss_before
-        self.z, self.r = self.best_z, self.base_residual
-        self.replays = 0
-        self.settled = False
-
-    def advance(self, steps: int) -> "_Refit":
-        """Take up to ``steps`` more steps, each one real replay; stop early once settled."""
-        for _ in range(steps):
-            if self.settled:
-                break
-            self._step()
-        return self
-
-    def _step(self) -> None:
-        target = lsq_linear(self.jacobian, -self.r + self.jacobian @ self.z,
-                            bounds=(self.lower, self.upper)).x
-        if np.allclose(target, self.z, rtol=0, atol=1e-4):
-            self.settled = True
-            return
-        self._assign(target)
-        played = self.problem.replay(self.trial)
-        self.replays += 1
-        new = played.residual[self.problem.ok]
-        new = np.where(np.isfinite(new), new, FAILURE_RESIDUAL)
-        # Broyden: make the Jacobian reproduce the change just observed
-        dz = target - self.z
-        self.jacobian = self.jacobian + np.outer((new - self.r) - self.jacobian @ dz,
-                                                 dz) / float(dz @ dz)
-        rss = float(np.sum(new**2))
-        # the first replay is the linear solution, judged against the model without the
-        # candidate; after that, a step that gains (almost) nothing means the refit is done
-        if self.replays > 1 and rss > (1.0 - SETTLED_GAIN) * self.best_rss:
-            self.settled = True
-        if rss < self.best_rss:
-            self.best_z, self.best_residual, self.best_replay = target, new, played
-            self.best_rss = rss
-            self.z, self.r = target, new
-        else:  # the updated Jacobian proposes a new step from the best point so far
-            self.z, self.r = self.best_z, self.best_residual
-
-    def _assign(self, z) -> None:
-        values = np.clip(self.start + self.scale * z, [p.min for p in self.parameters],
-                         [p.max for p in self.parameters])
-        for parameter, value in zip(self.parameters, values):
-            parameter.value = float(value)
-
-    def candidate(self) -> Candidate:
-        """The candidate at the best point so far, with standard errors."""
-        self._assign(self.best_z)
-        self._standard_errors()
-        problem = self.problem
-        change = np.zeros(len(problem.ok))
-        change[problem.ok] = self.best_residual - self.base_residual
-        cls = self.cls
-        own = [p for p in self.trial.effect(cls.name).params.values()]
-        return Candidate(cls.name, cls.title, cls.describe(), cls.kind,
-                         float(np.sqrt(self.best_rss / problem.ok.sum())),
-                         _delta_bic(self.best_rss, problem.rss_before, problem.n_eff, self.extra),
-                         params=own, change=change, model=self.trial, replay=self.best_replay)
-
-    def _standard_errors(self) -> None:
-        residual, parameters = self.best_residual, self.parameters
-        count = len(residual)
-        dof = max(count - len(parameters), 1)
-        variance = float(np.sum(residual**2)) / dof * count / self.problem.n_eff
-        try:
-            covariance = np.linalg.pinv(self.jacobian.T @ self.jacobian) * variance
-        except np.linalg.LinAlgError:
-            covariance = np.full((len(parameters),) * 2, np.nan)
-        errors = np.sqrt(np.clip(np.diag(covariance), 0.0, None)) * np.abs(self.scale)
-        for parameter, error in zip(parameters, errors):
-            usable = np.isfinite(error) and not parameter.at_bound
-            parameter.stderr = float(error) if usable else None
+        return _Column(key, step, np.where(np.isfinite(change), change, 0.0)[self.ok],
+                       determined)
 
 
 def _front_runners(candidates: list[Candidate]) -> list[int]:
@@ -384,9 +313,6 @@ def _group(candidates: list[Candidate], n_eff: float) -> None:
             if cosine > SAME_DIRECTION and abs(a.delta_bic - b.delta_bic) < -BIC_THRESHOLD:
                 a.group.append(b.name)
                 b.group.append(a.name)
-
-
-CORRELATION_VARIABLES = ("q", "p_L", "p_P", "p_B", "p_Pe", "temperature", "|p_L - p_P|")
 
 
 def residual_correlations(base: LogReplay) -> dict[str, float]:

@@ -2,16 +2,51 @@
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Sequence
 
 import numpy as np
 
 from ..data.loaders import BenchLog
-from ..fitting import FitResult, fit, free_parameters
+from ..leastsquares import Evaluation, FitProblem, FitResult, Minimizer, free_parameters, split_key
 from ..model import ValveModel
 from ..parallel import map_threads
+from ..parameters import Parameter
 from .residuals import LogReplay, effective_samples, replay_log, run_rows
+
+
+class LogProblem(FitProblem):
+    """The residual of a replay of every run of a log, warm-started from the fit's last step.
+
+    Each evaluation starts the solver from the fit's previous one (a warm start halves the cost
+    of a replay); extrapolation flags are skipped. A parameter of one run is differentiated by
+    replaying that run alone. The residuals, correlated in time, are worth
+    :func:`.residuals.effective_samples` independent ones.
+    """
+
+    def __init__(self, log: BenchLog, start: LogReplay | None = None):
+        self.log = log
+        self.last = start
+
+    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
+        played = replay_log(model, self.log, guess=self.last, extrapolation=False)
+        # only the fit's own steps move the warm start: the Jacobian's columns, on threads,
+        # start from the point they differentiate at, so the result does not depend on timing
+        if own:
+            self.last = played
+        return Evaluation(played.residual, played)
+
+    def column(self, model: ValveModel, parameter: Parameter):
+        if parameter.scope is None:
+            return super().column(model, parameter)
+        rows = run_rows(self.log, parameter.scope)
+        start = self.last
+        played = replay_log(model, self.log.take(rows), extrapolation=False,
+                            guess=None if start is None else start.take(rows))
+        return rows, played.residual
+
+    def effective_samples(self, evaluation: Evaluation) -> float:
+        played = evaluation.payload
+        return effective_samples(played.residual, played.runs)
 
 
 def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = None, *,
@@ -19,49 +54,19 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
                tolerance: float = 1e-4) -> FitResult:
     """Least-squares fit of the free parameters (or ``names``) by replaying the whole log.
 
-    Each evaluation starts the solver from the previous one (warm start), which halves the cost
-    of a replay; extrapolation flags are skipped inside the fit. A parameter of one run that the
-    run's samples do not feel (a run's pilot offset while its piston sits on the stop) keeps its
-    value: with a column of zeros in the Jacobian it would only stall the trust region. The
-    default ``tolerance`` stops once a step lowers the sum of squares by less than 10⁻⁴ of
+    ``start``: a replay of ``log`` near the model's, to warm-start from. A parameter of one run
+    that the run's samples do not feel (a run's pilot offset while its piston sits on the stop)
+    keeps its value: with a column of zeros in the Jacobian it would only stall the trust region.
+    The default ``tolerance`` stops once a step lowers the sum of squares by less than 10⁻⁴ of
     itself: the RMS is then settled to 5·10⁻⁵ of itself, below the four digits the workbench
     prints, and the parameters to far less than their standard errors. A friction play's
     residual is not smooth in the parameters at finer scales (samples switch between sticking
     and sliding), so a tighter tolerance mostly buys rejected trust-region steps. Standard errors
-    are widened for the residuals' correlation in time (:func:`.residuals.effective_samples`).
+    are widened for the residuals' correlation in time.
     """
-    last = {"replay": start}
-    caller = threading.get_ident()
     names = _felt(model, log, names, start)
-
-    def residuals(candidate: ValveModel):
-        played = replay_log(candidate, log, guess=last["replay"], extrapolation=False)
-        # only the fit's own steps move the warm start: the Jacobian's columns, on other threads,
-        # start from the point they differentiate at, so the result does not depend on timing
-        if threading.get_ident() == caller:
-            last["replay"] = played
-        return played.residual
-
-    def scoped(candidate: ValveModel, run: str):
-        """A run's residuals alone, for the Jacobian column of a parameter of that run only."""
-        rows = run_rows(log, run)
-        start = last["replay"]
-        played = replay_log(candidate, log.take(rows), extrapolation=False,
-                            guess=None if start is None else start.take(rows))
-        return rows, played.residual
-
-    result = fit(model, residuals, names, max_evaluations=max_evaluations, tolerance=tolerance,
-                 scoped=scoped)
-    # fit()'s last evaluation on this thread is at the optimum; its standard errors count every
-    # sample as independent, but bench residuals are correlated in time: widen them by
-    # sqrt(n / n_eff)
-    final = last["replay"]
-    if final is not None:
-        inflation = np.sqrt(final.ok.sum() / effective_samples(final.residual, final.runs))
-        for parameter in result.parameters:
-            if parameter.stderr is not None:
-                parameter.stderr *= float(inflation)
-    return result
+    return Minimizer(model, LogProblem(log, start), names).least_squares(
+        max_evaluations=max_evaluations, tolerance=tolerance)
 
 
 #: [Pa] a change of the predicted Δp smaller than this is not felt
@@ -107,20 +112,20 @@ def _felt(model: ValveModel, log: BenchLog, names: Sequence[str] | None,
     """``names`` (default: every free parameter) without the run-scoped ones the data ignore;
     ``start``, a replay of ``log`` near ``model``'s, warm-starts the runs' replays."""
     chosen = free_parameters(model, names)
-    scoped = [(name, effect, p) for name, effect, p in chosen if p.scope is not None]
+    scoped = [(name, p) for name, p in chosen if p.scope is not None]
     if not scoped:
         return names
 
     def ignored(entry) -> bool:
-        _, effect, parameter = entry
+        name, parameter = entry
         rows = run_rows(log, parameter.scope)
         if rows.size == 0:
             return True
         run = log.take(rows)
         base = replay_log(model, run, extrapolation=False,
                           guess=None if start is None else start.take(rows))
-        _, change = probe_change(model, effect.name, parameter.name, run, base)
+        _, change = probe_change(model, *split_key(name), run, base)
         return not felt(change, scoped=True)
 
     dropped = {entry[0] for entry, drop in zip(scoped, map_threads(ignored, scoped)) if drop}
-    return [name for name, _, _ in chosen if name not in dropped]
+    return [name for name, _ in chosen if name not in dropped]

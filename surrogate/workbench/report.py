@@ -239,7 +239,7 @@ def staircase_table(steps) -> pd.DataFrame:
     CSV keeps them all; the report shows them per step, folded)."""
     rows = []
     for number, step in enumerate(steps, start=1):
-        parameters = "; ".join(str(p) for _, p in step.model.parameters() if p.vary)
+        parameters = "; ".join(str(p) for p in step.model.parameters().values() if p.vary)
         rows.append({"step": number, "added": ", ".join(step.added) or step.model.name,
                      "rms [bar]": from_si(step.rms, "bar"), "parameters": parameters})
     return pd.DataFrame(rows)
@@ -247,10 +247,10 @@ def staircase_table(steps) -> pd.DataFrame:
 
 def _step_parameters(number: int, step) -> str:
     """A folded table of one step's fitted parameters."""
-    rows = [{"parameter": f"{effect.name}.{p.name}", "value": p.display_value,
+    rows = [{"parameter": key, "value": p.display_value,
              "± stderr": p.display_stderr if p.display_stderr is not None else float("nan"),
              "unit": label(p.unit), "note": "at bound" if p.at_bound else ""}
-            for effect, p in step.model.parameters() if p.vary]
+            for key, p in step.model.parameters().items() if p.vary]
     what = ", ".join(step.added) or step.model.name
     if not rows:
         return f"<details><summary>Step {number} ({html.escape(what)}): no fitted parameters" \

@@ -18,16 +18,17 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from ..data.loaders import BenchLog
-from ..effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
-from ..maps.registry import build_maps
-from ..model import MapsSource, ValveModel
-from ..modelfile import cfda_effects, preset
+from ..effects import LIBRARY, DischargeScale, EffectLibrary, FlowForceScale
+from ..maps.registry import MapsSpec
+from ..model import ValveModel
+from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
+from ..spec import ModelSpec, ValveSource
 from ..units import from_si
 from .diagnose import Diagnosis, diagnose
-from .fit import fit_to_log
+from .logfit import fit_to_log
 from .residuals import LogReplay, noise_floor, replay_log
 
 MAX_ADDITIONS = 8  # effects the loop may add after the paper's steps
@@ -61,9 +62,7 @@ class Step:
     diagnosis: Diagnosis | None = None
 
     def to_json(self) -> dict:
-        parameters = {f"{effect.name}.{p.name}": {"value": round(p.display_value, 6),
-                                                  "unit": p.unit, "stderr": p.display_stderr}
-                      for effect, p in self.model.parameters() if p.vary}
+        parameters = self.model.parameters().to_records(free_only=True)
         return {"model": self.model.name, "added": self.added,
                 "rms_bar": round(float(from_si(self.rms, "bar")), 4), "reason": self.reason,
                 "parameters": parameters}
@@ -78,7 +77,6 @@ class Workflow:
     final_diagnosis: Diagnosis
     noise_floor: float  # [Pa], of the final model's residual
     seconds: float = 0.0
-    notes: list[str] = field(default_factory=list)
 
     @property
     def final(self) -> Step:
@@ -93,36 +91,70 @@ class Workflow:
                 "seconds": round(self.seconds, 1)}
 
 
-def paper_steps(valve) -> list[tuple[str, Callable[[ValveModel], ValveModel], list[str], str]]:
-    """The paper's steps as (name, make from the previous model, added effects, reason)."""
-
-    def bmbebf(previous: ValveModel) -> ValveModel:
-        return previous.with_effects([DischargeScale()], name="bmbebf")
-
-    def cfd_maps(previous: ValveModel) -> ValveModel:
-        flow_map, force_map = build_maps("grid", valve)
-        return ValveModel(valve, flow_map, force_map, [FlowForceScale(scale=0.9)], "cfd-maps",
-                          MapsSource("grid"))
-
-    def cfda(previous: ValveModel) -> ValveModel:
-        starting = {e.name: e for e in cfda_effects()}
-        return previous.with_effects(
-            [*previous.effects, starting[ConstantFriction.name],
-             starting[LoadPressureFriction.name]], name="cfda")
-
+def paper_steps(valve: ValveSource, maps_spec: MapsSpec
+                ) -> list[tuple[Callable[[ModelSpec], ModelSpec], list[str], str]]:
+    """The paper's steps after BMBE as (next spec from the previous one, added, reason)."""
     return [
-        ("bmbebf", bmbebf, [DischargeScale.name],
+        (bmbebf_step, [DischargeScale.name],
          "the paper's BMBEBF: the orifice equation's discharge coefficient fitted"),
-        ("cfd-maps", cfd_maps, ["grid maps", FlowForceScale.name],
+        (lambda previous: cfd_maps_step(previous, maps_spec),
+         [f"{maps_spec.flow.kind} maps", FlowForceScale.name],
          "CFD maps of flow and force replace the orifice equation (the paper's CFDA without "
          "friction), with a fitted flow-force scale"),
-        ("cfda", cfda, [ConstantFriction.name, LoadPressureFriction.name],
+        (cfda_step, ["friction_constant", "friction_load_pressure"],
          "the paper's CFDA: Coulomb friction K1 + K2·p_L, one pair for all temperatures"),
     ]
 
 
+class _Staircase:
+    """The steps so far: each model fitted to the log, replayed, and reported."""
+
+    def __init__(self, log: BenchLog, say: Callable[[str], None]):
+        self.log, self.say = log, say
+        self.steps: list[Step] = []
+
+    @property
+    def last(self) -> Step:
+        return self.steps[-1]
+
+    def record(self, model: ValveModel, added: list[str], reason: str,
+               diagnosis: Diagnosis | None = None, near: LogReplay | None = None) -> Step:
+        """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step."""
+        if near is None and self.steps and self.last.model.flow_map is model.flow_map:
+            near = self.last.played
+        if model.parameters().free():
+            model = fit_to_log(model, self.log, start=near).model
+        played = replay_log(model, self.log, guess=near)
+        step = Step(model, added, reason, played, played.rms(), diagnosis)
+        self.steps.append(step)
+        self.say(f"step {len(self.steps)}: {model.name:<28} rms "
+                 f"{from_si(step.rms, 'bar'):6.3f} bar   (+ {', '.join(added) or 'nothing'})")
+        return step
+
+    def add_diagnosed(self, library: EffectLibrary, candidates: list[str] | None,
+                      max_additions: int) -> Diagnosis:
+        """Diagnose the last step and add its best significant candidate, until none is left
+        or ``max_additions`` were added; return the last diagnosis."""
+        additions = 0
+        while True:
+            current = self.last
+            self.say(f"diagnosing {current.model.name} ...")
+            diagnosis = diagnose(current.model, self.log, library, base=current.played,
+                                 candidates=candidates)
+            self.say(f"  {diagnosis.summary}")
+            best = diagnosis.best
+            if best is None or additions == max_additions:
+                return diagnosis
+            # the diagnosis already refitted every parameter with the effect added: polish that
+            self.record(best.model.copy(name=f"{current.model.name}+{best.name}"), [best.name],
+                        diagnosis.summary, diagnosis, near=best.replay)
+            additions += 1
+
+
 def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
-                 candidates: list[str] | None = None, max_additions: int = MAX_ADDITIONS,
+                 library: EffectLibrary = LIBRARY, candidates: list[str] | None = None,
+                 valve: ValveSource | None = None, maps_spec: MapsSpec | None = None,
+                 max_additions: int = MAX_ADDITIONS,
                  progress: Callable[[str], None] | None = None) -> Workflow:
     """Run the loop on ``log`` (see the module docstring).
 
@@ -131,53 +163,33 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     log : BenchLog
     start : ValveModel, optional
         Start here instead of at ``bmbe`` and skip the paper's steps.
+    library : EffectLibrary
+        The effects the diagnosis may choose from (default: the built-in ones).
     candidates : list of str, optional
-        Effect names the diagnosis may choose from (default: every registered effect).
+        Names of the library's effects to restrict the diagnosis to.
+    valve : ValveSource, optional
+        The valve of the paper's steps (default: the shipped one).
+    maps_spec : MapsSpec, optional
+        The CFD maps of the paper's steps (default: grid maps of the shipped samples).
     max_additions : int
         Effects added by diagnosis at most.
     progress : callable, optional
         Called with a line of text at every stage.
     """
     began = time.perf_counter()
-    say = progress or (lambda message: None)
-    steps: list[Step] = []
-
-    def record(model: ValveModel, added: list[str], reason: str,
-               diagnosis: Diagnosis | None = None, near: LogReplay | None = None) -> Step:
-        """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step."""
-        if near is None and steps and steps[-1].model.flow_map is model.flow_map:
-            near = steps[-1].played
-        if any(p.vary for _, p in model.parameters()):
-            model = fit_to_log(model, log, start=near).model
-        played = replay_log(model, log, guess=near)
-        step = Step(model, added, reason, played, played.rms(), diagnosis)
-        steps.append(step)
-        say(f"step {len(steps)}: {model.name:<28} rms {from_si(step.rms, 'bar'):6.3f} bar"
-            f"   (+ {', '.join(added) or 'nothing'})")
-        return step
-
+    staircase = _Staircase(log, progress or (lambda message: None))
     if start is None:
-        model = preset("bmbe")
-        record(model, [], "the paper's basic model BMBE: orifice equation with C_d = 0.4 and "
-                          "a uniform pressure on the piston")
-        for _, make, added, reason in paper_steps(model.valve):
-            record(make(steps[-1].model), added, reason)
+        spec = bmbe(valve)
+        staircase.record(spec.build(library), [], "the paper's basic model BMBE: orifice "
+                                                  "equation with C_d = 0.4 and a uniform "
+                                                  "pressure on the piston")
+        for make, added, reason in paper_steps(spec.valve, maps_spec or maps("grid")):
+            spec = make(staircase.last.model.to_spec())  # from the fitted previous step
+            staircase.record(spec.build(library), added, reason)
     else:
-        record(start, [], f"the starting model {start.name!r}")
-
-    additions = 0
-    while True:
-        current = steps[-1]
-        say(f"diagnosing {current.model.name} ...")
-        diagnosis = diagnose(current.model, log, base=current.played, candidates=candidates)
-        say(f"  {diagnosis.summary}")
-        best = diagnosis.best
-        if best is None or additions == max_additions:
-            break
-        # the diagnosis already refitted every parameter with the effect added: polish that
-        record(best.model.copy(name=f"{current.model.name}+{best.name}"), [best.name],
-               diagnosis.summary, diagnosis, near=best.replay)
-        additions += 1
+        staircase.record(start, [], f"the starting model {start.name!r}")
+    diagnosis = staircase.add_diagnosed(library, candidates, max_additions)
+    steps = staircase.steps
     floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs)
     return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began)
 

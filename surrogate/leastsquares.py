@@ -1,0 +1,447 @@
+"""Least-squares fitting of a model's parameters: the package's one minimiser, in the manner of
+lmfit.
+
+A :class:`FitProblem` says what to minimise: it owns the residual, the Jacobian's columns and
+whatever warm starts make them cheap, as lmfit's user function and ``Dfun`` do. A
+:class:`Minimizer` varies the free parameters of a copy of a model within their bounds:
+
+* :meth:`Minimizer.least_squares`: trust-region reflective least squares
+  (:func:`scipy.optimize.least_squares`), the Jacobian by forward differences whose columns are
+  evaluated side by side on threads;
+* :meth:`Minimizer.linearise` and :meth:`Minimizer.refine`: bounded Gauss–Newton from a given
+  Jacobian, each step one real evaluation with Broyden's update of the Jacobian instead of a new
+  one, resumable (the diagnosis refits many candidates a step at a time this way).
+
+Standard errors come from one :func:`covariance`, widened for residuals that are correlated (in
+time, for bench logs) by the problem's effective number of independent samples. Every fit of the
+package (a model to a bench log, the diagnosis' candidates, the paper's models) goes through here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares, lsq_linear
+
+from .errors import InputError
+from .model import ValveModel
+from .parallel import map_threads
+from .parameters import Parameter
+from .units import from_si, to_si
+
+#: residual of a solver failure, so that a fit is steered away from it [Pa]
+FAILURE_RESIDUAL = 1000e5
+#: finite-difference step of the Jacobian, relative to max(1, |parameter in display units|)
+DIFF_STEP = 1e-4
+#: a refinement step that lowers the RSS by less than this share of it ends the refinement: the
+#: RMS is then settled to 5e-5 of itself
+SETTLED_GAIN = 1e-4
+
+
+@dataclass
+class Evaluation:
+    """The residuals at one set of parameters, and what the problem made them from (a replay of
+    a bench log, say), for the caller."""
+
+    residual: np.ndarray
+    payload: object = None
+
+
+class FitProblem:
+    """What a fit minimises: the sum of squares of :meth:`evaluate`'s residuals.
+
+    Subclasses implement :meth:`evaluate`; they may also evaluate a Jacobian column more cheaply
+    (:meth:`column`) and say how many independent samples the residuals are worth
+    (:meth:`effective_samples`).
+    """
+
+    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
+        """The residuals of ``model``. ``own`` is False for the Jacobian's columns, which run on
+        threads: a problem that keeps a warm start moves it on its own steps only, so that the
+        result never depends on timing."""
+        raise NotImplementedError
+
+    def column(self, model: ValveModel, parameter: Parameter) -> tuple[np.ndarray | None,
+                                                                         np.ndarray]:
+        """The residuals a step of ``parameter`` can change, for its Jacobian column: (rows,
+        values), rows None for all of them. Default: all of them."""
+        return None, self.evaluate(model, own=False).residual
+
+    def effective_samples(self, evaluation: Evaluation) -> float:
+        """How many independent samples the residuals are worth (default: all of them)."""
+        return float(len(evaluation.residual))
+
+
+class FunctionProblem(FitProblem):
+    """A problem given as a plain function ``residuals(model) -> array``."""
+
+    def __init__(self, residuals):
+        self.residuals = residuals
+
+    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
+        return Evaluation(np.asarray(self.residuals(model), float))
+
+
+def covariance(jacobian: np.ndarray, residuals: np.ndarray, n_eff: float | None = None
+               ) -> np.ndarray:
+    """Covariance of the fitted coordinates: σ²·(JᵀJ)⁺ with σ² = RSS/(n − k), widened by
+    n/n_eff when the n residuals are worth only n_eff independent samples.
+
+    Parameters
+    ----------
+    jacobian : numpy.ndarray
+        ∂residual/∂coordinate at the optimum, shape (n, k).
+    residuals : numpy.ndarray
+        The residuals there, shape (n,).
+    n_eff : float, optional
+        Effective number of independent samples (default n: independent residuals).
+    """
+    count, parameters = jacobian.shape
+    dof = max(count - parameters, 1)
+    variance = float(np.sum(residuals**2)) / dof
+    if n_eff is not None:
+        variance *= count / max(n_eff, 1.0)
+    try:
+        return np.linalg.pinv(jacobian.T @ jacobian) * variance
+    except np.linalg.LinAlgError:
+        return np.full((parameters, parameters), np.nan)
+
+
+@dataclass
+class FitResult:
+    """The outcome of a fit.
+
+    Attributes
+    ----------
+    model : ValveModel
+        A copy of the model with the fitted values (and their standard errors) set.
+    names : list of str
+        ``"effect.parameter"`` for each fitted parameter.
+    rms : float
+        Root-mean-square residual at the optimum [residual units, Pa for pressures].
+    count : int
+        Number of residuals.
+    aic, bic : float
+        Akaike and Bayesian information criteria, n·ln(RSS/n) + 2k and n·ln(RSS/n) + k·ln n.
+    correlation : numpy.ndarray
+        Correlation matrix of the fitted parameters.
+    success : bool
+    message : str
+    evaluations : int
+    parameters : list of Parameter
+        The fitted parameters (the model's own objects).
+    evaluation : Evaluation or None
+        The problem's evaluation at the optimum (its payload: a replay, say).
+    """
+
+    model: ValveModel
+    names: list[str]
+    rms: float
+    count: int
+    aic: float
+    bic: float
+    correlation: np.ndarray
+    success: bool
+    message: str
+    evaluations: int
+    parameters: list[Parameter] = field(default_factory=list)
+    evaluation: Evaluation | None = None
+
+    def report(self) -> str:
+        """A readable summary, like lmfit's ``fit_report``."""
+        state = "converged" if self.success else "NOT converged"
+        lines = [f"fit of {self.model.name}: {len(self.names)} parameter(s), {self.count} "
+                 f"residuals, {self.evaluations} evaluations, {state}",
+                 f"  rms {from_si(self.rms, 'bar'):.4g} bar, AIC {self.aic:.1f}, "
+                 f"BIC {self.bic:.1f}"]
+        lines += [f"  {name:<32} {parameter}" for name, parameter in
+                  zip(self.names, self.parameters)]
+        for i in range(len(self.names)):
+            for j in range(i + 1, len(self.names)):
+                if abs(self.correlation[i, j]) > 0.5:
+                    lines.append(f"  correlation({self.names[i]}, {self.names[j]}) = "
+                                 f"{self.correlation[i, j]:+.3f}")
+        return "\n".join(lines)
+
+
+def information_criteria(residuals: np.ndarray, parameter_count: int) -> tuple[float, float]:
+    """(AIC, BIC) of a least-squares fit with Gaussian errors of unknown variance."""
+    count = len(residuals)
+    rss = max(float(np.sum(residuals**2)), 1e-300)
+    base = count * np.log(rss / count)
+    return base + 2 * parameter_count, base + parameter_count * np.log(count)
+
+
+def free_parameters(model: ValveModel, names: Sequence[str] | None = None
+                    ) -> list[tuple[str, Parameter]]:
+    """The parameters a fit varies: ``names`` (``"effect.parameter"``) or all with vary=True."""
+    available = model.parameters()
+    if names is None:
+        return [(name, available[name]) for name in available.free()]
+    missing = [name for name in names if name not in available]
+    if missing:
+        raise InputError(f"model {model.name!r} has no parameter(s) {', '.join(missing)}; it has "
+                         f"{', '.join(available) or 'none'}")
+    return [(name, available[name]) for name in names]
+
+
+def split_key(key: str) -> tuple[str, str]:
+    """``"effect.parameter"`` -> (effect, parameter)."""
+    effect, _, parameter = key.partition(".")
+    return effect, parameter
+
+
+def _finite(values: np.ndarray) -> np.ndarray:
+    """Residuals with failed points (NaN) counted as :data:`FAILURE_RESIDUAL`."""
+    values = np.asarray(values, float)
+    return np.where(np.isfinite(values), values, FAILURE_RESIDUAL)
+
+
+class Minimizer:
+    """Fits the free parameters (or ``names``) of a copy of ``model`` to ``problem``.
+
+    The coordinates are the parameters in their display units, where they are of order one;
+    values are clipped to the parameters' bounds.
+    """
+
+    def __init__(self, model: ValveModel, problem: FitProblem,
+                 names: Sequence[str] | None = None):
+        self.model = model.copy()
+        self.problem = problem
+        chosen = free_parameters(self.model, names)
+        self.names = [name for name, _ in chosen]
+        self.parameters = [parameter for _, parameter in chosen]
+        self.units = [p.unit for p in self.parameters]
+        self.lower = np.array([from_si(p.min, p.unit) if np.isfinite(p.min) else -np.inf
+                               for p in self.parameters])
+        self.upper = np.array([from_si(p.max, p.unit) if np.isfinite(p.max) else np.inf
+                               for p in self.parameters])
+        self._scales = np.array([to_si(1.0, unit) - to_si(0.0, unit) for unit in self.units])
+        self.evaluations = 0
+        self._refinement: _Refinement | None = None
+
+    # --- coordinates ------------------------------------------------------------------------------
+
+    @property
+    def x(self) -> np.ndarray:
+        """The parameters' current values in display units."""
+        return np.array([p.display_value for p in self.parameters])
+
+    def assign(self, x, parameters: list[Parameter] | None = None) -> None:
+        for parameter, unit, value in zip(parameters or self.parameters, self.units, x):
+            parameter.value = float(to_si(value, unit))
+
+    def _evaluate(self, x, own: bool = True) -> Evaluation:
+        self.assign(x)
+        evaluation = self.problem.evaluate(self.model, own)
+        evaluation.residual = _finite(evaluation.residual)
+        if own:
+            self.evaluations += 1
+        if len(evaluation.residual) <= len(self.parameters):
+            # as many unknowns as equations: the fit would pass through every point and report
+            # standard errors computed from nothing
+            raise InputError(f"fitting {len(self.parameters)} free parameter(s) of "
+                             f"{self.model.name!r} needs more than {len(self.parameters)} "
+                             f"samples; there are {len(evaluation.residual)}")
+        return evaluation
+
+    # --- trust-region least squares -----------------------------------------------------------------
+
+    def least_squares(self, *, max_evaluations: int = 200, tolerance: float = 1e-8) -> FitResult:
+        """Minimise the sum of squares (trust-region reflective, within the bounds).
+
+        ``tolerance``: the relative change of the sum of squares, and of the parameters, below
+        which the fit stops. The Jacobian's columns are evaluated side by side on threads, each
+        with its own copy of the model.
+        """
+        if not self.parameters:
+            evaluation = self.problem.evaluate(self.model)
+            evaluation.residual = _finite(evaluation.residual)
+            return self._result(evaluation, None, True, "nothing to fit")
+        last: dict = {"x": None, "evaluation": None}
+
+        def objective(x):
+            evaluation = self._evaluate(x)
+            last["x"], last["evaluation"] = np.array(x), evaluation
+            return evaluation.residual
+
+        def jacobian(x):
+            at_x = (last["evaluation"].residual if np.array_equal(last["x"], x)
+                    else objective(x))
+            return self.jacobian(np.asarray(x, float), at_x)
+
+        start = np.clip(self.x, self.lower, self.upper)
+        result = least_squares(objective, start, jac=jacobian, bounds=(self.lower, self.upper),
+                               x_scale="jac", max_nfev=max_evaluations, ftol=tolerance,
+                               xtol=tolerance)
+        # the optimum is usually the point least_squares evaluated last: reuse its residuals then
+        evaluation = (last["evaluation"] if np.array_equal(last["x"], result.x)
+                      else self._evaluate(result.x))
+        self.assign(result.x)
+        return self._result(evaluation, result.jac, bool(result.success), str(result.message),
+                            int(result.nfev))
+
+    def jacobian(self, x: np.ndarray, at_x: np.ndarray) -> np.ndarray:
+        """∂residual/∂x by forward differences (scipy's '2-point' rule), columns on threads."""
+        steps = _forward_steps(x, self.upper)
+
+        def column(j: int) -> np.ndarray:
+            trial = self.model.copy()
+            shifted = np.array(x, float)
+            shifted[j] += steps[j]
+            self.assign(shifted, [p for _, p in free_parameters(trial, self.names)])
+            rows, values = self.problem.column(trial, trial.parameters()[self.names[j]])
+            values = _finite(values)
+            if rows is None:
+                return (values - at_x) / steps[j]
+            change = np.zeros_like(at_x)
+            change[rows] = (values - at_x[rows]) / steps[j]
+            return change
+
+        return np.column_stack(list(map_threads(column, range(len(x)))))
+
+    # --- Gauss–Newton refinement with Broyden updates -----------------------------------------------
+
+    def linearise(self, changes: Sequence[np.ndarray], steps: Sequence[float],
+                  evaluation: Evaluation) -> "Minimizer":
+        """Start a refinement at the current parameters, whose evaluation is ``evaluation``:
+        ``changes[j]`` is how the residual changes when parameter j moves by ``steps[j]`` [SI]
+        (a forward-difference Jacobian the caller already has)."""
+        self._refinement = _Refinement(self, np.column_stack(changes), np.asarray(steps, float),
+                                       evaluation)
+        return self
+
+    def refine(self, steps: int) -> "Minimizer":
+        """Up to ``steps`` more Gauss–Newton steps from :meth:`linearise`, each one real
+        evaluation; ends early once a step gains less than :data:`SETTLED_GAIN` of the sum of
+        squares. Resumable: call again for more."""
+        self._refinement.advance(steps)
+        return self
+
+    @property
+    def refined(self) -> tuple[Evaluation, float]:
+        """The best evaluation of the refinement so far and its sum of squares (the parameters
+        are set to it)."""
+        refinement = self._refinement
+        refinement.assign(refinement.best_z)
+        return refinement.best, refinement.best_rss
+
+    def refinement_errors(self) -> None:
+        """Standard errors of the refinement's best point, set on the parameters."""
+        refinement = self._refinement
+        refinement.assign(refinement.best_z)
+        z_covariance = covariance(refinement.jacobian, refinement.best.residual,
+                                  self.problem.effective_samples(refinement.best))
+        errors = np.sqrt(np.clip(np.diag(z_covariance), 0.0, None)) * np.abs(refinement.scale)
+        for parameter, error in zip(self.parameters, errors):
+            usable = np.isfinite(error) and not parameter.at_bound
+            parameter.stderr = float(error) if usable else None
+
+    # --- results ----------------------------------------------------------------------------------
+
+    def _result(self, evaluation: Evaluation, jacobian: np.ndarray | None, success: bool,
+                message: str, evaluations: int = 1) -> FitResult:
+        residual = evaluation.residual
+        k = len(self.parameters)
+        if k:
+            matrix = covariance(jacobian, residual, self.problem.effective_samples(evaluation))
+            errors = np.sqrt(np.clip(np.diag(matrix), 0, None))
+            for parameter, error, scale in zip(self.parameters, errors, self._scales):
+                # on a bound the curvature says nothing about the uncertainty: report none
+                usable = np.isfinite(error) and not parameter.at_bound
+                parameter.stderr = float(error * scale) if usable else None
+            with np.errstate(invalid="ignore", divide="ignore"):
+                correlation = matrix / np.outer(errors, errors)
+        else:
+            correlation = np.zeros((0, 0))
+        aic, bic = information_criteria(residual, k)
+        rms = float(np.sqrt(np.mean(residual**2))) if len(residual) else 0.0
+        return FitResult(self.model, list(self.names), rms, len(residual), aic, bic,
+                         correlation, success, message, evaluations, list(self.parameters),
+                         evaluation)
+
+
+def fit(model: ValveModel, problem: FitProblem | object, names: Sequence[str] | None = None, *,
+        max_evaluations: int = 200, tolerance: float = 1e-8) -> FitResult:
+    """Fit the free parameters (or ``names``) of ``model`` to ``problem`` (a :class:`FitProblem`,
+    or a function ``residuals(model) -> array``) by :meth:`Minimizer.least_squares`.
+
+    NaN residuals (failed points) count as :data:`FAILURE_RESIDUAL`. ``model`` is not modified;
+    the result holds a fitted copy.
+    """
+    if not isinstance(problem, FitProblem):
+        problem = FunctionProblem(problem)
+    return Minimizer(model, problem, names).least_squares(max_evaluations=max_evaluations,
+                                                          tolerance=tolerance)
+
+
+def _forward_steps(x: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Finite-difference steps: :data:`DIFF_STEP` relative to max(1, |x|), away from the upper
+    bound when a step up would cross it (scipy's rule for '2-point' with bounds)."""
+    steps = DIFF_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+    steps = np.where(x + steps > upper, -np.abs(steps), steps)
+    return (x + steps) - x  # exactly representable differences
+
+
+class _Refinement:
+    """Bounded Gauss–Newton with Broyden updates in z = (parameter − start)/step [SI], where the
+    Jacobian's columns are of comparable size."""
+
+    def __init__(self, minimizer: Minimizer, jacobian: np.ndarray, steps: np.ndarray,
+                 evaluation: Evaluation):
+        self.minimizer = minimizer
+        parameters = minimizer.parameters
+        self.start = np.array([p.value for p in parameters])
+        self.scale = steps
+        lower = np.array([(p.min - p.value) / s for p, s in zip(parameters, steps)])
+        upper = np.array([(p.max - p.value) / s for p, s in zip(parameters, steps)])
+        self.lower, self.upper = np.minimum(lower, upper), np.maximum(lower, upper)
+        self.jacobian = jacobian
+        self.best_z = np.zeros(len(parameters))
+        self.best = evaluation
+        self.best_rss = float(np.sum(evaluation.residual**2))
+        self.z, self.r = self.best_z, evaluation.residual
+        self.replays = 0
+        self.settled = False
+
+    def assign(self, z) -> None:
+        parameters = self.minimizer.parameters
+        values = np.clip(self.start + self.scale * z, [p.min for p in parameters],
+                         [p.max for p in parameters])
+        for parameter, value in zip(parameters, values):
+            parameter.value = float(value)
+
+    def advance(self, steps: int) -> None:
+        for _ in range(steps):
+            if self.settled:
+                break
+            self._step()
+
+    def _step(self) -> None:
+        target = lsq_linear(self.jacobian, -self.r + self.jacobian @ self.z,
+                            bounds=(self.lower, self.upper)).x
+        if np.allclose(target, self.z, rtol=0, atol=1e-4):
+            self.settled = True
+            return
+        self.assign(target)
+        evaluation = self.minimizer.problem.evaluate(self.minimizer.model)
+        evaluation.residual = _finite(evaluation.residual)
+        self.minimizer.evaluations += 1
+        self.replays += 1
+        new = evaluation.residual
+        # Broyden: make the Jacobian reproduce the change just observed
+        dz = target - self.z
+        self.jacobian = self.jacobian + np.outer((new - self.r) - self.jacobian @ dz,
+                                                 dz) / float(dz @ dz)
+        rss = float(np.sum(new**2))
+        # the first replay is the linear solution, judged against the starting point; after
+        # that, a step that gains (almost) nothing means the refinement is done
+        if self.replays > 1 and rss > (1.0 - SETTLED_GAIN) * self.best_rss:
+            self.settled = True
+        if rss < self.best_rss:
+            self.best_z, self.best, self.best_rss = target, evaluation, rss
+            self.z, self.r = target, new
+        else:  # the updated Jacobian proposes a new step from the best point so far
+            self.z, self.r = self.best_z, self.best.residual
