@@ -14,23 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize.elementwise import find_root
 
-# find_root's status codes, in words
-_STATUS_WORDS = {0: "converged", -1: "no sign change in the bracket",
-                 -2: "iteration limit reached", -3: "non-finite function value",
-                 -4: "stopped"}
-
-
 @dataclass(frozen=True)
 class Roots:
-    """Roots of many functions. ``x`` is NaN where ``converged`` is False; ``status`` says why."""
+    """Roots of many functions. ``x`` is NaN where ``converged`` is False; ``status`` is
+    find_root's code (-1 no sign change, -2 iteration limit, -3 non-finite function value)."""
 
     x: np.ndarray
     converged: np.ndarray
     status: np.ndarray
-    iterations: np.ndarray
-
-    def reason(self, index: int) -> str:
-        return _STATUS_WORDS.get(int(self.status[index]), f"status {self.status[index]}")
 
 
 def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper, *,
@@ -58,7 +49,7 @@ def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper,
         raise ValueError("find_roots needs one-dimensional brackets of equal length, one per point")
     if lower.size == 0:
         empty = np.empty(0)
-        return Roots(empty, empty.astype(bool), empty.astype(int), empty.astype(int))
+        return Roots(empty, empty.astype(bool), empty.astype(int))
     index = np.arange(lower.size, dtype=float)
     # find_root starts by evaluating the two ends, one call each; answer those from what the
     # caller knows (checked by value, so a different start-up only costs the evaluations)
@@ -77,7 +68,7 @@ def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper,
                        tolerances={"xatol": xatol, "xrtol": xrtol, "fatol": fatol, "frtol": 0.0})
     converged = np.asarray(result.success)
     x = np.where(converged, result.x, np.nan)
-    return Roots(x, converged, np.asarray(result.status), np.asarray(result.nit))
+    return Roots(x, converged, np.asarray(result.status))
 
 
 def invert_increasing(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], target: np.ndarray,

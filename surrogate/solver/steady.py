@@ -153,12 +153,13 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
 
     flowing = np.flatnonzero(~invalid & (points.q > 0))
     if flowing.size:
-        _solve_flowing(model, points[flowing], sign[flowing], flowing, u, dp, status,
-                       None if guess is None else np.asarray(guess, float)[flowing],
-                       with_dp=not positions_only)
+        u[flowing], dp[flowing], status[flowing] = _solve_flowing(
+            model, points[flowing], sign[flowing],
+            None if guess is None else np.asarray(guess, float)[flowing],
+            with_dp=not positions_only)
     still = np.flatnonzero(~invalid & (points.q == 0))
     if still.size:
-        _solve_still(model, points[still], sign[still], still, u, dp, status)
+        u[still], dp[still], status[still] = _solve_still(model, points[still], sign[still])
 
     extrapolating = np.zeros(count, dtype=bool)
     solved = np.flatnonzero(status >= 0)
@@ -169,88 +170,107 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
     return SteadyState(points, u, dp, status, extrapolating)
 
 
-def _solve_flowing(model, points, sign, where, u_out, dp_out, status_out, guess=None,
-                   with_dp=True) -> None:
-    fluid = model.fluid(points)
-    stroke = model.valve.U_max
-    floor = stroke * _OPENING_FLOOR
+class _FlowingBalance:
+    """The force balance h(u) = net force − s·friction of flowing points, falling with u, and
+    the roots of it found so far."""
 
-    def residual(u, i):
-        balance = model.balance(u, points[i], fluid[i])
-        return balance.net_force - sign[i] * balance.friction
+    def __init__(self, model, points, sign):
+        self.model, self.points, self.sign = model, points, sign
+        self.fluid = model.fluid(points)
+        self.stroke = model.valve.U_max
+        self.floor = self.stroke * _OPENING_FLOOR
+        self.u = np.full(len(points), np.nan)
+        self.status = np.full(len(points), Status.NOT_CONVERGED, dtype=np.int8)
 
-    def solve_in(lower, upper, which, h_lower, h_upper):
-        roots = find_roots(lambda x, i: residual(x, which[i]), lower, upper,
-                           xatol=stroke * 1e-30, xrtol=_U_RTOL, f_lower=h_lower,
+    def __call__(self, u, i):
+        balance = self.model.balance(u, self.points[i], self.fluid[i])
+        return balance.net_force - self.sign[i] * balance.friction
+
+    def solve_in(self, lower, upper, which, h_lower, h_upper) -> None:
+        """Roots of the points ``which`` in brackets whose ends' values are known."""
+        roots = find_roots(lambda x, i: self(x, which[i]), lower, upper,
+                           xatol=self.stroke * 1e-30, xrtol=_U_RTOL, f_lower=h_lower,
                            f_upper=h_upper)
-        u[which] = roots.x
-        status[which] = np.where(roots.converged, Status.OK,
-                                 np.where(roots.status == -3, Status.MAP_FAILURE,
-                                          Status.NOT_CONVERGED))
+        self.u[which] = roots.x
+        self.status[which] = np.where(roots.converged, Status.OK,
+                                      np.where(roots.status == -3, Status.MAP_FAILURE,
+                                               Status.NOT_CONVERGED))
 
-    count = len(points)
-    u = np.full(count, np.nan)
-    status = np.full(count, Status.NOT_CONVERGED, dtype=np.int8)
-    pending = np.arange(count)
 
-    if guess is not None:  # try narrow brackets around the guess first
-        centre = guess[pending]
-        usable = pending[np.isfinite(centre) & (centre > floor) & (centre < stroke)]
-        centre = guess[usable]
-        lower = np.maximum(floor, centre * (1 - _GUESS_WIDTHS[0]))
-        upper = np.minimum(stroke, centre * (1 + _GUESS_WIDTHS[0]))
-        h_lower, h_upper = residual(lower, usable), residual(upper, usable)
-        # h falls with u: where it is still positive at the upper end the root lies above it,
-        # where it is not positive at the lower end, below. Move the bracket that way, wider
-        # each time, evaluating only the new end (a diagnosis' probe step of a friction
-        # parameter moves the band's edges on the shipped log by up to 30 %)
-        for width in _GUESS_WIDTHS[1:]:
-            up = np.flatnonzero((h_upper > 0) & (upper < stroke))
-            down = np.flatnonzero((h_lower <= 0) & ~(h_upper > 0) & (lower > floor))
-            lower[up], h_lower[up] = upper[up], h_upper[up]
-            upper[up] = np.minimum(stroke, centre[up] * (1 + width))
-            upper[down], h_upper[down] = lower[down], h_lower[down]
-            lower[down] = np.maximum(floor, centre[down] * (1 - width))
-            moved = np.concatenate([up, down])
-            if moved.size:
-                ends = np.concatenate([upper[up], lower[down]])
-                h_moved = residual(ends, usable[moved])
-                h_upper[up], h_lower[down] = h_moved[: up.size], h_moved[up.size:]
-        # a sign change inside the stroke: the root is there, and the piston is off its stop
-        inside = (h_lower > 0) & (h_upper < 0)
-        if inside.any():
-            solve_in(lower[inside], upper[inside], usable[inside], h_lower[inside],
-                     h_upper[inside])
-        pending = np.setdiff1d(pending, usable[inside])
-
+def _solve_flowing(model, points, sign, guess=None, with_dp=True):
+    """(u, Δp, status) of points with flow: first in narrow brackets around a guess, then the
+    rest over the whole stroke."""
+    h = _FlowingBalance(model, points, sign)
+    pending = np.arange(len(points))
+    if guess is not None:
+        pending = np.setdiff1d(pending, _solve_near_guess(h, guess))
     if pending.size:
-        at_top = residual(np.full(pending.size, stroke), pending)
-        broken = ~np.isfinite(at_top)
-        at_stop = ~broken & (at_top >= 0)
-        status[pending[broken]] = Status.MAP_FAILURE
-        u[pending[at_stop]], status[pending[at_stop]] = stroke, Status.AT_STOP
-        pending, top = pending[~broken & ~at_stop], at_top[~broken & ~at_stop]
-
-    if pending.size:
-        at_floor = residual(np.full(pending.size, floor), pending)
-        broken_floor = ~np.isfinite(at_floor)
-        status[pending[broken_floor]] = Status.MAP_FAILURE
-        no_equilibrium = ~broken_floor & (at_floor <= 0)
-        status[pending[no_equilibrium]] = Status.NO_EQUILIBRIUM
-        keep = ~broken_floor & ~no_equilibrium
-        bracketed = pending[keep]
-        solve_in(np.full(bracketed.size, floor), np.full(bracketed.size, stroke), bracketed,
-                 at_floor[keep], top[keep])
-
-    dp = np.full(count, np.nan)
+        _solve_over_stroke(h, pending)
+    dp = np.full(len(points), np.nan)
     if with_dp:
-        solved = np.flatnonzero(status >= 0)
-        dp[solved] = model.balance(u[solved], points[solved], fluid[solved]).dp
-    u_out[where], dp_out[where], status_out[where] = u, dp, status
+        solved = np.flatnonzero(h.status >= 0)
+        dp[solved] = model.balance(h.u[solved], points[solved], h.fluid[solved]).dp
+    return h.u, dp, h.status
 
 
-def _solve_still(model, points, sign, where, u_out, dp_out, status_out) -> None:
-    """Points without flow: closed (crack load pressure) or held open by the pilot alone."""
+def _solve_near_guess(h: _FlowingBalance, guess: np.ndarray) -> np.ndarray:
+    """Solve the points whose root lies in a bracket around their guessed opening; return them.
+
+    h falls with u: where it is still positive at the bracket's upper end the root lies above
+    it, where it is not positive at the lower end, below. The bracket moves that way, wider each
+    time, evaluating only the new end (a diagnosis' probe step of a friction parameter moves the
+    band's edges on the shipped log by up to 30 %).
+    """
+    usable = np.flatnonzero(np.isfinite(guess) & (guess > h.floor) & (guess < h.stroke))
+    centre = guess[usable]
+    lower = np.maximum(h.floor, centre * (1 - _GUESS_WIDTHS[0]))
+    upper = np.minimum(h.stroke, centre * (1 + _GUESS_WIDTHS[0]))
+    h_lower, h_upper = h(lower, usable), h(upper, usable)
+    for width in _GUESS_WIDTHS[1:]:
+        up = np.flatnonzero((h_upper > 0) & (upper < h.stroke))
+        down = np.flatnonzero((h_lower <= 0) & ~(h_upper > 0) & (lower > h.floor))
+        lower[up], h_lower[up] = upper[up], h_upper[up]
+        upper[up] = np.minimum(h.stroke, centre[up] * (1 + width))
+        upper[down], h_upper[down] = lower[down], h_lower[down]
+        lower[down] = np.maximum(h.floor, centre[down] * (1 - width))
+        moved = np.concatenate([up, down])
+        if moved.size:
+            ends = np.concatenate([upper[up], lower[down]])
+            h_moved = h(ends, usable[moved])
+            h_upper[up], h_lower[down] = h_moved[: up.size], h_moved[up.size:]
+    # a sign change inside the stroke: the root is there, and the piston is off its stop
+    inside = (h_lower > 0) & (h_upper < 0)
+    if inside.any():
+        h.solve_in(lower[inside], upper[inside], usable[inside], h_lower[inside],
+                   h_upper[inside])
+    return usable[inside]
+
+
+def _solve_over_stroke(h: _FlowingBalance, pending: np.ndarray) -> None:
+    """The points ``pending`` over the whole stroke: on the stop where h >= 0 at the top, no
+    equilibrium where h <= 0 at the floor, otherwise the root between."""
+    at_top = h(np.full(pending.size, h.stroke), pending)
+    broken = ~np.isfinite(at_top)
+    at_stop = ~broken & (at_top >= 0)
+    h.status[pending[broken]] = Status.MAP_FAILURE
+    h.u[pending[at_stop]], h.status[pending[at_stop]] = h.stroke, Status.AT_STOP
+    pending, top = pending[~broken & ~at_stop], at_top[~broken & ~at_stop]
+    if not pending.size:
+        return
+    at_floor = h(np.full(pending.size, h.floor), pending)
+    broken_floor = ~np.isfinite(at_floor)
+    h.status[pending[broken_floor]] = Status.MAP_FAILURE
+    no_equilibrium = ~broken_floor & (at_floor <= 0)
+    h.status[pending[no_equilibrium]] = Status.NO_EQUILIBRIUM
+    keep = ~broken_floor & ~no_equilibrium
+    bracketed = pending[keep]
+    h.solve_in(np.full(bracketed.size, h.floor), np.full(bracketed.size, h.stroke), bracketed,
+               at_floor[keep], top[keep])
+
+
+def _solve_still(model, points, sign):
+    """(u, Δp, status) of points without flow: closed (the load pressure that cracks it) or
+    held open by the pilot alone."""
     fluid = model.fluid(points)
     stroke = model.valve.U_max
 
@@ -290,4 +310,4 @@ def _solve_still(model, points, sign, where, u_out, dp_out, status_out) -> None:
     bad = status < 0
     u[bad] = np.nan
     dp[bad] = np.nan
-    u_out[where], dp_out[where], status_out[where] = u, dp, status
+    return u, dp, status
