@@ -32,7 +32,7 @@ from surrogate.workbench.diagnose import diagnose
 from surrogate.workbench.logfit import fit_to_log
 from surrogate.workbench.residuals import (measured_dp, noise_floor, replay_log,
                                            state_smoothing_samples)
-from surrogate.workbench.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case,
+from surrogate.workbench.simulate import (hidden_effect_case, identified, random_settings,
                                           noise_free_sequence)
 from surrogate.workbench.workflow import run_workflow
 
@@ -89,18 +89,11 @@ def main() -> None:
               f"{entry['rms_over_noise']:.2f}x the noise floor")
 
     sequence = noise_free_sequence(log, every=args.every)
-    rng = np.random.default_rng(7)
-    names = sorted(REALISTIC_MAGNITUDES)
     cases = []
-    for number in range(args.cases):
-        hidden = names[rng.integers(len(names))]
-        factor = float(rng.uniform(0.6, 1.5))
-        values = {k: (1.0 if k in ("scale", "c") else 0.0) * (1 - factor) + factor * v
-                  for k, v in REALISTIC_MAGNITUDES[hidden].items()}
+    for number, (hidden, factor, values) in enumerate(random_settings(args.cases, seed=7)):
         case = hidden_effect_case(hidden, values, sequence=sequence, seed=1000 + number)
         found = diagnose(fit_to_log(case.start, case.log).model, case.log)
-        best = found.best
-        ok = best is not None and found.candidates[0] is best and hidden in best.group
+        ok = identified(found, hidden)
         cases.append({"hidden": hidden, "factor": round(factor, 2), "identified": ok,
                       "best": found.candidates[0].name,
                       "rms_after_over_noise": round(found.candidates[0].rms_after

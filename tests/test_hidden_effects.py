@@ -13,7 +13,8 @@ import pytest
 from surrogate.effects import LIBRARY, load_effects_file
 from surrogate.workbench.diagnose import diagnose
 from surrogate.workbench.logfit import fit_to_log
-from surrogate.workbench.simulate import REALISTIC_MAGNITUDES, hidden_effect_case, noise_free_sequence
+from surrogate.workbench.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case, identified,
+                                          noise_free_sequence, random_settings)
 
 pytestmark = pytest.mark.slow  # each case fits and diagnoses a synthetic log: seconds each
 
@@ -30,11 +31,6 @@ def find(case, library=LIBRARY):
     """Fit the starting model, diagnose it over ``library``; return the diagnosis."""
     fitted = fit_to_log(case.start, case.log).model
     return diagnose(fitted, case.log, library)
-
-
-def identified(diagnosis, hidden: str) -> bool:
-    best = diagnosis.best
-    return best is not None and diagnosis.candidates[0] is best and hidden in best.group
 
 
 @pytest.mark.parametrize("hidden", sorted(REALISTIC_MAGNITUDES))
@@ -104,16 +100,8 @@ def test_a_custom_effect_explains_what_the_library_cannot(sequence, custom_libra
 
 def test_identification_rate_over_randomised_cases(sequence, capsys):
     """Random effect, magnitude (0.6–1.5x realistic) and noise seed; at least 90 % found."""
-    rng = np.random.default_rng(2026)
-    names = sorted(REALISTIC_MAGNITUDES)
     outcomes = []
-    for case_number in range(20):
-        hidden = names[rng.integers(len(names))]
-        factor = rng.uniform(0.6, 1.5)
-        values = {}
-        for key, value in REALISTIC_MAGNITUDES[hidden].items():
-            neutral = 1.0 if key in ("scale", "c") else 0.0  # the effect's "off" value
-            values[key] = neutral + factor * (value - neutral)
+    for case_number, (hidden, factor, values) in enumerate(random_settings(20, seed=2026)):
         case = hidden_effect_case(hidden, values, sequence=sequence, seed=100 + case_number)
         diagnosis = find(case)
         outcomes.append((hidden, round(factor, 2), identified(diagnosis, hidden)))

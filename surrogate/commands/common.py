@@ -113,11 +113,9 @@ def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
     the folder of a trained surrogate."""
     if kind in MAP_KINDS:
         source = map_kind(kind).source(cfd)
-    else:
-        source = MapSource.from_dict(kind, "--maps", Path.cwd())
-        if cfd is not None:
-            raise InputError("--cfd applies to maps built from CFD samples, not to a trained "
-                             "surrogate folder")
+    else:  # the folder of a trained surrogate: its kind, with the folder and its hash recorded
+        folder = MapSource.from_dict(kind, "--maps", Path.cwd())
+        source = map_kind(folder.kind).source(cfd, folder=folder.settings["folder"])
     return MapsSpec(source, source)
 
 

@@ -100,8 +100,9 @@ class MapKind:
     constraints : mapping
         What the learned flow and force maps guarantee by construction, for the manifest.
     data : callable or None
-        ``data(cfd)`` -> the options that record which CFD samples the maps are built from (a
-        path or ``None`` for the shipped ones); None for kinds that are not built from samples.
+        ``data(cfd)`` -> the options that record which data the maps come from: the CFD samples
+        they are built from (a path, or ``None`` for the shipped ones), or the trained surrogate
+        and its hash; None for kinds that need no data.
     """
 
     name: str
@@ -112,7 +113,7 @@ class MapKind:
     save_predictor: Callable | None = None
     load_predictor: Callable | None = None
     constraints: Mapping[str, str] = field(default_factory=dict)
-    data: Callable[[str | Path | None], dict] | None = None
+    data: Callable[..., dict] | None = None
 
     @property
     def learned(self) -> bool:
@@ -122,11 +123,15 @@ class MapKind:
         """A source of this kind: ``options`` plus, for a kind built from CFD samples, the file
         (default: the shipped one) and its SHA-256."""
         if self.data is not None:
-            options = {**self.data(cfd), **options}
+            options = {**options, **self.data(cfd, **options)}
         elif cfd is not None:
             raise InputError(f"map kind {self.name!r} is not built from CFD samples; --cfd "
                              "applies to grid maps")
-        return MapSource.of(self.name, **self.parse_options(options, f"maps {self.name}"))
+        options = self.parse_options(options, f"maps {self.name}")
+        paths = {option.name for option in self.options if option.path}
+        return MapSource.of(self.name, **{  # absolute, so a file anywhere can point at them
+            key: str(Path(value).resolve()) if key in paths and value != SHIPPED else value
+            for key, value in options.items()})
 
     def parse_options(self, raw: Mapping, where: str) -> dict:
         """The options of a file's map table, checked; unknown ones are an error."""
@@ -302,7 +307,7 @@ def _build_orifice(options, valve, base):
                            valve.w), UniformPressureForceMap(valve))
 
 
-def _grid_data(cfd) -> dict:
+def _grid_data(cfd, **options) -> dict:
     reference = SHIPPED if cfd is None else str(Path(cfd).resolve())
     return {"cfd": reference,
             "cfd_sha256": file_hash(resolve_file(reference, Path("."), SHIPPED_CFD_SAMPLES))}
@@ -327,12 +332,22 @@ def trained_folder(kind: str) -> Path:
     return TRAINED / map_kind(kind).name
 
 
+def _learned_folder(kind: str, folder: str, base: Path) -> Path:
+    return trained_folder(kind) if folder == SHIPPED else _resolve(folder, base)
+
+
 def _learned_builder(kind: str):
     def build(options, valve, base):
-        from .learned import load_learned_maps
+        from .learned import MANIFEST, load_learned_maps
 
-        folder = options.get("folder", SHIPPED)
-        path = trained_folder(kind) if folder == SHIPPED else _resolve(folder, base)
+        path = _learned_folder(kind, options.get("folder", SHIPPED), base)
+        expected = options.get("surrogate_sha256")
+        if expected is not None and (path / MANIFEST).is_file() and \
+                file_hash(path / MANIFEST) != expected:
+            raise InputError(f"{path}: this {kind} surrogate is not the one the model was built "
+                             f"on (its {MANIFEST} has SHA-256 {file_hash(path / MANIFEST)[:12]}…, "
+                             f"the model records {expected[:12]}…); refit the model on it, or "
+                             "point folder = ... at the original surrogate")
         flow, force = load_learned_maps(path)
         if flow.kind != kind:
             raise InputError(f"{path}: holds a {flow.kind!r} surrogate, not {kind!r}")
@@ -340,10 +355,25 @@ def _learned_builder(kind: str):
     return build
 
 
+def _learned_data(kind: str):
+    def data(cfd, folder: str = SHIPPED, **options) -> dict:
+        from .learned import MANIFEST
+
+        if cfd is not None:
+            raise InputError(f"{kind} maps are trained from CFD samples beforehand "
+                             "(training/train.py --cfd); give their folder with --maps FOLDER")
+        path = _learned_folder(kind, folder, Path("."))
+        return {"folder": folder if folder == SHIPPED else str(path.resolve()),
+                "surrogate_sha256": file_hash(path / MANIFEST)}
+    return data
+
+
 BASIC_DISCHARGE_COEFFICIENT = 0.4  # the paper's BMBE choice, from C_d at u = 0.63 mm
 
 _FOLDER = Option("folder", "the trained surrogate's folder (default: the committed one)",
                  default=SHIPPED, path=True)
+_SURROGATE_HASH = Option("surrogate_sha256",
+                         "SHA-256 of the surrogate's manifest the model was built on", _sha256)
 
 
 def _load_network(folder, entry):
@@ -384,7 +414,8 @@ register(MapKind(
     data=_grid_data))
 register(MapKind(
     "nn", "monotone neural-network ensemble on dimensionless features", _learned_builder("nn"),
-    (_FOLDER,), trainer="surrogate.learn.training:train_networks",
+    (_FOLDER, _SURROGATE_HASH), trainer="surrogate.learn.training:train_networks",
+    data=_learned_data("nn"),
     save_predictor=_save_network, load_predictor=_load_network,
     constraints={
         "flow": "q non-decreasing in p_L and in u by construction: |dlnCd/dlnRe_q| <= 0.98, "
@@ -394,7 +425,8 @@ register(MapKind(
                  "sample's flow force closes the valve"}))
 register(MapKind(
     "gp", "additive Gaussian processes on dimensionless features, with a standard deviation",
-    _learned_builder("gp"), (_FOLDER,), trainer="surrogate.learn.training:train_processes",
+    _learned_builder("gp"), (_FOLDER, _SURROGATE_HASH),
+    trainer="surrogate.learn.training:train_processes", data=_learned_data("gp"),
     save_predictor=_save_process, load_predictor=_load_process,
     constraints={"flow": "none (monotonicity measured, not guaranteed)",
                  "force": "none (monotonicity measured, not guaranteed)"}))

@@ -14,12 +14,11 @@ import pandas as pd
 
 from ..data.loaders import BenchLog, BenchRun
 from ..errors import InputError
-from ..leastsquares import fit
 from ..maps.registry import MapsSpec
-from ..points import OperatingPoints
-from ..solver import replay
 from ..spec import ValveSource
 from ..units import from_si
+from ..workbench.logfit import fit_to_log
+from ..workbench.residuals import run_rows
 from .median import median_line
 from .models import FIT_P_PE, FIT_TEMPERATURE, PaperModels, build_paper_models, mean_abs_distance
 
@@ -54,11 +53,6 @@ def find_run(log: BenchLog, p_Pe_bar: float, temperature_C: float) -> BenchRun:
                          "comparison needs runs at 50, 65 and 80 bar and 20, 40 and 60 °C")
     return min(candidates,
                key=lambda run: abs(from_si(run.temperature, "degC") - temperature_C))
-
-
-def measured_dp(run: BenchRun) -> np.ndarray:
-    """Measured Δp = p_L − p_B of every sample [Pa]."""
-    return (run.frame["p_L"] - run.frame["p_B"]).to_numpy()
 
 
 @dataclass
@@ -117,7 +111,7 @@ def reproduce(valve: ValveSource, maps: MapsSpec, log: BenchLog,
             run = runs[(p_Pe, temperature)]
             progress(f"Table 6: friction K1, K2 at {temperature:g} °C fitted to run {run.run} "
                      f"(p_Pe = {p_Pe:g} bar)")
-            result = fit_friction(models, run)
+            result = fit_friction(models, run, log)
             comparison.friction_models[(p_Pe, temperature)] = result.model
             K1 = result.model.effect("friction_constant").params["K1"]
             K2 = result.model.effect("friction_load_pressure").params["K2"]
@@ -130,13 +124,13 @@ def reproduce(valve: ValveSource, maps: MapsSpec, log: BenchLog,
     return comparison
 
 
-def fit_friction(models: PaperModels, run: BenchRun):
-    """K1 and K2 of CFDA's Coulomb friction, fitted to every sample of ``run`` by replay."""
+def fit_friction(models: PaperModels, run: BenchRun, log: BenchLog):
+    """K1 and K2 of CFDA's Coulomb friction, fitted to every sample of ``run`` by replaying it
+    as the workbench replays a log (:func:`surrogate.workbench.logfit.fit_to_log`)."""
     start = models.cfda_with_friction(_FRICTION_START["K1"], _FRICTION_START["K2"])
-    points = OperatingPoints.from_bench(run.frame)
-    measured = measured_dp(run)
-    return fit(start, lambda model: replay(model, points).dp - measured,
-               names=["friction_constant.K1", "friction_load_pressure.K2"])
+    return fit_to_log(start, log.take(run_rows(log, run.run)),
+                      ["friction_constant.K1", "friction_load_pressure.K2"], tolerance=1e-8,
+                      max_evaluations=200)
 
 
 def _has_run(log: BenchLog, p_Pe: float, temperature: float) -> bool:

@@ -12,7 +12,8 @@ from matplotlib.figure import Figure
 from ..points import OperatingPoints
 from ..solver import replay, solve_steady
 from ..units import from_si
-from .comparison import TABLE5_P_PE_BAR, TEMPERATURES_C, PaperComparison, measured_dp
+from ..workbench.residuals import measured_dp
+from .comparison import TABLE5_P_PE_BAR, TEMPERATURES_C, PaperComparison
 from .median import median_points
 
 TEMPERATURE_COLOURS = {20.0: "tab:blue", 40.0: "tab:green", 60.0: "tab:red"}

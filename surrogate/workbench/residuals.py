@@ -85,7 +85,8 @@ def run_rows(log: BenchLog, run: str) -> np.ndarray:
     return np.flatnonzero(log.frame["run"].astype(str).to_numpy() == str(run))
 
 
-def measured_dp(log: BenchLog) -> np.ndarray:
+def measured_dp(log) -> np.ndarray:
+    """Measured Δp = p_L − p_B of every sample of a log (or of one run) [Pa]."""
     return (log.frame["p_L"] - log.frame["p_B"]).to_numpy()
 
 

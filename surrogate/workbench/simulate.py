@@ -241,3 +241,33 @@ def _draw_per_run(effect: PerRunEffect, values: dict[str, float], seed: int) -> 
     draws = np.random.default_rng([seed, 7919]).standard_normal(len(effect.params))
     for parameter, draw in zip(effect.params.values(), draws):
         parameter.set_display(values[name] * draw)
+
+
+def scaled_magnitude(hidden: str, factor: float) -> dict[str, float]:
+    """The hidden effect's realistic values scaled by ``factor`` away from its "off" value (1
+    for a scale, 0 otherwise), in display units."""
+    values = {}
+    for key, value in REALISTIC_MAGNITUDES[hidden].items():
+        neutral = 1.0 if key in ("scale", "c") else 0.0
+        values[key] = neutral + factor * (value - neutral)
+    return values
+
+
+def random_settings(count: int, seed: int) -> list[tuple[str, float, dict[str, float]]]:
+    """``count`` randomised hidden-effect settings: (effect, magnitude factor 0.6–1.5, values),
+    the effect drawn from :data:`REALISTIC_MAGNITUDES`."""
+    rng = np.random.default_rng(seed)
+    names = sorted(REALISTIC_MAGNITUDES)
+    settings = []
+    for _ in range(count):
+        hidden = names[rng.integers(len(names))]
+        factor = float(rng.uniform(0.6, 1.5))
+        settings.append((hidden, factor, scaled_magnitude(hidden, factor)))
+    return settings
+
+
+def identified(diagnosis, hidden: str) -> bool:
+    """Whether a diagnosis found the hidden effect: its best candidate is significant, ranked
+    first, and is the effect or a candidate the data cannot tell from it."""
+    best = diagnosis.best
+    return best is not None and diagnosis.candidates[0] is best and hidden in best.group
