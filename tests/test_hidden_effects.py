@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from surrogate.effects import LIBRARY, load_effects_file
+from surrogate.testing import check_effect
 from surrogate.workbench.diagnose import diagnose
 from surrogate.workbench.logfit import fit_to_log
 from surrogate.workbench.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case, identified,
@@ -82,7 +83,10 @@ def jet_side_load_friction(state, k=0.0):
 def custom_library(tmp_path):
     path = tmp_path / "my_effects.py"
     path.write_text(CUSTOM)
-    return load_effects_file(path)
+    library = load_effects_file(path)
+    for cls in library.values():
+        check_effect(cls)  # the contract the built-in effects pass
+    return library
 
 
 def test_a_custom_effect_explains_what_the_library_cannot(sequence, custom_library):

@@ -86,8 +86,7 @@ class Candidate:
             "kind": self.kind, "rms_after_bar": round(float(from_si(self.rms_after, "bar")), 4),
             "delta_bic": round(float(self.delta_bic), 2), "significant": bool(self.significant),
             "group": self.group,
-            "params": {p.name: {"value": p.display_value, "unit": p.unit,
-                                "stderr": p.display_stderr} for p in self.params},
+            "params": {p.name: p.to_record() for p in self.params},
         }
 
 
