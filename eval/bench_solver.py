@@ -5,6 +5,10 @@ the same run on the same 10,000 random operating points spanning the bench tests
 p_Pe 40–130 bar, p_B 1–8 bar, 20–60 °C). The ratio of their rates is the speed-up; the two answers
 are compared as well, so the speed is not bought with accuracy.
 
+It also times the replay of the whole bench log with and without what the maps say about
+themselves (the Δp standard deviation their uncertainty implies, and why samples lie outside
+the CFD samples), on each kind of map: the ratio is the uncertainty's cost.
+
     python eval/bench_solver.py [--points 10000] [--loop-points 10000] [--repeats 3] [--json]
 """
 
@@ -20,10 +24,11 @@ from scipy.optimize import brentq
 from surrogate import load_valve
 from surrogate.data import load_bench_log
 from surrogate.effects import FlowForceScale
+from surrogate.model import ValveModel
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import Status, replay, solve_steady
-from surrogate.presets import cfda
+from surrogate.presets import cfda, maps
 from surrogate.solver.steady import _OPENING_FLOOR, _U_RTOL
 from surrogate.spec import EffectSpec, ModelSpec
 
@@ -91,8 +96,19 @@ def main() -> None:
     run_points = OperatingPoints.from_bench(run.frame)
     run_time, _ = best_time(lambda: replay(with_friction, run_points), args.repeats)
     all_points = OperatingPoints.from_bench(log.frame)
-    log_time, _ = best_time(lambda: replay(with_friction, all_points, log.frame["run"]),
+    log_time, _ = best_time(lambda: replay(with_friction, all_points, log.frame["run"],
+                                           diagnostics=False), args.repeats)
+    # the cost of the Δp standard deviation (and extrapolation reasons) on every kind of map
+    uncertainty = {}
+    for kind in ("grid", "nn", "gp"):
+        on_kind = cfda(maps_spec=maps(kind)).build()
+        replay(on_kind, all_points, log.frame["run"])  # first use: the grid's calibration
+        plain, _ = best_time(lambda: replay(on_kind, all_points, log.frame["run"],
+                                            diagnostics=False), args.repeats)
+        full, _ = best_time(lambda: replay(on_kind, all_points, log.frame["run"]),
                             args.repeats)
+        uncertainty[kind] = {"plain_seconds": plain, "with_uncertainty_seconds": full,
+                             "ratio": full / plain}
 
     figures = {
         "points": args.points,
@@ -109,6 +125,7 @@ def main() -> None:
         "replay_run_seconds": run_time,
         "replay_log_samples": len(all_points),
         "replay_log_seconds": log_time,
+        "replay_with_uncertainty": uncertainty,
     }
     if args.json:
         print(json.dumps(figures, indent=2))
@@ -123,6 +140,13 @@ def main() -> None:
           f"largest difference in u: {agreement:.1e} of the stroke")
     print(f"replay with friction: one run ({len(run_points)} samples) {run_time * 1e3:.0f} ms; "
           f"whole log ({len(all_points)} samples, 12 runs) {log_time:.2f} s")
+    print("replay of the whole log with the Δp standard deviation and extrapolation reasons, "
+          "against without (target <= 2x):")
+    print("| maps | without [s] | with [s] | ratio |")
+    print("|---|---|---|---|")
+    for kind, row in uncertainty.items():
+        print(f"| {kind} | {row['plain_seconds']:.2f} | {row['with_uncertainty_seconds']:.2f} | "
+              f"{row['ratio']:.2f} |")
 
 
 if __name__ == "__main__":

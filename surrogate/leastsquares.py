@@ -308,9 +308,13 @@ class Minimizer:
                   evaluation: Evaluation) -> "Minimizer":
         """Start a refinement at the current parameters, whose evaluation is ``evaluation``:
         ``changes[j]`` is how the residual changes when parameter j moves by ``steps[j]`` [SI]
-        (a forward-difference Jacobian the caller already has)."""
-        self._refinement = _Refinement(self, np.column_stack(changes), np.asarray(steps, float),
-                                       evaluation)
+        (a forward-difference Jacobian the caller already has). Without parameters (none the data
+        feel) the refinement stays where it starts."""
+        jacobian = (np.column_stack(changes) if len(changes)
+                    else np.zeros((len(evaluation.residual), 0)))
+        self._refinement = _Refinement(self, jacobian, np.asarray(steps, float), evaluation)
+        if not len(changes):
+            self._refinement.settled = True
         return self
 
     def refine(self, steps: int) -> "Minimizer":

@@ -186,7 +186,13 @@ class ValveModel:
     def balance(self, u, points: OperatingPoints, fluid: FluidState) -> Balance:
         """The force balance with the piston at ``u`` [m] while the points' flow passes."""
         points = self.true_points(points)
-        dp = self.pressure_drop(u, points, fluid)
+        return self.balance_at(u, self.pressure_drop(u, points, fluid), points, fluid)
+
+    def balance_at(self, u, dp, points: OperatingPoints, fluid: FluidState) -> Balance:
+        """The force balance at ``u`` [m] with the pressure drop ``dp`` [Pa] imposed on the
+        (true, i.e. already corrected) points, whatever the flow map says: the flow force at
+        that load pressure. Its slopes in u and Δp carry map errors through the balance
+        (:mod:`surrogate.solver.uncertainty`)."""
         p_L = points.p_B + dp
         f_sim = self.force_map.force(p_L, points.p_B, u, fluid)
         flow_force = f_sim - p_L * self.valve.A_L - points.p_B * self._back_area
@@ -218,15 +224,27 @@ class ValveModel:
                     friction = friction + band
         return Balance(p_L, dp, net, friction)
 
-    def extrapolating(self, u, p_L, points: OperatingPoints, fluid: FluidState) -> np.ndarray:
-        """True where either map is queried outside its data with the points' flow passing at
-        opening ``u`` [m] and load pressure ``p_L`` [Pa]."""
-        points = self.true_points(points)
+    def restriction_flow(self, u, points: OperatingPoints, fluid: FluidState) -> np.ndarray:
+        """The flow [m^3/s] through the main restriction at opening ``u`` [m] for the (true)
+        points, as the flow effects divert it (leakage paths aside)."""
         state = FlowState(np.broadcast_to(u, points.q.shape), points.q, points.p_B, points.p_P,
                           points.temperature, fluid, self.valve)
         q = points.q
         for effect in self.effects:
             if _uses(effect, "restriction_flow"):
                 q = effect.restriction_flow(q, state)
-        return (self.flow_map.extrapolating_at_flow(q, points.p_B, u, fluid)
-                | self.force_map.extrapolating(p_L, points.p_B, u, fluid))
+        return q
+
+    def extrapolation_reasons(self, u, p_L, points: OperatingPoints,
+                              fluid: FluidState) -> np.ndarray:
+        """Why either map is queried outside its data with the points' flow passing at opening
+        ``u`` [m] and load pressure ``p_L`` [Pa]: bit flags of :mod:`surrogate.maps.coverage`
+        (0 inside)."""
+        points = self.true_points(points)
+        q = self.restriction_flow(u, points, fluid)
+        return (self.flow_map.reasons_at_flow(q, points.p_B, u, fluid)
+                | self.force_map.extrapolation_reasons(p_L, points.p_B, u, fluid))
+
+    def extrapolating(self, u, p_L, points: OperatingPoints, fluid: FluidState) -> np.ndarray:
+        """True where either map is queried outside its data (:meth:`extrapolation_reasons`)."""
+        return self.extrapolation_reasons(u, p_L, points, fluid) != 0

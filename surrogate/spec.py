@@ -242,8 +242,8 @@ class ModelSpec:
         """This spec with more effects at the end."""
         return self.with_effects([*self.effects, *effects], name)
 
-    def with_maps(self, maps: MapsSpec) -> "ModelSpec":
-        return replace(self, maps=maps)
+    def with_maps(self, maps: MapsSpec, name: str | None = None) -> "ModelSpec":
+        return replace(self, maps=maps, name=name or self.name)
 
     def with_valve(self, valve: ValveSource) -> "ModelSpec":
         return replace(self, valve=valve)

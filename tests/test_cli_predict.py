@@ -19,8 +19,23 @@ def test_predict_with_another_oils_viscosity_and_density(tmp_path, model, capsys
     assert list(out["case"]) == ["A", "B"]
     assert (out["q_lpm_pred"] > 0).all() and (out["f_sim_N_pred"] > 0).all()
     assert out["extrapolating"].dtype == bool
-    assert ("q_lpm_std" in out and "f_sim_N_std" in out) == (model == "gp")
+    # every kind built from data gives a calibrated standard deviation, a fraction of the value
+    assert (out["q_lpm_std"] > 0).all() and (out["q_lpm_std"] < 0.2 * out["q_lpm_pred"]).all()
+    assert (out["f_sim_N_std"] > 0).all() and (out["f_sim_N_std"] < 0.5 * out["f_sim_N_pred"]).all()
     assert 3.5 < out["q_lpm_pred"][0] < 5.5  # u 0.1 mm, 45 bar: between the 40 and 60 °C sweeps
+    # and says why a state lies outside the samples: B's 150 cSt is thicker than any CFD run's
+    assert not out["extrapolating"][0] and pd.isna(out["outside_samples"][0])
+    assert out["extrapolating"][1] and "viscosity outside" in out["outside_samples"][1]
+
+
+def test_maps_without_data_leave_the_standard_deviation_empty(tmp_path):
+    source, target = tmp_path / "in.csv", tmp_path / "out.csv"
+    source.write_text(ANOTHER_OIL)
+    assert main(["predict", "--maps", "orifice", "--input", str(source),
+                 "--output", str(target)]) == 0
+    out = pd.read_csv(target)
+    assert out["q_lpm_std"].isna().all() and out["f_sim_N_std"].isna().all()
+    assert not out["extrapolating"].any()
 
 
 def test_predict_at_temperatures_of_the_valves_oil(tmp_path):

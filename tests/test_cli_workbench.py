@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import tomllib
 
+import pandas as pd
 import pytest
 
 from surrogate.cli import main
@@ -35,6 +36,22 @@ def test_compare_json_contract(capsys, small_log, tmp_path):
         assert {"run", "temperature_C", "p_Pe_bar", "rms_bar", "bias_bar"} <= set(run)
     assert result["rms_bar"] > result["noise_floor_bar"] > 0
     assert (out / "report.html").read_text().count("data:image/png;base64") >= 3
+    # the maps' own uncertainty: a Δp standard deviation overall, per run and per sample, and
+    # the share of samples outside the CFD samples per reason
+    assert result["dp_std_bar"] > 0 and all(run["dp_std_bar"] > 0 for run in result["runs"])
+    assert set(result["outside_samples"]) >= {"any", "opening in an unsampled gap"}
+    samples = pd.read_csv(out / "samples.csv")
+    assert len(samples) == sum(run["samples"] for run in result["runs"])
+    assert (samples["dp_std_bar"] > 0).all()
+    assert {"dp_model_bar", "dp_measured_bar", "outside_samples", "status"} <= set(samples)
+
+
+@pytest.mark.parametrize("kind", ["nn", "gp"])
+def test_compare_on_learned_maps(capsys, small_log, kind):
+    result = run_json(capsys, ["compare", "--model", "cfda", "--maps", kind, "--data",
+                               str(small_log), "--json"])
+    assert result["model"] == f"cfda ({kind} maps)"
+    assert result["dp_std_bar"] > 0
 
 
 def test_diagnose_json_contract_names_the_hidden_effect(capsys, small_log):
@@ -64,7 +81,7 @@ def test_fit_writes_a_model_file_that_loads_and_compares(capsys, small_log, tmp_
 def test_workflow_json_contract(capsys, small_log, tmp_path):
     out = tmp_path / "workflow"
     result = run_json(capsys, ["workflow", "--data", str(small_log), "--out", str(out),
-                               "--max-additions", "1", "--json"])
+                               "--maps", "grid", "--kinds", "--max-additions", "1", "--json"])
     steps = result["steps"]
     assert [s["model"] for s in steps[:4]] == ["bmbe", "bmbebf", "cfd-maps", "cfda"]
     assert all({"model", "added", "rms_bar"} <= set(s) for s in steps)
@@ -74,6 +91,23 @@ def test_workflow_json_contract(capsys, small_log, tmp_path):
                  "workflow.json"):
         assert (out / name).is_file()
     assert load_model(str(out / "final_model.toml")).has_effect("friction_viscous")
+
+
+@pytest.mark.slow
+def test_workflow_shows_every_kinds_staircase_and_defaults_to_the_most_accurate(capsys,
+                                                                               small_log,
+                                                                               tmp_path):
+    out = tmp_path / "workflow"
+    result = run_json(capsys, ["workflow", "--data", str(small_log), "--out", str(out),
+                               "--max-additions", "0", "--json"])
+    scores = result["maps_flow_force_cv_error"]
+    assert set(scores) == {"grid", "nn", "gp"}
+    assert result["maps"] == min(scores, key=scores.get)
+    assert set(result["other_kinds"]) == {"grid", "nn", "gp"} - {result["maps"]}
+    for other in result["other_kinds"].values():
+        assert [s["model"] for s in other["steps"][:4]] == ["bmbe", "bmbebf", "cfd-maps", "cfda"]
+    report = (out / "report.html").read_text()
+    assert "The staircase on every kind of map" in report
 
 
 def test_model_file_round_trip(tmp_path):

@@ -6,7 +6,6 @@ import pytest
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.errors import InputError
-from surrogate.fluid import Oil
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 
 

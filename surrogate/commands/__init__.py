@@ -1,5 +1,6 @@
 """The subcommands of ``python -m surrogate``, one module each."""
 
-from . import check_data, compare, diagnose, fit, paper, predict, simulate, workflow
+from . import (check_data, compare, diagnose, fit, paper, predict, simulate, suggest_cfd,
+               workflow)
 
-COMMANDS = (check_data, paper, predict, compare, diagnose, fit, workflow, simulate)
+COMMANDS = (check_data, paper, predict, compare, diagnose, fit, workflow, suggest_cfd, simulate)

@@ -13,7 +13,7 @@ from ..effects import LIBRARY, EffectLibrary, load_effects_file
 from ..errors import InputError
 from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, map_kind
 from ..model import ValveModel
-from ..modelfile import PRESETS, load_model
+from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, check_outputs
 from ..paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, shipped
 from ..progress import Progress
@@ -94,12 +94,16 @@ def positive_int(text: str) -> int:
 
 
 def add_data_options(parser, *, model: bool = True, out_help: str = "output folder",
-                     out_required: bool = False) -> None:
-    """--model, --data, --effects-file, --valve and --out of the workbench commands."""
+                     out_required: bool = False,
+                     maps_help: str = "replace the model's flow and force maps") -> None:
+    """--model, --maps, --data, --effects-file, --valve and --out of the workbench commands."""
     if model:
         required(parser).add_argument(
             "--model", required=True,
             help=f"a preset ({', '.join(PRESETS)}) or a model file (TOML)")
+    parser.add_argument("--maps", metavar="KIND",
+                        help=f"{maps_help}: a map kind ({', '.join(MAP_KINDS)}) or the folder of "
+                             "a trained surrogate")
     parser.add_argument("--data", help="bench log CSV (default: the shipped one)")
     parser.add_argument("--effects-file", action="append", default=[], metavar="FILE",
                         help="Python file defining custom effects (repeatable)")
@@ -162,8 +166,13 @@ def effect_library(args, progress: Progress | None = None) -> EffectLibrary:
 def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, EffectLibrary]:
     """The model (if the command takes one), the bench log and the effect library."""
     library = effect_library(args, progress)
-    model = (load_model(args.model, args.valve, library) if getattr(args, "model", None)
-             else None)
+    model = None
+    if getattr(args, "model", None):
+        spec = load_spec(args.model, args.valve)
+        where = args.model if args.model not in PRESETS else f"preset {args.model!r}"
+        if getattr(args, "maps", None):
+            spec = spec.with_maps(maps_from_args(args.maps), f"{spec.name} ({args.maps} maps)")
+        model = spec.build(library, where)
     log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
     progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")
     if model is not None:

@@ -21,8 +21,10 @@ def register(subparsers) -> None:
                     "p_Pe x temperature table, the noise floor of the data, and operating regions "
                     "ranked by error with flags where the maps extrapolate. The model is used as "
                     "given (no fit; see `fit`).")
-    add_data_options(parser, out_help="write compare.json, runs.csv, regions.csv, figures and "
-                                      "report.html into this folder")
+    add_data_options(parser, out_help="write compare.json, runs.csv, regions.csv, samples.csv "
+                                      "(every sample: measured and model Δp, its standard "
+                                      "deviation from the maps, why it lies outside the CFD "
+                                      "samples), figures and report.html into this folder")
     parser.set_defaults(func=run)
 
 
@@ -49,6 +51,8 @@ def write_comparison(comparison, out) -> None:
         comparison.runs.to_csv(staging / "runs.csv", index=False)
         comparison.regions.to_csv(staging / "regions.csv", index=False)
         comparison.worst.to_csv(staging / "worst_samples.csv", index=False)
+        comparison.sample_table().to_csv(staging / "samples.csv", index=False,
+                                         float_format="%.6g")
         for name, figure in all_figures(comparison).items():
             (staging / f"{name}.png").write_bytes(figure_png(figure))
         write_html(staging / "report.html", f"Comparison: {comparison.model}",

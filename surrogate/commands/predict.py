@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.queries import load_queries
+from ..maps.coverage import describe_all
 from ..maps.registry import MAP_KINDS, build_maps
 from ..outputs import Output, atomic_file
 from ..units import from_si
@@ -20,8 +21,9 @@ def register(subparsers) -> None:
         subparsers, "predict", help="evaluate q_sim and f_sim maps at given states",
         description="Read states (u_mm, p_L_bar, p_B_bar and temperature_C, or nu_cSt and "
                     "rho_kg_m3 for another oil), evaluate the flow and force map, and write the "
-                    "input with q_lpm_pred, f_sim_N_pred (GP: also q_lpm_std, f_sim_N_std) and "
-                    "extrapolating.")
+                    "input with q_lpm_pred, q_lpm_std, f_sim_N_pred, f_sim_N_std (calibrated "
+                    "standard deviations; empty for maps without data), extrapolating and "
+                    "outside_samples (why a state lies outside the CFD samples).")
     options = required(parser)
     options.add_argument("--maps", required=True,
                          help=f"map kind ({', '.join(MAP_KINDS)}) or a trained surrogate folder")
@@ -40,15 +42,15 @@ def run(args) -> int:
     fluid = queries.fluid(valve.oil)
     state = (queries.p_L, queries.p_B, queries.u, fluid)
     output = queries.raw.copy()
-    output["q_lpm_pred"] = from_si(flow_map.flow(*state), "L/min")
-    output["f_sim_N_pred"] = force_map.force(*state)
     q_std, f_std = flow_map.flow_std(*state), force_map.force_std(*state)
-    if q_std is not None:
-        output["q_lpm_std"] = from_si(q_std, "L/min")
-    if f_std is not None:
-        output["f_sim_N_std"] = f_std
-    output["extrapolating"] = np.asarray(flow_map.extrapolating(*state)
-                                         | force_map.extrapolating(*state))
+    output["q_lpm_pred"] = from_si(flow_map.flow(*state), "L/min")
+    output["q_lpm_std"] = np.nan if q_std is None else from_si(q_std, "L/min")
+    output["f_sim_N_pred"] = force_map.force(*state)
+    output["f_sim_N_std"] = np.nan if f_std is None else f_std
+    reasons = np.asarray(flow_map.extrapolation_reasons(*state)
+                         | force_map.extrapolation_reasons(*state))
+    output["extrapolating"] = reasons != 0
+    output["outside_samples"] = describe_all(reasons)
     _write_whole(output, Path(args.output))
     extrapolating = int(output["extrapolating"].sum())
     if args.json:

@@ -22,7 +22,7 @@ def register(subparsers) -> None:
         description="Replay a reference valve (CFDA on grid maps with the shipped bench's fitted "
                     "values) with one effect switched on over the shipped test sequence, add "
                     "sensor noise like the shipped bench's, and write the log as CSV. "
-                    f"Built-in effects default to a realistic magnitude: "
+                    "Built-in effects default to a realistic magnitude: "
                     + ", ".join(f"{name} {values}" for name, values in
                                 REALISTIC_MAGNITUDES.items()))
     parser.add_argument("--hidden", help="effect to switch on (none: the reference as is)")

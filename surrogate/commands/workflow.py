@@ -4,19 +4,27 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
+from ..crossval import most_accurate_kind
+from ..maps.registry import MAP_KINDS
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
+from ..presets import maps
 from ..spec import ValveSource
 from ..units import from_si
 from ..workbench.compare import compare
 from ..workbench.figures import all_figures
 from ..workbench.report import (comparison_section, diagnosis_section, figure_png,
-                                staircase_figure, staircase_section, staircase_table, write_html)
+                                staircase_figure, staircase_section, staircase_table,
+                                staircases_section, write_html)
 from ..workbench.workflow import MAX_ADDITIONS, run_workflow
-from .common import (add_command, add_data_options, guard_outputs, load_inputs,
+from .common import (add_command, add_data_options, guard_outputs, load_inputs, maps_from_args,
                      non_negative_int, print_json, progress_for)
 
 DEFAULT_OUT = "results/workflow"
+#: the kinds built from CFD samples, whose staircases the report compares
+COMPARED_KINDS = tuple(name for name, kind in MAP_KINDS.items() if kind.accuracy is not None)
 
 
 def register(subparsers) -> None:
@@ -29,7 +37,14 @@ def register(subparsers) -> None:
                     "repeatedly diagnose the model and add the best significant effect, until "
                     "nothing significant is left. Writes the staircase (table and figure), the "
                     "final model file, its comparison with the data and an HTML report.")
-    add_data_options(parser, model=False, out_help=f"output folder (default {DEFAULT_OUT})")
+    add_data_options(parser, model=False, out_help=f"output folder (default {DEFAULT_OUT})",
+                     maps_help="the maps of the CFD steps, whose final model and diagnosis the "
+                               "report follows (default: the kind whose flow force is the most "
+                               "accurate by cross-validation)")
+    parser.add_argument("--kinds", nargs="*", choices=COMPARED_KINDS, default=list(COMPARED_KINDS),
+                        metavar="KIND",
+                        help="map kinds whose staircases the report shows side by side "
+                             f"(default: {' '.join(COMPARED_KINDS)}; none: just the main one)")
     parser.add_argument("--max-additions", type=non_negative_int, default=MAX_ADDITIONS,
                         help=f"effects the loop may add at most (default {MAX_ADDITIONS})")
     parser.set_defaults(func=run)
@@ -40,12 +55,33 @@ def run(args) -> int:
     guard_outputs(args, Output("--out", out, "folder"))
     progress = progress_for(args)
     _, log, library = load_inputs(args, progress)
-    workflow = run_workflow(log, library=library, valve=ValveSource.read(args.valve),
-                            max_additions=args.max_additions, progress=progress)
+    valve = ValveSource.read(args.valve)
+    scores = None
+    if args.maps:
+        main_maps = maps_from_args(args.maps)
+        main = args.maps
+    else:
+        main, scores = most_accurate_kind(valve.parameters)
+        main_maps = maps(main)
+        progress(f"maps: {main}, whose flow force is the most accurate by cross-validation ("
+                 + ", ".join(f"{kind} {100 * score:.1f} %" for kind, score in scores.items())
+                 + ")")
+    workflows = {}
+    for kind in dict.fromkeys([main, *args.kinds]):  # the main kind first
+        progress(f"workflow on {kind} maps")
+        workflows[kind] = run_workflow(
+            log, library=library, valve=valve, max_additions=args.max_additions,
+            maps_spec=main_maps if kind == main else maps(kind), progress=progress)
+    workflow = workflows[main]
     final = workflow.final
     comparison = compare(final.model, log, played=final.played)
     with atomic_directory(out) as staging:
-        document = workflow.to_json()
+        document = {**workflow.to_json(),
+                    "maps_flow_force_cv_error": None if scores is None else {
+                        kind: round(score, 4) if np.isfinite(score) else None
+                        for kind, score in scores.items()},
+                    "other_kinds": {kind: other.to_json() for kind, other in workflows.items()
+                                    if kind != main}}
         (staging / "workflow.json").write_text(json.dumps(document, indent=2) + "\n")
         staircase_table(workflow.steps).to_csv(staging / "staircase.csv", index=False)
         (staging / "staircase.png").write_bytes(
@@ -54,16 +90,24 @@ def run(args) -> int:
                    note=f"final model of the workflow on {log.source}")
         for name, figure in all_figures(comparison).items():
             (staging / f"{name}.png").write_bytes(figure_png(figure))
+        others = ([staircases_section(workflows, main, scores)] if len(workflows) > 1
+                  else [])
         write_html(staging / "report.html", "CBV model against bench data: the workflow",
-                   [staircase_section(workflow),
+                   [staircase_section(workflow), *others,
                     comparison_section(comparison, "The final model against the data"),
                     diagnosis_section(workflow.final_diagnosis, "What is left: final diagnosis")],
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
-                        f"Run time {workflow.seconds:.0f} s.")
+                        f"Maps: {main}. Run time "
+                        f"{sum(w.seconds for w in workflows.values()):.0f} s.")
     progress(f"wrote {out}/report.html")
     if args.json:
         print_json(document)
     else:
+        for kind, other in workflows.items():
+            if kind != main:
+                print(f"    ({kind} maps: {from_si(other.final.rms, 'bar'):.3f} bar after "
+                      f"{len(other.steps)} steps)")
+        print(f"on {main} maps:")
         for number, step in enumerate(workflow.steps, start=1):
             print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
                   f"{from_si(step.rms, 'bar'):7.3f} bar")

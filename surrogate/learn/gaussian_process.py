@@ -12,19 +12,21 @@ condition number of the training covariance is recorded, because GPs on gridded 
 to ill-conditioning.
 
 For export only arrays are kept (training inputs, dual coefficients, Cholesky factor, kernel
-hyperparameters): :class:`NumpyGP` predicts from them with no scikit-learn object and no pickle.
+hyperparameters): :class:`surrogate.maps.gp.NumpyGP` predicts from them with no scikit-learn
+object and no pickle. Besides RBF parts a part may *bridge* the opening linearly (a Brownian-motion
+kernel, :class:`BridgeKernel`), as the grid maps do between sampled openings.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_triangular
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Hyperparameter, Kernel, WhiteKernel
+
+from ..maps.gp import PART_KINDS, GPArrays, bridge_coordinate
 
 LENGTH_SCALE_BOUNDS = (0.3, 100.0)  # standardised units: smooth on the scale of the data
 NOISE_BOUNDS = (1e-8, 1e-2)
@@ -56,45 +58,42 @@ class ProjectedRBF(Kernel):
         return True
 
 
-@dataclass(frozen=True)
-class GPArrays:
-    """Everything a fitted GP needs to predict, as plain arrays and numbers."""
+class BridgeKernel(Kernel):
+    """min(b(x), b(x')) on one column, b clamped to ``span`` and shifted by ``origin``: Brownian
+    motion, whose posterior mean interpolates linearly between the data (see
+    :mod:`surrogate.maps.gp`). No hyperparameters: its amplitude is a ConstantKernel's."""
 
-    groups: tuple[tuple[int, ...], ...]
-    feature_mean: np.ndarray
-    feature_std: np.ndarray
-    trend: np.ndarray  # linear mean: intercept then one coefficient per standardised feature
-    inputs: np.ndarray  # standardised training features
-    dual: np.ndarray  # α = K⁻¹·y (normalised y)
-    cholesky: np.ndarray  # lower Cholesky factor of K + noise
-    amplitudes: np.ndarray  # c per group
-    length_scales: np.ndarray  # (groups, widest group), padded with ones
-    noise: float
-    y_mean: float
-    y_std: float
-    condition_number: float
+    def __init__(self, dim=1, span=(0.0, 1.0), origin=-1.0):
+        self.dim = dim
+        self.span = span
+        self.origin = origin
 
-    def to_npz(self) -> dict[str, np.ndarray]:
-        return {"groups": np.asarray(self.groups), "feature_mean": self.feature_mean,
-                "feature_std": self.feature_std, "trend": self.trend, "inputs": self.inputs,
-                "dual": self.dual, "cholesky": self.cholesky, "amplitudes": self.amplitudes,
-                "length_scales": self.length_scales, "noise": np.asarray(self.noise),
-                "y_mean": np.asarray(self.y_mean), "y_std": np.asarray(self.y_std),
-                "condition_number": np.asarray(self.condition_number)}
+    def _coordinate(self, X):
+        return bridge_coordinate(np.asarray(X)[:, self.dim], np.asarray(self.span), self.origin)
 
-    @classmethod
-    def from_npz(cls, data) -> "GPArrays":
-        return cls(tuple(tuple(int(i) for i in g) for g in data["groups"]),
-                   *(np.asarray(data[key], float) for key in (
-                       "feature_mean", "feature_std", "trend", "inputs", "dual", "cholesky",
-                       "amplitudes", "length_scales")),
-                   *(float(data[key]) for key in ("noise", "y_mean", "y_std",
-                                                  "condition_number")))
+    def __call__(self, X, Y=None, eval_gradient=False):
+        a = self._coordinate(X)
+        b = a if Y is None else self._coordinate(Y)
+        K = np.minimum(a[:, None], b[None, :])
+        return (K, np.empty((len(a), len(a), 0))) if eval_gradient else K
+
+    def diag(self, X):
+        return self._coordinate(X)
+
+    def is_stationary(self):
+        return False
 
 
-def fit_gp(features: np.ndarray, target: np.ndarray, groups, *, linear_mean: bool,
+def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool,
            restarts: int = 3, seed: int = 0) -> GPArrays:
-    """Fit the additive GP to ``target`` and return its arrays."""
+    """Fit an additive GP to ``target`` and return its arrays.
+
+    ``parts``: the kernel's additive parts, each ``("rbf", columns)`` or ``("bridge", columns)``
+    (the first column the opening, linearly bridged; the others in an RBF factor); a bare tuple of
+    columns is an RBF part. Each part has its own amplitude; a white-noise term is learned too.
+    """
+    parts = [("rbf", tuple(p)) if not isinstance(p[0], str) else (p[0], tuple(p[1]))
+             for p in parts]
     feature_mean = features.mean(axis=0)
     feature_std = np.where(features.std(axis=0) > 0, features.std(axis=0), 1.0)
     z = (features - feature_mean) / feature_std
@@ -104,9 +103,18 @@ def fit_gp(features: np.ndarray, target: np.ndarray, groups, *, linear_mean: boo
     else:
         trend = np.zeros(design.shape[1])
     residual = target - design @ trend
+    bridge_column = next((dims[0] for kind, dims in parts if kind == "bridge"), None)
+    span = (np.array([z[:, bridge_column].min(), z[:, bridge_column].max()])
+            if bridge_column is not None else np.array([0.0, 0.0]))
+    origin = float(span[0] - 1.0)
     kernel = None
-    for group in groups:
-        part = ConstantKernel(1.0, (1e-4, 1e3)) * ProjectedRBF(tuple(group), (1.0,) * len(group))
+    for kind, dims in parts:
+        rbf = dims[1:] if kind == "bridge" else dims
+        factor = ProjectedRBF(rbf, (1.0,) * len(rbf)) if rbf else None
+        if kind == "bridge":
+            bridge = BridgeKernel(dims[0], tuple(span), origin)
+            factor = bridge if factor is None else bridge * factor
+        part = ConstantKernel(1.0, (1e-4, 1e3)) * factor
         kernel = part if kernel is None else kernel + part
     kernel = kernel + WhiteKernel(1e-4, NOISE_BOUNDS)
     regressor = GaussianProcessRegressor(kernel, normalize_y=True, n_restarts_optimizer=restarts,
@@ -115,22 +123,23 @@ def fit_gp(features: np.ndarray, target: np.ndarray, groups, *, linear_mean: boo
         warnings.simplefilter("ignore", ConvergenceWarning)  # a bound reached is reported below
         regressor.fit(z, residual)
     fitted = regressor.kernel_
-    parts = _parts(fitted, len(groups))
-    covariance = fitted(z)
-    widest = max(len(g) for g in groups)
-    scales = np.ones((len(groups), widest))
-    for row, (_, ell) in enumerate(parts):
-        scales[row, : len(ell)] = ell
+    amplitudes, scales = _fitted_parts(fitted, len(parts))
+    widest = max(len(dims) for _, dims in parts)
+    length_scales = np.ones((len(parts), widest))
+    part_dims = np.full((len(parts), widest), -1)
+    for row, ((_, dims), ell) in enumerate(zip(parts, scales)):
+        length_scales[row, : len(ell)] = ell
+        part_dims[row, : len(dims)] = dims
     return GPArrays(
-        tuple(tuple(g) for g in groups), feature_mean, feature_std, trend, z,
+        np.array([PART_KINDS[kind] for kind, _ in parts]), part_dims, np.asarray(amplitudes),
+        length_scales, feature_mean, feature_std, trend, z,
         np.asarray(regressor.alpha_, float).ravel(), np.asarray(regressor.L_, float),
-        np.array([c for c, _ in parts]), scales,
         float(fitted.k2.noise_level), float(regressor._y_train_mean),
-        float(regressor._y_train_std), float(np.linalg.cond(covariance)))
+        float(regressor._y_train_std), float(np.linalg.cond(fitted(z))), span, origin)
 
 
-def _parts(kernel, count: int):
-    """[(amplitude, length scales)] of the additive parts of a fitted kernel, in order."""
+def _fitted_parts(kernel, count: int):
+    """(amplitudes, RBF length scales) of the additive parts of a fitted kernel, in order."""
     sums = kernel.k1  # the kernel is ((part1 + part2) + ...) + white
     parts = []
     for _ in range(count - 1):
@@ -138,41 +147,13 @@ def _parts(kernel, count: int):
         sums = sums.k1
     parts.append(sums)
     parts.reverse()
-    return [(float(p.k1.constant_value), np.atleast_1d(np.asarray(p.k2.length_scale, float)))
-            for p in parts]
-
-
-class NumpyGP:
-    """Mean and latent standard deviation of a fitted GP from its :class:`GPArrays`."""
-
-    def __init__(self, arrays: GPArrays):
-        self.arrays = arrays
-        # training side of each part, scaled by its length scales, with squared norms
-        self._parts = []
-        for group, amplitude, scales in zip(arrays.groups, arrays.amplitudes,
-                                            arrays.length_scales):
-            cols = list(group)
-            scaled = arrays.inputs[:, cols] / scales[: len(cols)]
-            self._parts.append((cols, scales[: len(cols)], amplitude, scaled,
-                                np.sum(scaled**2, axis=1)))
-
-    def _cross(self, z: np.ndarray) -> np.ndarray:
-        """k(z, training inputs), using |a − b|² = |a|² + |b|² − 2·a·b (a matrix product)."""
-        total = np.zeros((len(z), len(self.arrays.inputs)))
-        for cols, scales, amplitude, scaled, norms in self._parts:
-            query = z[:, cols] / scales
-            squared = np.sum(query**2, axis=1)[:, None] + norms[None, :] - 2.0 * query @ scaled.T
-            total += amplitude * np.exp(-0.5 * np.maximum(squared, 0.0))
-        return total
-
-    def predict(self, features: np.ndarray, return_std: bool = False):
-        """Mean (and latent standard deviation) of the target at each row of ``features``."""
-        a = self.arrays
-        z = (features - a.feature_mean) / a.feature_std
-        cross = self._cross(z)
-        mean = a.y_mean + a.y_std * (cross @ a.dual) + np.column_stack([np.ones(len(z)), z]) @ a.trend
-        if not return_std:
-            return mean
-        v = solve_triangular(a.cholesky, cross.T, lower=True, check_finite=False)
-        variance = np.sum(a.amplitudes) - np.sum(v**2, axis=0)
-        return mean, a.y_std * np.sqrt(np.clip(variance, 0.0, None))
+    amplitudes, scales = [], []
+    for part in parts:
+        amplitudes.append(float(part.k1.constant_value))
+        factor = part.k2
+        if isinstance(factor, BridgeKernel):
+            scales.append(np.zeros(0))
+            continue
+        rbf = factor.k2 if not isinstance(factor, ProjectedRBF) else factor
+        scales.append(np.atleast_1d(np.asarray(rbf.length_scale, float)))
+    return amplitudes, scales

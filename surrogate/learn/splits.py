@@ -1,34 +1,17 @@
-"""How the CFD samples are divided between training and evaluation.
-
-All splits are deterministic, so figures can be reproduced and the committed surrogates checked.
-"""
+"""How the CFD samples are divided for cross-validation (:mod:`surrogate.crossval`): by sweep,
+opening, temperature and back pressure. All splits are deterministic, so figures can be
+reproduced and the committed surrogates checked."""
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-HOLDOUT_FRACTION = 0.2
-HOLDOUT_SEED = 20201  # fixed: the committed surrogates are trained without these samples
-
 
 def sweep_keys(frame: pd.DataFrame) -> pd.Series:
     """A label per sample naming its sweep: temperature, opening and back pressure."""
     return (frame["temperature"].round(1).astype(str) + "|" + (frame["u"] * 1e6).round(1).astype(str)
             + "|" + (frame["p_B"] / 1e3).round(0).astype(str))
-
-
-def holdout_mask(frame: pd.DataFrame, fraction: float = HOLDOUT_FRACTION,
-                 seed: int = HOLDOUT_SEED) -> np.ndarray:
-    """True for the held-out samples: ``fraction`` of each sweep (rounded), drawn at random with a
-    fixed seed, so every temperature, opening and back pressure is represented."""
-    rng = np.random.default_rng(seed)
-    held = np.zeros(len(frame), dtype=bool)
-    for _, rows in frame.groupby(sweep_keys(frame), sort=True).indices.items():
-        count = int(round(fraction * len(rows)))
-        if count:
-            held[rng.choice(rows, size=count, replace=False)] = True
-    return held
 
 
 def reference_back_pressure(frame: pd.DataFrame) -> float:

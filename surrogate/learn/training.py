@@ -14,18 +14,23 @@ from ..features import ADDITIVE_GROUPS, FEATURE_NAMES, FeatureSpec, Targets, tar
 from ..maps.gp import GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap, write_manifest
 from ..maps.nn import NetworkEnsemble
+from ..maps.calibration import Calibration
+from ..maps.coverage import Coverage
+from ..maps.domain import FeatureDomain
 from ..maps.registry import MAP_KINDS, map_kind
 from ..outputs import atomic_directory
 from ..valve import ValveParameters
-from .domain import FeatureDomain
 from .gaussian_process import fit_gp
 
 #: the map kinds that are trained (the registry's learned kinds)
 KINDS = tuple(name for name, kind in MAP_KINDS.items() if kind.learned)
+#: the cross-validated errors behind a folder's calibration, next to its ``surrogate.json``
+CROSS_VALIDATION_FILE = "cross_validation.csv"
 
-# Network settings: small (a few hundred weights per member), three members averaged.
+# Network settings: small (a few hundred weights per member); a deep ensemble of five members,
+# whose spread is the networks' own uncertainty.
 NN_WIDTH = 16
-NN_MEMBERS = 3
+NN_MEMBERS = 5
 NN_EPOCHS = 2500
 FLOW_SIGNS, FLOW_BOUNDS = (0, 0, 1), (0.8, 0.98, None)  # see surrogate/learn/monotone_nn.py
 # Flow networks are trained in two stages. First the physics: C_d = C_inf(u, sigma_q) *
@@ -36,8 +41,21 @@ FLOW_PHYSICS_GROUPS = ((1,), (1, 2))
 FLOW_GROUPS = ((0, 1), (1, 2))
 FLOW_TRANSITION = 0
 FLOW_KNEE_FEATURES = (1,)
-FORCE_SIGNS, FORCE_BOUNDS = (1, 0, -1), (None, None, None)
+# The flow force: ln(−α) = a(opening, Re) + b(σ), the opening bridged linearly between sampled
+# openings (as the grid maps do) and the cavitation part shared by all openings: the samples
+# collapse on σ across openings and back pressures. Measured by cross-validation on the shipped
+# samples, this structure predicts a left-out opening and the left-out back-pressure set within
+# 5 %, where additive RBF parts or the monotone network over (u, σ) missed by 7-12 %.
+FORCE_BRIDGE = dict(bridge_column=1, local_column=0, shared_column=2)
+FORCE_WIDTH = 8
+# Beyond the samples' Reynolds and cavitation numbers (plus this margin, in standard deviations)
+# the force network holds its inputs: the flow-force fraction stays near its value at the edge of
+# the data instead of following the networks' linear terms off (which made f_sim fall with p_L
+# far outside the data).
+FORCE_HOLD_MARGIN = 0.5
+FORCE_GP_PARTS = (("bridge", (1, 0)), ("rbf", (0, 1)), ("rbf", (2,)))
 GP_RESTARTS = 10
+
 
 @dataclass
 class TrainedSurrogate:
@@ -49,8 +67,14 @@ class TrainedSurrogate:
     seconds: float
     details: dict = field(default_factory=dict)
 
-    def save(self, folder: str | Path, training: dict, metrics: dict) -> None:
-        """Write the folder (weights plus ``surrogate.json``), all at once or not at all."""
+    def calibrate(self, flow: Calibration, force: Calibration) -> None:
+        """Attach the calibrations found by cross-validation (:mod:`surrogate.crossval`)."""
+        self.flow_map.calibration, self.force_map.calibration = flow, force
+
+    def save(self, folder: str | Path, training: dict, metrics: dict,
+             cross_validation=None) -> None:
+        """Write the folder (weights plus ``surrogate.json``, and the cross-validated errors as
+        ``cross_validation.csv`` if given), all at once or not at all."""
         kind = map_kind(self.kind)
         with atomic_directory(folder) as staging:
             flow_entry = kind.save_predictor(staging, "flow", self.flow_map.predictor)
@@ -59,15 +83,21 @@ class TrainedSurrogate:
                 "kind": self.kind,
                 "feature_names": list(FEATURE_NAMES),
                 "features": self.flow_map.spec.to_dict(),
+                "coverage": self.flow_map.coverage.to_dict(),
                 "flow": {"target": "ln C_d from (ln Re_q, ln(u/U), ln sigma_q)",
                          "constraints": kind.constraints["flow"],
-                         "predictor": flow_entry, "domain": self.flow_map.domain.to_dict()},
+                         "predictor": flow_entry, "domain": self.flow_map.domain.to_dict(),
+                         "calibration": self.flow_map.calibration.to_dict()},
                 "force": {"target": "alpha = f_ff/(A_L*dp) from (ln Re, ln(u/U), ln sigma)",
                           "constraints": kind.constraints["force"],
-                          "predictor": force_entry, "domain": self.force_map.domain.to_dict()},
+                          "predictor": force_entry, "domain": self.force_map.domain.to_dict(),
+                          "calibration": self.force_map.calibration.to_dict()},
                 "training": {**training, "seconds": round(self.seconds, 2), **self.details},
                 "metrics": metrics,
             })
+            if cross_validation is not None:
+                cross_validation.to_csv(staging / CROSS_VALIDATION_FILE, index=False,
+                                        float_format="%.6g")
 
 
 def train_surrogate(kind: str, samples: CfdSamples, valve: ValveParameters,
@@ -88,18 +118,28 @@ def train_surrogate(kind: str, samples: CfdSamples, valve: ValveParameters,
     options = {} if constrained else {"constrained": False}
     flow_predictor, force_predictor = trainer(data, progress, **options)
     seconds = time.perf_counter() - started
-    flow_map = LearnedFlowMap(spec, flow_predictor, FeatureDomain.fit(data.flow_features), kind)
+    coverage = Coverage.of_samples(frame[frame["q"] > 0])
+    flow_map = LearnedFlowMap(spec, flow_predictor, FeatureDomain.fit(data.flow_features), kind,
+                              coverage=coverage)
     force_map = LearnedForceMap(spec, force_predictor, FeatureDomain.fit(data.force_features),
-                                kind)
+                                kind, coverage=coverage)
     return TrainedSurrogate(kind, flow_map, force_map, seconds,
                             {"training_samples": int(len(frame))})
 
 
+def learned_maps_on(kind: str, samples: CfdSamples, valve: ValveParameters,
+                    train: np.ndarray) -> tuple[LearnedFlowMap, LearnedForceMap]:
+    """The maps of ``kind`` trained on the ``train`` samples (a cross-validation fold; module
+    level so that worker processes can run it)."""
+    trained = train_surrogate(kind, samples, valve, train)
+    return trained.flow_map, trained.force_map
+
+
 def train_networks(data: Targets, progress, constrained: bool = True
                    ) -> tuple[NetworkEnsemble, NetworkEnsemble]:
-    """The monotone network ensembles of the ``nn`` kind (flow: ln C_d; force: α)."""
+    """The network ensembles of the ``nn`` kind: the monotone flow network (ln C_d) and the
+    bridged force network (ln(−α))."""
     import torch
-    from torch.nn.functional import softplus
 
     from .monotone_nn import Architecture, SignConstrainedNet, state_arrays, train, widen
 
@@ -139,20 +179,39 @@ def train_networks(data: Targets, progress, constrained: bool = True
                     lambda r: torch.mean((r - log_cd) ** 2), float(log_cd.mean()),
                     "log_discharge", "flow (ln C_d)", FLOW_GROUPS, FLOW_TRANSITION,
                     FLOW_KNEE_FEATURES, FLOW_PHYSICS_GROUPS)
-    alpha = torch.as_tensor(data.flow_force_fraction)
-    if bool(torch.all(alpha < 0)):
-        # every sample's flow force closes the valve, so the map's does too: 1 + α = e^(−softplus(−R))
-        # keeps α in (−1, 0) however far it extrapolates (softplus rises, so the signs still hold)
-        output, to_fraction = "closing_fraction", lambda r: torch.expm1(-softplus(-r))
-        offset = float(-torch.log(torch.expm1(-torch.log1p(alpha))).mean())
-    else:
-        output, to_fraction = "fraction", torch.expm1
-        offset = float(torch.log1p(alpha).mean())
-    # relative error of the flow force itself, the quantity that is evaluated
-    force = ensemble(data.force_features, FORCE_SIGNS, FORCE_BOUNDS,
-                     lambda r: torch.mean((to_fraction(r) / alpha - 1.0) ** 2), offset, output,
-                     f"force ({output.replace('_', ' ')})")
-    return flow, force
+    return flow, _bridged_ensemble(data, progress)
+
+
+def force_target(data: Targets) -> tuple[np.ndarray, str]:
+    """The force maps' latent target: ln(−α) when every sample's flow force closes the valve (its
+    error is the flow force's relative error), else α itself."""
+    alpha = data.flow_force_fraction
+    if np.all(alpha < 0):
+        return np.log(-alpha), "log_negative_fraction"
+    return alpha, "plain_fraction"
+
+
+def _bridged_ensemble(data: Targets, progress) -> NetworkEnsemble:
+    """The force network ensemble of the ``nn`` kind (:mod:`.bridged_nn`)."""
+    from ..maps.network import BridgedArchitecture
+    from .bridged_nn import train_bridged
+
+    target, output = force_target(data)
+    features = data.force_features
+    mean, std = features.mean(axis=0), features.std(axis=0)
+    z = (features - mean) / std
+    knots = tuple(float(k) for k in np.unique(np.round(z[:, FORCE_BRIDGE["bridge_column"]], 9)))
+    held = {} if FORCE_HOLD_MARGIN is None else {
+        column: (float(z[:, column].min()) - FORCE_HOLD_MARGIN,
+                 float(z[:, column].max()) + FORCE_HOLD_MARGIN)
+        for column in (FORCE_BRIDGE["local_column"], FORCE_BRIDGE["shared_column"])}
+    architecture = BridgedArchitecture(knots, FORCE_WIDTH, **FORCE_BRIDGE, held=held)
+    states = []
+    for member in range(NN_MEMBERS):
+        states.append(train_bridged(architecture, z, target, seed=member))
+        progress(f"NN force ({output.replace('_', ' ')}): member {member + 1}/{NN_MEMBERS} "
+                 "trained")
+    return NetworkEnsemble(architecture, states, mean, std, output)
 
 
 def train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, ...]:
@@ -161,15 +220,10 @@ def train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, 
         fit_gp(data.flow_features, data.log_discharge, ADDITIVE_GROUPS, linear_mean=False,
                restarts=GP_RESTARTS), "log_discharge")
     progress(f"GP flow (ln C_d): fitted, condition number {flow.arrays.condition_number:.1e}")
-    alpha = data.flow_force_fraction
-    if np.all(alpha < 0):  # flow forces that close the valve: model ln(−α), relative errors
-        force = GaussianProcessPredictor(
-            fit_gp(data.force_features, np.log(-alpha), ADDITIVE_GROUPS, linear_mean=False,
-                   restarts=GP_RESTARTS), "log_negative_fraction")
-    else:
-        force = GaussianProcessPredictor(
-            fit_gp(data.force_features, alpha, ADDITIVE_GROUPS, linear_mean=True,
-                   restarts=GP_RESTARTS), "fraction")
+    target, name = force_target(data)
+    force = GaussianProcessPredictor(
+        fit_gp(data.force_features, target, FORCE_GP_PARTS, linear_mean=name == "plain_fraction",
+               restarts=GP_RESTARTS), "fraction" if name == "plain_fraction" else name)
     progress(f"GP force ({force.target}): fitted, condition number "
              f"{force.arrays.condition_number:.1e}")
     return flow, force

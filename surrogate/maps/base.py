@@ -11,8 +11,11 @@ All arguments are numpy arrays (broadcast together) in SI units, with the fluid 
 
 A subclass implements one direction of the flow map, :meth:`FlowMap.flow` or
 :meth:`FlowMap.pressure_drop`; the base class inverts it for the other, because both are monotone.
-Every map says where a query lies outside the data it was built from (``extrapolating``); maps
-with a predictive uncertainty (Gaussian processes) also return a standard deviation.
+Every map built from data says where, and why, a query lies outside that data
+(``extrapolation_reasons``, bit flags of :mod:`.coverage`; ``extrapolating`` where any is set),
+and how uncertain it is (``log_discharge_std`` and ``flow_std``; ``force_std``): a subclass gives
+``calibration_inputs`` and a ``calibration`` fitted on cross-validation (:mod:`.calibration`).
+Maps without data (the orifice equation) have neither.
 """
 
 from __future__ import annotations
@@ -66,6 +69,10 @@ class FlowMap(ABC):
 
     #: short name used in reports and files
     kind = "flow map"
+    #: where the samples are (maps built from data); None for maps without data
+    coverage = None
+    #: turns :meth:`calibration_inputs` into a standard deviation (:mod:`.calibration`)
+    calibration = None
 
     def flow(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """Flow [m^3/s] at load pressure ``p_L`` [Pa], back pressure ``p_B`` [Pa], opening ``u`` [m].
@@ -96,18 +103,64 @@ class FlowMap(ABC):
             raise NotImplementedError(f"{type(self).__name__} must implement flow() or "
                                       "pressure_drop()")
 
+    def reasons_at_flow(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+        """Why a query given by its flow ``q`` [m^3/s] lies outside the map's data: bit flags of
+        :mod:`.coverage`, 0 inside. Maps without data: 0."""
+        q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
+        if self.coverage is None:
+            return np.zeros(q.shape, dtype=np.int64)
+        dp = self.pressure_drop(q, p_B, u, fluid)
+        return self.coverage.reasons(dp, q, p_B, u, fluid.nu)
+
+    def extrapolation_reasons(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        """Why a query lies outside the map's data (bit flags of :mod:`.coverage`, 0 inside)."""
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        if self.coverage is None:
+            return np.zeros(p_L.shape, dtype=np.int64)
+        return self.reasons_at_flow(self.flow(p_L, p_B, u, fluid), p_B, u, fluid)
+
     def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """True where the query lies outside the map's data. Maps without data: never."""
-        p_L, _, _, _ = broadcast_query(p_L, p_B, u, fluid)
-        return np.zeros(p_L.shape, dtype=bool)
+        return self.extrapolation_reasons(p_L, p_B, u, fluid) != 0
 
     def extrapolating_at_flow(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
         """:meth:`extrapolating` for a query given by its flow ``q`` [m^3/s] instead of p_L."""
-        return self.extrapolating(p_B + self.pressure_drop(q, p_B, u, fluid), p_B, u, fluid)
+        return self.reasons_at_flow(q, p_B, u, fluid) != 0
+
+    def calibration_inputs(self, q, p_B, u, fluid: FluidState):
+        """What the map's standard deviation of ln C_d at flow ``q`` [m^3/s] is computed from:
+        (own spread or None, distance to the data, back-pressure distance), see
+        :mod:`.calibration`; None for maps without data."""
+        return None
+
+    def log_discharge_std(self, q, p_B, u, fluid: FluidState) -> np.ndarray | None:
+        """Calibrated standard deviation of ln C_d at flow ``q`` [m^3/s]: the relative
+        uncertainty of the flow the restriction passes at a given pressure drop [-]; None if the
+        map has none."""
+        if self.calibration is None:
+            return None
+        q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
+        return np.reshape(self.calibration.std(*self.calibration_inputs(q, p_B, u, fluid)),
+                          q.shape)
 
     def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
-        """Predictive standard deviation of the flow [m^3/s], or None if the map has none."""
-        return None
+        """Standard deviation of the flow [m^3/s] at load pressure ``p_L``, or None.
+
+        With Δp = ½ρ(q/(C_d·A))², a relative error δ of C_d moves the flow at a given Δp by
+        q·2δ/n, n = d ln Δp/d ln q the map's local flow exponent (2 for a turbulent orifice, 1
+        for laminar flow), taken by a central difference.
+        """
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        q = self.flow(p_L, p_B, u, fluid)
+        relative = self.log_discharge_std(q, p_B, u, fluid)
+        if relative is None:
+            return None
+        step = 1e-3
+        with np.errstate(divide="ignore", invalid="ignore"):
+            exponent = np.log(self.pressure_drop(q * np.exp(step), p_B, u, fluid)
+                              / self.pressure_drop(q * np.exp(-step), p_B, u, fluid)) / (2 * step)
+        exponent = np.where(np.isfinite(exponent), np.maximum(exponent, 0.5), 2.0)
+        return np.where(q > 0, q * 2.0 * relative / exponent, 0.0)
 
     def query(self, p_L, p_B, u, fluid: FluidState) -> MapResult:
         """Flow, extrapolation flags and (if any) standard deviation at the query points."""
@@ -119,19 +172,42 @@ class ForceMap(ABC):
     """Fluid force f_sim(p_L, p_B, u, fluid) [N] on the piston surfaces inside the CFD domain."""
 
     kind = "force map"
+    coverage = None
+    calibration = None
 
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """f_sim [N], positive in the opening direction."""
         raise NotImplementedError
 
+    def extrapolation_reasons(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        """Why a query lies outside the map's data (bit flags of :mod:`.coverage`, 0 inside)."""
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        if self.coverage is None:
+            return np.zeros(p_L.shape, dtype=np.int64)
+        return self.coverage.reasons(p_L - p_B, np.full(p_L.shape, np.nan), p_B, u, fluid.nu)
+
     def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """True where the query lies outside the map's data. Maps without data: never."""
-        p_L, _, _, _ = broadcast_query(p_L, p_B, u, fluid)
-        return np.zeros(p_L.shape, dtype=bool)
+        return self.extrapolation_reasons(p_L, p_B, u, fluid) != 0
+
+    def flow_force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        """The flow force [N]: f_sim less what a uniform pressure would give (p_L on the seat
+        area, p_B on the back area), the part a map learns."""
+        raise NotImplementedError
+
+    def calibration_inputs(self, p_L, p_B, u, fluid: FluidState):
+        """What the map's relative standard deviation of the flow force is computed from (as
+        :meth:`FlowMap.calibration_inputs`); None for maps without data."""
+        return None
 
     def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
-        """Predictive standard deviation of f_sim [N], or None if the map has none."""
-        return None
+        """Calibrated standard deviation of f_sim [N] (that of its flow force), or None if the
+        map has none."""
+        if self.calibration is None:
+            return None
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        relative = self.calibration.std(*self.calibration_inputs(p_L, p_B, u, fluid))
+        return np.abs(self.flow_force(p_L, p_B, u, fluid)) * np.reshape(relative, p_L.shape)
 
     def query(self, p_L, p_B, u, fluid: FluidState) -> MapResult:
         """Force, extrapolation flags and (if any) standard deviation at the query points."""

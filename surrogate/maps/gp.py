@@ -1,28 +1,162 @@
-"""Gaussian-process predictors for the learned maps, stored as npz arrays.
+"""Gaussian-process predictors for the learned maps: evaluated in NumPy from plain arrays.
 
-The GP predicts a transformed target; the predictor turns it into the map's target and carries
-the standard deviation along (delta method), so the maps report it in their own units.
+A fitted GP (:mod:`surrogate.learn.gaussian_process` fits it with scikit-learn) is kept as arrays
+only: standardised training inputs, dual coefficients, the Cholesky factor and the kernel's parts.
+Each part is one of
+
+* ``rbf``: amplitude·exp(−½·Σ((x_d − x'_d)/ℓ_d)²) over some feature columns;
+* ``bridge``: amplitude·min(b(x), b(x'))·rbf(other columns), with b the opening feature clamped
+  to the training range and shifted to start above zero. The min kernel is Brownian motion: its
+  posterior mean interpolates *linearly* between sampled openings, as the grid maps bridge them,
+  and holds beyond the end openings, where an RBF would revert to the mean.
+
+The predictor returns the *latent* target L (ln C_d for the flow map; ln(−α) or α for the force
+map) and its standard deviation, which the maps turn into their own quantities.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
+from scipy.linalg import solve_triangular
 
 from ..errors import InputError
-from ..learn.gaussian_process import GPArrays, NumpyGP
 
-#: target transform -> (value, derivative of value w.r.t. the GP's output)
+RBF, BRIDGE = 0, 1
+PART_KINDS = {"rbf": RBF, "bridge": BRIDGE}
+
+
+@dataclass(frozen=True)
+class GPArrays:
+    """Everything a fitted GP needs to predict, as plain arrays and numbers.
+
+    ``part_kinds[i]`` is :data:`RBF` or :data:`BRIDGE`; ``part_dims[i]`` lists its feature columns
+    (−1 padded; for a bridge the first is the opening column, the rest enter its RBF factor);
+    ``length_scales[i]`` pairs with the RBF columns; ``bridge_range`` is the training range of the
+    bridge column (standardised) and ``bridge_origin`` where its min kernel starts.
+    """
+
+    part_kinds: np.ndarray
+    part_dims: np.ndarray
+    amplitudes: np.ndarray
+    length_scales: np.ndarray
+    feature_mean: np.ndarray
+    feature_std: np.ndarray
+    trend: np.ndarray  # linear mean: intercept then one coefficient per standardised feature
+    inputs: np.ndarray  # standardised training features
+    dual: np.ndarray  # K⁻¹·y (normalised y)
+    cholesky: np.ndarray  # lower Cholesky factor of K + noise
+    noise: float
+    y_mean: float
+    y_std: float
+    condition_number: float
+    bridge_range: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    bridge_origin: float = 0.0
+
+    _FIELDS: ClassVar = ("part_kinds", "part_dims", "amplitudes", "length_scales", "feature_mean",
+               "feature_std", "trend", "inputs", "dual", "cholesky")
+    _SCALARS: ClassVar = ("noise", "y_mean", "y_std", "condition_number", "bridge_origin")
+
+    def to_npz(self) -> dict[str, np.ndarray]:
+        arrays = {name: np.asarray(getattr(self, name)) for name in self._FIELDS}
+        arrays.update({name: np.asarray(getattr(self, name)) for name in self._SCALARS})
+        arrays["bridge_range"] = np.asarray(self.bridge_range)
+        return arrays
+
+    @classmethod
+    def from_npz(cls, data) -> "GPArrays":
+        if "part_kinds" not in data:  # format 1: additive RBF parts over "groups"
+            groups = np.asarray(data["groups"], int)
+            return cls(np.full(len(groups), RBF), groups, np.asarray(data["amplitudes"], float),
+                       np.asarray(data["length_scales"], float),
+                       *(np.asarray(data[key], float) for key in (
+                           "feature_mean", "feature_std", "trend", "inputs", "dual",
+                           "cholesky")),
+                       *(float(data[key]) for key in ("noise", "y_mean", "y_std",
+                                                      "condition_number")))
+        return cls(np.asarray(data["part_kinds"], int), np.asarray(data["part_dims"], int),
+                   *(np.asarray(data[key], float) for key in cls._FIELDS[2:]),
+                   *(float(data[key]) for key in cls._SCALARS[:-1]),
+                   np.asarray(data["bridge_range"], float), float(data["bridge_origin"]))
+
+    def parts(self):
+        """(kind, columns, amplitude, length scales of the RBF columns) of each part."""
+        for kind, dims, amplitude, scales in zip(self.part_kinds, self.part_dims,
+                                                 self.amplitudes, self.length_scales):
+            dims = [int(d) for d in dims if d >= 0]
+            rbf = dims[1:] if kind == BRIDGE else dims
+            yield int(kind), dims, float(amplitude), np.asarray(scales[: len(rbf)], float)
+
+
+def bridge_coordinate(values: np.ndarray, span: np.ndarray, origin: float) -> np.ndarray:
+    """The bridge kernel's coordinate: the opening feature clamped to the training ``span``, less
+    ``origin`` (held beyond the end openings, positive inside)."""
+    return np.clip(values, span[0], span[1]) - origin
+
+
+class NumpyGP:
+    """Mean and latent standard deviation of a fitted GP from its :class:`GPArrays`."""
+
+    def __init__(self, arrays: GPArrays):
+        self.arrays = arrays
+        self._parts = []
+        for kind, dims, amplitude, scales in arrays.parts():
+            rbf = dims[1:] if kind == BRIDGE else dims
+            scaled = arrays.inputs[:, rbf] / scales if rbf else np.zeros((len(arrays.inputs), 0))
+            bridge = (bridge_coordinate(arrays.inputs[:, dims[0]], arrays.bridge_range,
+                                        arrays.bridge_origin) if kind == BRIDGE else None)
+            self._parts.append((kind, dims, rbf, scales, amplitude, scaled,
+                                np.sum(scaled**2, axis=1), bridge))
+
+    def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """k(z, training inputs) and the prior variance k(z, z)."""
+        a = self.arrays
+        total = np.zeros((len(z), len(a.inputs)))
+        prior = np.zeros(len(z))
+        for kind, dims, rbf, scales, amplitude, scaled, norms, bridge in self._parts:
+            if rbf:
+                query = z[:, rbf] / scales
+                squared = (np.sum(query**2, axis=1)[:, None] + norms[None, :]
+                           - 2.0 * query @ scaled.T)
+                factor = np.exp(-0.5 * np.maximum(squared, 0.0))
+            else:
+                factor = np.ones_like(total)
+            if kind == BRIDGE:
+                b = bridge_coordinate(z[:, dims[0]], a.bridge_range, a.bridge_origin)
+                total += amplitude * np.minimum(b[:, None], bridge[None, :]) * factor
+                prior += amplitude * b
+            else:
+                total += amplitude * factor
+                prior += amplitude
+        return total, prior
+
+    def predict(self, features: np.ndarray, return_std: bool = False):
+        """Mean (and latent standard deviation) of the target at each row of ``features``."""
+        a = self.arrays
+        z = (features - a.feature_mean) / a.feature_std
+        cross, prior = self._cross(z)
+        mean = (a.y_mean + a.y_std * (cross @ a.dual)
+                + np.column_stack([np.ones(len(z)), z]) @ a.trend)
+        if not return_std:
+            return mean
+        v = solve_triangular(a.cholesky, cross.T, lower=True, check_finite=False)
+        variance = prior - np.sum(v**2, axis=0)
+        return mean, a.y_std * np.sqrt(np.clip(variance, 0.0, None))
+
+
+#: latent target -> the map's target (ln C_d stays ln C_d; α from ln(−α); α as it is)
 TARGETS = {
-    "log_discharge": (lambda m: m, lambda m: np.ones_like(m)),  # flow: ln C_d
-    "fraction": (lambda m: m, lambda m: np.ones_like(m)),  # force: α
-    "log_negative_fraction": (lambda m: -np.exp(m), lambda m: np.exp(m)),  # force: ln(−α)
+    "log_discharge": lambda m: m,  # flow: ln C_d
+    "fraction": lambda m: m,  # force: α
+    "log_negative_fraction": lambda m: -np.exp(m),  # force: α = −exp(L)
 }
 
 
 class GaussianProcessPredictor:
-    """A fitted GP and the transform from its output to the map's target."""
+    """A fitted GP and the transform from its latent output to the map's target."""
 
     def __init__(self, arrays: GPArrays, target: str):
         if target not in TARGETS:
@@ -31,17 +165,20 @@ class GaussianProcessPredictor:
         self.gp = NumpyGP(arrays)
         self.target = target
 
-    def predict(self, features: np.ndarray, return_std: bool = False):
-        value, slope = TARGETS[self.target]
-        if not return_std:
-            return value(self.gp.predict(features))
-        mean, std = self.gp.predict(features, return_std=True)
-        return value(mean), np.abs(slope(mean)) * std
+    def latent(self, features: np.ndarray, return_std: bool = False):
+        """The latent target L (and its standard deviation)."""
+        return self.gp.predict(features, return_std)
+
+    def predict(self, features: np.ndarray) -> np.ndarray:
+        """The map's target (ln C_d, or α)."""
+        return TARGETS[self.target](self.gp.predict(features))
 
     def describe(self) -> dict:
         a = self.arrays
-        return {"target": self.target, "groups": [list(g) for g in a.groups],
-                "amplitudes": a.amplitudes.tolist(), "length_scales": a.length_scales.tolist(),
+        return {"target": self.target,
+                "parts": [{"kind": "bridge" if kind == BRIDGE else "rbf", "columns": dims,
+                           "amplitude": amplitude, "length_scales": scales.tolist()}
+                          for kind, dims, amplitude, scales in a.parts()],
                 "noise": a.noise, "condition_number": a.condition_number,
                 "training_points": len(a.inputs), "feature_mean": a.feature_mean.tolist(),
                 "feature_std": a.feature_std.tolist(), "trend": a.trend.tolist()}

@@ -31,8 +31,11 @@ is the flow force (the part of f_sim a uniform pressure would not give):
 * **in u**: linear in ln u, α held outside the sampled openings;
 * **in temperature and p_B**: as the flow map.
 
-Every query outside a sweep's range, outside the sampled openings or fluid states, or at a back
-pressure more than ``back_pressure_tolerance`` from the reference is reported as extrapolating.
+Where a query lies outside the samples the grid is built from, and why, is said as for every map
+kind (:mod:`.coverage`): outside or between far-apart openings, outside a sweep's range, outside
+the sampled viscosities, away from the reference back pressure. The grid's uncertainty grows
+with the distance from its samples, as its own cross-validated errors show
+(:class:`GridUncertainty`).
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from ..fluid import FluidState
 from ..units import BAR, from_si
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap, broadcast_query
+from .coverage import DP_OUTSIDE, Coverage
 from .curves import CurveSet
 
 _TINY_OPENING = 1e-12  # [m] openings below this are treated as this, to keep logarithms finite
@@ -71,14 +75,15 @@ class _SweepGrid:
     """
 
     excess_slope = 0.0
+    #: the calibrated uncertainty (:class:`GridUncertainty`), attached when built with a valve
+    uncertainty = None
 
     def __init__(self, levels: list[_FluidLevel], curves: CurveSet, reference_back_pressure: float,
-                 back_pressure_tolerance: float, excluded: int):
+                 excluded: int):
         self.levels = sorted(levels, key=lambda level: level.nu)
         self.log_nu = np.log([level.nu for level in self.levels])
         self.curves = curves
         self.reference_back_pressure = reference_back_pressure
-        self.back_pressure_tolerance = back_pressure_tolerance
         self.excluded_samples = excluded
         # openings and their curves per level, padded to a rectangle (+inf: never reached)
         widest = max(len(level.log_u) for level in self.levels)
@@ -114,8 +119,43 @@ class _SweepGrid:
                                  & (within[3] | (s1 <= 0.0))))
         return value, inside
 
-    def _back_pressure_ok(self, p_B) -> np.ndarray:
-        return np.abs(p_B - self.reference_back_pressure) <= self.back_pressure_tolerance
+    def sweep_distances(self, u, nu) -> dict[str, np.ndarray]:
+        """How far the grid interpolates or extrapolates to reach a query at opening ``u`` [m]
+        and viscosity ``nu`` [m^2/s], in ln u and in ln ν [-].
+
+        Between two sampled values a and b, linear interpolation errs by about f''·(x−a)(b−x)/2,
+        so that distance is sqrt((x−a)(b−x)): zero on a sampled value, largest in the middle of
+        a wide gap. Beyond the sampled values the grid holds or continues the end value and errs
+        by the function's slope times how far beyond, a distance of its own. The opening's
+        distances are those at the fluid levels around the query, weighted as they are.
+        """
+        log_u = np.log(np.maximum(np.ravel(u), _TINY_OPENING))
+        log_nu = np.log(np.ravel(nu))
+        levels = len(self.levels)
+        k0, k1, t, nu_excess = _bracket(np.broadcast_to(self.log_nu, (len(log_u), levels)),
+                                        np.full(len(log_u), levels), log_nu)
+        distances = {"opening": 0.0, "opening beyond": 0.0,
+                     "viscosity": _span(t, self.log_nu[k1] - self.log_nu[k0]),
+                     "viscosity beyond": np.abs(nu_excess)}
+        for k, weight in ((k0, 1.0 - t), (k1, t)):
+            j0, j1, s, excess = _bracket(self._log_u[k], self._count[k], log_u)
+            distances["opening"] = distances["opening"] + weight * _span(
+                s, self._log_u[k, j1] - self._log_u[k, j0])
+            distances["opening beyond"] = distances["opening beyond"] + weight * np.abs(excess)
+        return distances
+
+    @property
+    def fixed_back_pressure(self) -> float:
+        """The one back pressure [Pa] whose samples the grid uses: CFD runs at others would not
+        change it (:mod:`surrogate.workbench.suggest`)."""
+        return self.reference_back_pressure
+
+    @property
+    def calibration(self):
+        """The calibration of this map's uncertainty (fitted on first use), or None."""
+        if self.uncertainty is None:
+            return None
+        return self.uncertainty.calibrations["flow" if isinstance(self, FlowMap) else "force"]
 
     def describe(self) -> str:
         """The sweeps the grid holds, in display units."""
@@ -144,6 +184,13 @@ def _bracket(knots: np.ndarray, count: np.ndarray, value: np.ndarray):
     with np.errstate(invalid="ignore", divide="ignore"):
         weight = np.where(high > low, (clamped - low) / (high - low), 0.0)
     return lower, upper, _snap(weight), excess
+
+
+def _span(weight: np.ndarray, gap: np.ndarray) -> np.ndarray:
+    """Interpolation distance sqrt((x−a)(b−x)) = gap·sqrt(w(1−w)) between knots ``gap`` apart
+    at weight ``w``."""
+    with np.errstate(invalid="ignore"):
+        return np.where(np.isfinite(gap), gap * np.sqrt(weight * (1.0 - weight)), 0.0)
 
 
 def _snap(weight: np.ndarray) -> np.ndarray:
@@ -222,8 +269,8 @@ class GridFlowMap(_SweepGrid, FlowMap):
     excess_slope = -2.0  # ln Δp per ln u at constant C_d
 
     @classmethod
-    def from_samples(cls, samples: CfdSamples, *, reference_back_pressure: float | None = None,
-                     back_pressure_tolerance: float = 1.0 * BAR) -> "GridFlowMap":
+    def from_samples(cls, samples: CfdSamples, *, reference_back_pressure: float | None = None
+                     ) -> "GridFlowMap":
         """Build from CFD samples.
 
         Parameters
@@ -232,9 +279,6 @@ class GridFlowMap(_SweepGrid, FlowMap):
             Validated samples.
         reference_back_pressure : float, optional
             Back pressure [Pa] of the samples to use; default the most common one.
-        back_pressure_tolerance : float
-            Queries whose p_B differs from the reference by more than this [Pa] are flagged as
-            extrapolating.
         """
         reference, excluded, groups = _sweeps(samples, reference_back_pressure)
 
@@ -242,8 +286,9 @@ class GridFlowMap(_SweepGrid, FlowMap):
             return np.log(sweep["q"].to_numpy()), np.log((sweep["p_L"] - sweep["p_B"]).to_numpy())
 
         levels, curves = _build(groups, curve)
-        return cls(levels, CurveSet(curves, outside="tangent"), reference,
-                   back_pressure_tolerance, excluded)
+        grid = cls(levels, CurveSet(curves, outside="tangent"), reference, excluded)
+        grid.coverage = Coverage.of_samples(_used_samples(samples, reference))
+        return grid
 
     def __repr__(self) -> str:
         return f"GridFlowMap({len(self.curves)} sweeps)"
@@ -260,17 +305,11 @@ class GridFlowMap(_SweepGrid, FlowMap):
         dp = np.where(flowing & (u <= 0), np.inf, dp)
         return dp.reshape(shape)
 
-    def extrapolating_at_flow(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+    def calibration_inputs(self, q, p_B, u, fluid: FluidState):
+        if self.uncertainty is None:
+            return None
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
-        shape = q.shape
-        _, inside = self._interpolate(np.log(np.maximum(q.ravel(), 1e-300)),
-                                      np.log(np.maximum(u.ravel(), _TINY_OPENING)),
-                                      np.log(fluid.nu.ravel()))
-        inside &= self._back_pressure_ok(p_B.ravel()) & (q.ravel() > 0)
-        return ~inside.reshape(shape)
-
-    def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
-        return self.extrapolating_at_flow(self.flow(p_L, p_B, u, fluid), p_B, u, fluid)
+        return self.uncertainty.inputs(self, p_B, u, fluid)
 
 
 class GridForceMap(_SweepGrid, ForceMap):
@@ -286,8 +325,7 @@ class GridForceMap(_SweepGrid, ForceMap):
 
     @classmethod
     def from_samples(cls, samples: CfdSamples, valve: ValveParameters, *,
-                     reference_back_pressure: float | None = None,
-                     back_pressure_tolerance: float = 1.0 * BAR) -> "GridForceMap":
+                     reference_back_pressure: float | None = None) -> "GridForceMap":
         """Build from CFD samples and the valve's areas (to separate the flow force).
 
         Parameters as :meth:`GridFlowMap.from_samples`.
@@ -302,8 +340,10 @@ class GridForceMap(_SweepGrid, ForceMap):
             return np.log(dp), flow_force / (valve.A_L * dp)
 
         levels, curves = _build(groups, curve)
-        return cls(levels, CurveSet(curves, outside="hold"), reference, back_pressure_tolerance,
-                   excluded, A_L=valve.A_L, back_area=back_area)
+        grid = cls(levels, CurveSet(curves, outside="hold"), reference, excluded, A_L=valve.A_L,
+                   back_area=back_area)
+        grid.coverage = Coverage.of_samples(_used_samples(samples, reference))
+        return grid
 
     def __repr__(self) -> str:
         return f"GridForceMap({len(self.curves)} sweeps)"
@@ -321,6 +361,89 @@ class GridForceMap(_SweepGrid, ForceMap):
         p_L, p_B, dp, fraction, _ = self._fraction(p_L, p_B, u, fluid, flags=False)
         return p_L * self.A_L + p_B * self.back_area + fraction * self.A_L * dp
 
-    def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
-        _, p_B, dp, _, inside = self._fraction(p_L, p_B, u, fluid, flags=True)
-        return ~(inside & self._back_pressure_ok(p_B) & (dp > 0))
+    def extrapolation_reasons(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        return super().extrapolation_reasons(p_L, p_B, u, fluid) | np.where(
+            p_L <= p_B, DP_OUTSIDE, 0)
+
+    def flow_force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        p_L, p_B, dp, fraction, _ = self._fraction(p_L, p_B, u, fluid, flags=False)
+        return fraction * self.A_L * dp
+
+    def calibration_inputs(self, p_L, p_B, u, fluid: FluidState):
+        if self.uncertainty is None:
+            return None
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        return self.uncertainty.inputs(self, p_B, u, fluid)
+
+
+def _used_samples(samples: CfdSamples, reference: float):
+    """The samples a grid is built from: those with flow at the reference back pressure."""
+    frame = samples.frame
+    return frame[(frame["q"] > 0) & np.isclose(frame["p_B"], reference, rtol=0,
+                                               atol=1e-3 * BAR)]
+
+
+class GridUncertainty:
+    """What the grid maps' calibrated uncertainty is made of.
+
+    A grid has no spread of its own: its standard deviation (of ln C_d; of the flow force,
+    relative) grows with the distances it interpolates over, from the nearest sampled opening and
+    fluid state (:meth:`_SweepGrid.sweep_distances`), and with the distance of the back pressure
+    from the sampled one (:mod:`.calibration`). The constants come from the grid's own errors on
+    samples left out of it (:mod:`surrogate.crossval`); rebuilding the grid for every fold takes
+    a second, so that runs when a standard deviation is first asked for.
+    """
+
+    def __init__(self, samples: CfdSamples, valve: ValveParameters):
+        self.samples, self.valve = samples, valve
+        self._calibrations = None
+        self._errors = None
+
+    @staticmethod
+    def inputs(grid: "_SweepGrid", p_B, u, fluid):
+        """(None, distances) of a query to ``grid``: the distances it interpolates and
+        extrapolates over in opening and viscosity, and that of the back pressure from the
+        sampled one."""
+        return None, {**grid.sweep_distances(u, fluid.nu),
+                      "back pressure": grid.coverage.back_pressure_distance(np.ravel(p_B))}
+
+    @property
+    def errors(self):
+        """The grid's cross-validated errors (:func:`surrogate.crossval.cross_validate`),
+        computed on first use."""
+        if self._errors is None:
+            from functools import partial
+
+            from ..crossval import cross_validate
+
+            self._errors = cross_validate(self.samples, self.valve,
+                                          partial(grid_maps_on, self.samples, self.valve))
+        return self._errors
+
+    @property
+    def calibrations(self) -> dict:
+        """{"flow": ..., "force": ...} :class:`~.calibration.Calibration`, fitted on first use."""
+        if self._calibrations is None:
+            from ..crossval import calibrate
+
+            flow, force = calibrate(self.errors, use_spread=False)
+            self._calibrations = {"flow": flow, "force": force}
+        return self._calibrations
+
+    def summary(self) -> dict:
+        """The cross-validation summary per scheme (:func:`surrogate.crossval.summary`)."""
+        from ..crossval import summary
+
+        return summary(self.errors, self.calibrations["flow"], self.calibrations["force"])
+
+
+def grid_maps_on(samples: CfdSamples, valve: ValveParameters, train=None
+                 ) -> tuple[GridFlowMap, GridForceMap]:
+    """The grid maps of ``samples`` (of the ``train`` ones, for a cross-validation fold), with
+    their uncertainty attached."""
+    if train is not None:
+        samples = samples.subset(train)
+    flow, force = GridFlowMap.from_samples(samples), GridForceMap.from_samples(samples, valve)
+    flow.uncertainty = force.uncertainty = GridUncertainty(samples, valve)
+    return flow, force

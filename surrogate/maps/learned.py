@@ -6,13 +6,16 @@
 * :class:`LearnedForceMap`: f_sim = p_L·A_L + p_B·(A_s3 − A_B) + α·A_L·Δp, α predicted from the
   force features.
 
-The predictor is a neural network (:mod:`.nn`) or a Gaussian process (:mod:`.gp`); both expose
-``predict(features, return_std)``. A query is *extrapolating* when its features lie outside the
-training data (:class:`~surrogate.learn.domain.FeatureDomain`).
+The predictor is a neural network ensemble (:mod:`.nn`) or a Gaussian process (:mod:`.gp`); both
+expose ``predict(features)`` and ``latent(features, return_std=True)``, the spread that, with the
+distance to the data, makes the calibrated standard deviation (:mod:`.calibration`). A query is
+*extrapolating* for the reasons of :mod:`.coverage`, or when its features lie in a hole of the
+training data (:class:`~surrogate.maps.domain.FeatureDomain`).
 
 Every learned map is saved as a folder holding ``surrogate.json`` (features, scalers,
-constraints, the hash of the training data, held-out metrics) next to plain weight files;
-:func:`load_learned_maps` reads it back without executing any code (no pickle).
+constraints, coverage, calibration, the hash of the training data, cross-validated accuracy) next
+to plain weight files; :func:`load_learned_maps` reads it back without executing any code (no
+pickle).
 """
 
 from __future__ import annotations
@@ -25,8 +28,10 @@ import numpy as np
 from ..errors import InputError
 from ..features import FeatureSpec
 from ..fluid import FluidState
-from ..learn.domain import FeatureDomain
 from .base import FlowMap, ForceMap, broadcast_query
+from .calibration import Calibration
+from .coverage import DP_OUTSIDE, FEATURES_SPARSE, Coverage
+from .domain import FeatureDomain
 
 MANIFEST = "surrogate.json"
 FORMAT_VERSION = 2  # 2: network weights as .npz (1: PyTorch state_dicts, still read)
@@ -34,20 +39,28 @@ _READABLE = (1, 2)
 
 
 class LearnedFlowMap(FlowMap):
-    """Flow map whose discharge coefficient comes from a learned predictor of ln C_d."""
+    """Flow map whose discharge coefficient comes from a learned predictor of ln C_d.
 
-    def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str):
+    ``calibration`` turns the predictor's own spread into a calibrated standard deviation of
+    ln C_d (:mod:`.calibration`; none, i.e. the spread itself, before one is fitted);
+    ``coverage`` says where the training samples are.
+    """
+
+    def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str,
+                 calibration: Calibration | None = None, coverage: Coverage | None = None):
         self.spec = spec
         self.predictor = predictor
         self.domain = domain
         self.kind = kind
+        self.calibration = calibration or Calibration()
+        self.coverage = coverage
 
     def __repr__(self) -> str:
         return f"LearnedFlowMap({self.kind})"
 
-    def log_discharge(self, q, p_B, u, fluid: FluidState, return_std: bool = False):
-        """ln C_d at flow ``q`` [m^3/s] (and its standard deviation, if the predictor has one)."""
-        return self.predictor.predict(self.spec.flow_features(q, p_B, u, fluid), return_std)
+    def log_discharge(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+        """ln C_d at flow ``q`` [m^3/s]."""
+        return self.predictor.predict(self.spec.flow_features(q, p_B, u, fluid))
 
     def pressure_drop(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
@@ -59,66 +72,63 @@ class LearnedFlowMap(FlowMap):
         dp = np.where(q > 0, np.where(u > 0, dp, np.inf), 0.0)
         return dp.reshape(shape)
 
-    def extrapolating_at_flow(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+    def reasons_at_flow(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
+        flags = super().reasons_at_flow(q, p_B, u, fluid)
         inside = self.domain.contains(self.spec.flow_features(q, p_B, u, fluid))
-        return (~inside | (q.ravel() <= 0)).reshape(q.shape)
+        return flags | np.where(inside.reshape(q.shape), 0, FEATURES_SPARSE)
 
-    def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
-        return self.extrapolating_at_flow(self.flow(p_L, p_B, u, fluid), p_B, u, fluid)
-
-    def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
-        """Standard deviation of q [m^3/s] at a given p_L, from that of ln C_d.
-
-        At fixed Δp, ln q = ln C_d(q) + const, so δln q = δln C_d / (1 − ∂ln C_d/∂ln q); the slope
-        is taken from the predictor's mean by a central difference.
-        """
-        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        q = self.flow(p_L, p_B, u, fluid)
-        _, std = self.log_discharge(q, p_B, u, fluid, return_std=True)
-        if std is None:
-            return None
-        step = 1e-4
-        up = self.log_discharge(q * np.exp(step), p_B, u, fluid)
-        down = self.log_discharge(q * np.exp(-step), p_B, u, fluid)
-        feedback = 1.0 - (up - down) / (2 * step)
-        return (q.ravel() * std / np.maximum(feedback, 0.05)).reshape(q.shape)
+    def calibration_inputs(self, q, p_B, u, fluid: FluidState):
+        q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
+        features = self.spec.flow_features(q, p_B, u, fluid)
+        return _inputs(self, features, p_B)
 
 
 class LearnedForceMap(ForceMap):
     """Force map whose flow-force fraction α comes from a learned predictor."""
 
-    def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str):
+    def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str,
+                 calibration: Calibration | None = None, coverage: Coverage | None = None):
         self.spec = spec
         self.predictor = predictor
         self.domain = domain
         self.kind = kind
+        self.calibration = calibration or Calibration()
+        self.coverage = coverage
 
     def __repr__(self) -> str:
         return f"LearnedForceMap({self.kind})"
 
-    def _fraction(self, p_L, p_B, u, fluid, return_std):
-        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        features = self.spec.force_features(p_L, p_B, u, fluid)
-        return p_L, p_B, features, self.predictor.predict(features, return_std)
-
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
-        p_L, p_B, _, fraction = self._fraction(p_L, p_B, u, fluid, False)
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        fraction = self.predictor.predict(self.spec.force_features(p_L, p_B, u, fluid))
         dp = np.maximum(p_L - p_B, 0.0).ravel()
         force = self.spec.uniform_force(p_L, p_B) + fraction * self.spec.A_L * dp
         return force.reshape(p_L.shape)
 
-    def extrapolating(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
-        p_L, p_B, features, _ = self._fraction(p_L, p_B, u, fluid, False)
-        return (~self.domain.contains(features) | (p_L <= p_B).ravel()).reshape(p_L.shape)
+    def extrapolation_reasons(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        flags = super().extrapolation_reasons(p_L, p_B, u, fluid)
+        inside = self.domain.contains(self.spec.force_features(p_L, p_B, u, fluid))
+        flags = flags | np.where(inside.reshape(p_L.shape), 0, FEATURES_SPARSE)
+        return flags | np.where(p_L <= p_B, DP_OUTSIDE, 0)
 
-    def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
-        """Standard deviation of f_sim [N]: that of α times A_L·Δp."""
-        p_L, p_B, _, (_, std) = self._fraction(p_L, p_B, u, fluid, True)
-        if std is None:
-            return None
-        dp = np.maximum(p_L - p_B, 0.0).ravel()
-        return (std * self.spec.A_L * dp).reshape(p_L.shape)
+    def flow_force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        return self.force(p_L, p_B, u, fluid) - self.spec.uniform_force(p_L, p_B)
+
+    def calibration_inputs(self, p_L, p_B, u, fluid: FluidState):
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        return _inputs(self, self.spec.force_features(p_L, p_B, u, fluid), p_B)
+
+
+def _inputs(learned_map, features: np.ndarray, p_B: np.ndarray):
+    """(spread, distances) of a learned map at its features (:mod:`.calibration`)."""
+    _, spread = learned_map.predictor.latent(features, return_std=True)
+    distances = {"features": learned_map.domain.distance(features)}
+    if learned_map.coverage is not None:
+        distances["back pressure"] = learned_map.coverage.back_pressure_distance(np.ravel(p_B))
+    return spread, distances
 
 
 def write_manifest(folder: Path, manifest: dict) -> None:
@@ -152,10 +162,11 @@ def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceM
     manifest = read_manifest(folder)
     load = map_kind(manifest["kind"]).load_predictor
     spec = FeatureSpec.from_dict(manifest["features"])
-    flow_predictor = load(Path(folder), manifest["flow"]["predictor"])
-    force_predictor = load(Path(folder), manifest["force"]["predictor"])
-    return (LearnedFlowMap(spec, flow_predictor,
-                           FeatureDomain.from_dict(manifest["flow"]["domain"]), manifest["kind"]),
-            LearnedForceMap(spec, force_predictor,
-                            FeatureDomain.from_dict(manifest["force"]["domain"]),
-                            manifest["kind"]))
+    coverage = Coverage.from_dict(manifest["coverage"]) if "coverage" in manifest else None
+    maps = []
+    for cls, name in ((LearnedFlowMap, "flow"), (LearnedForceMap, "force")):
+        entry = manifest[name]
+        maps.append(cls(spec, load(Path(folder), entry["predictor"]),
+                        FeatureDomain.from_dict(entry["domain"]), manifest["kind"],
+                        Calibration.from_dict(entry.get("calibration")), coverage))
+    return tuple(maps)

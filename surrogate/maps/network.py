@@ -73,6 +73,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.special import expit
 
 #: sharpness of the smooth clamp of the held columns (see :attr:`Architecture.held`)
 HOLD_SHARPNESS = 4.0
@@ -275,12 +276,129 @@ class NumpyNet:
         hold_slope = np.ones_like(z)
         for k, (low, high) in self.held.items():
             c = HOLD_SHARPNESS
-            hold_slope[:, k] = (1.0 / (1.0 + np.exp(-c * (z[:, k] - low)))
-                                - 1.0 / (1.0 + np.exp(-c * (z[:, k] - high))))
+            hold_slope[:, k] = expit(c * (z[:, k] - low)) - expit(c * (z[:, k] - high))
         for group, weight, bias, output in self.parts:
             slope = 1.0 - np.tanh(held[:, group] @ weight.T + bias) ** 2
             gradient[:, group] += ((slope * output) @ weight) * hold_slope[:, group]
         if self.transition:
-            sigmoid = 1.0 / (1.0 + np.exp(-(self.knee_start + z @ self.knee)))
+            sigmoid = expit(self.knee_start + z @ self.knee)
             gradient -= self.depth * sigmoid[:, None] * self.knee
         return gradient
+
+
+# --- the bridged network of the flow-force maps -----------------------------------------------------
+
+@dataclass(frozen=True)
+class BridgedArchitecture:
+    """A network that bridges openings linearly, as the grid maps do, for the flow force.
+
+    R(z) = Σ_k φ_k(z_u)·g_k(z_r) + h(z_s): one small network g_k of the Reynolds feature per
+    sampled opening ``knots[k]`` (standardised ln(u/U)), blended by the hat functions φ_k of
+    linear interpolation between neighbouring openings (held beyond the end ones), plus one
+    network h of the cavitation feature shared by all openings. Sharing h is the physics: the
+    flow force's cavitation factor depends on σ alone (the samples collapse on it across
+    openings and back pressures), so the force at a back pressure the CFD did not run follows
+    from openings where it did reach those σ. Each small network is c + l·x + Σ_j v_j·tanh(W_j·x
+    + b_j) on one standardised column.
+
+    Attributes
+    ----------
+    knots : tuple of float
+        Sampled openings, standardised, increasing.
+    width : int
+        Hidden units of each small network.
+    bridge_column, local_column, shared_column : int
+        Feature columns of the opening, the Reynolds number and the cavitation number.
+    held : dict
+        {column: (low, high)}: standardised ranges beyond which the local and shared networks
+        see their input smoothly held (:func:`hold`), so that the flow-force fraction stays what
+        the data say at their edge instead of running off along the networks' linear terms.
+    """
+
+    knots: tuple[float, ...]
+    width: int = 8
+    bridge_column: int = 1
+    local_column: int = 0
+    shared_column: int = 2
+    held: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"type": "bridged", "knots": list(self.knots), "width": self.width,
+                "bridge_column": self.bridge_column, "local_column": self.local_column,
+                "shared_column": self.shared_column,
+                "held": {str(k): list(v) for k, v in self.held.items()}}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "BridgedArchitecture":
+        return cls(tuple(float(k) for k in data["knots"]), int(data["width"]),
+                   int(data["bridge_column"]), int(data["local_column"]),
+                   int(data["shared_column"]),
+                   {int(k): (float(v[0]), float(v[1])) for k, v in data.get("held", {}).items()})
+
+    @property
+    def parameter_count(self) -> int:
+        return len(self.knots) * (3 * self.width + 2) + 3 * self.width + 1
+
+
+def hat_weights(x: np.ndarray, knots) -> np.ndarray:
+    """Weights of linear interpolation between ``knots`` at ``x`` (held beyond the ends), shape
+    (n, knots)."""
+    lower, weight = hat_bracket(x, knots)
+    weights = np.zeros((len(x), len(knots)))
+    rows = np.arange(len(x))
+    weights[rows, lower] = 1.0 - weight
+    weights[rows, np.minimum(lower + 1, len(knots) - 1)] += weight
+    return weights
+
+
+def hat_bracket(x: np.ndarray, knots) -> tuple[np.ndarray, np.ndarray]:
+    """The lower knot of each ``x`` and the weight of the one above it (held beyond the ends;
+    a single knot has weight 0 above)."""
+    knots = np.asarray(knots, float)
+    if len(knots) == 1:
+        return np.zeros(len(x), dtype=np.intp), np.zeros(len(x))
+    x = np.clip(x, knots[0], knots[-1])
+    lower = np.clip(np.searchsorted(knots, x) - 1, 0, len(knots) - 2)
+    return lower, (x - knots[lower]) / (knots[lower + 1] - knots[lower])
+
+
+class BridgedNet:
+    """A trained :class:`BridgedArchitecture` network, evaluated with NumPy from its parameters
+    (``local_W``, ``local_b``, ``local_v`` (knots × width), ``local_c``, ``local_l`` (knots),
+    ``shared_W``, ``shared_b``, ``shared_v`` (width), ``shared_l`` (1))."""
+
+    def __init__(self, architecture: BridgedArchitecture, state: dict[str, np.ndarray]):
+        self.architecture = architecture
+        self.state = {key: np.asarray(value, float) for key, value in state.items()}
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        a, s = self.architecture, self.state
+        lower, weight = hat_bracket(z[:, a.bridge_column], a.knots)
+        z = hold(z, a.held)
+        x = z[:, a.local_column]
+
+        def local(k):  # the small network of opening k (one per row)
+            hidden = np.tanh(x[:, None] * s["local_W"][k] + s["local_b"][k])
+            return (hidden * s["local_v"][k]).sum(-1) + s["local_c"][k] + x * s["local_l"][k]
+
+        # only the two openings around each query carry weight
+        upper = np.minimum(lower + 1, len(a.knots) - 1)
+        bridged = (1.0 - weight) * local(lower) + weight * local(upper)
+        shared_x = z[:, a.shared_column]
+        shared = (np.tanh(shared_x[:, None] * s["shared_W"][None] + s["shared_b"][None])
+                  * s["shared_v"][None]).sum(-1) + s["shared_l"][0] * shared_x
+        return bridged + shared
+
+
+def architecture_from_dict(data: dict):
+    """The architecture a manifest describes (additive monotone or bridged)."""
+    if data.get("type") == "bridged":
+        return BridgedArchitecture.from_dict(data)
+    return Architecture.from_dict(data)
+
+
+def network(architecture, state):
+    """The NumPy network of an architecture and its parameters."""
+    if isinstance(architecture, BridgedArchitecture):
+        return BridgedNet(architecture, state)
+    return NumpyNet(architecture, state)

@@ -15,36 +15,48 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .network import Architecture, NumpyNet
+from .network import architecture_from_dict, network
 
 #: what the network's output R means, and how the map's target follows from it
 OUTPUTS = {"log_discharge": lambda r: r,  # flow: R = ln C_d
            "fraction": np.expm1,  # force: R = ln(1 + α)
-           "closing_fraction": lambda r: np.expm1(-np.logaddexp(0.0, -r))}  # α in (−1, 0)
+           "closing_fraction": lambda r: np.expm1(-np.logaddexp(0.0, -r)),  # α in (−1, 0)
+           "log_negative_fraction": lambda r: -np.exp(r),  # force: R = ln(−α)
+           "plain_fraction": lambda r: r}  # force: R = α
 
 
 class NetworkEnsemble:
     """Mean correction of several networks, turned into the map's target."""
 
-    def __init__(self, architecture: Architecture, states: list[dict[str, np.ndarray]],
+    def __init__(self, architecture, states: list[dict[str, np.ndarray]],
                  feature_mean: np.ndarray, feature_std: np.ndarray, output: str):
         if output not in OUTPUTS:
             raise ValueError(f"unknown network output {output!r}")
         self.architecture = architecture
         self.states = states
-        self.members = [NumpyNet(architecture, state) for state in states]
+        self.members = [network(architecture, state) for state in states]
         self.feature_mean = np.asarray(feature_mean, float)
         self.feature_std = np.asarray(feature_std, float)
         self.output = output
 
-    def correction(self, features: np.ndarray) -> np.ndarray:
-        """R averaged over the members."""
-        z = (features - self.feature_mean) / self.feature_std
-        return np.mean([member(z) for member in self.members], axis=0)
+    @property
+    def target(self) -> str:
+        return self.output
 
-    def predict(self, features: np.ndarray, return_std: bool = False):
-        value = OUTPUTS[self.output](self.correction(features))
-        return (value, None) if return_std else value
+    def latent(self, features: np.ndarray, return_std: bool = False):
+        """R averaged over the members (and the members' spread: a deep ensemble's
+        uncertainty)."""
+        z = (features - self.feature_mean) / self.feature_std
+        outputs = np.array([member(z) for member in self.members])
+        mean = outputs.mean(axis=0)
+        if not return_std:
+            return mean
+        return mean, (outputs.std(axis=0, ddof=1) if len(outputs) > 1
+                      else np.zeros_like(mean))
+
+    def predict(self, features: np.ndarray) -> np.ndarray:
+        """The map's target (ln C_d, or α)."""
+        return OUTPUTS[self.output](self.latent(features))
 
     def describe(self) -> dict:
         return {"architecture": self.architecture.to_dict(), "members": len(self.members),
@@ -65,7 +77,7 @@ def load_ensemble(folder: Path, entry: dict) -> NetworkEnsemble:
     """An ensemble saved by :func:`save_ensemble` (or as PyTorch state_dicts, format 1)."""
     states = (_load_npz(folder / entry["file"]) if "file" in entry
               else [_load_legacy(folder / name) for name in entry["files"]])
-    return NetworkEnsemble(Architecture.from_dict(entry["architecture"]), states,
+    return NetworkEnsemble(architecture_from_dict(entry["architecture"]), states,
                            entry["feature_mean"], entry["feature_std"], entry["output"])
 
 

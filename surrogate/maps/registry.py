@@ -103,6 +103,9 @@ class MapKind:
         ``data(cfd)`` -> the options that record which data the maps come from: the CFD samples
         they are built from (a path, or ``None`` for the shipped ones), or the trained surrogate
         and its hash; None for kinds that need no data.
+    accuracy : callable or None
+        ``accuracy(options, valve, base)`` -> the maps' cross-validation summary per scheme
+        (:func:`surrogate.crossval.summary`); None for kinds without data.
     """
 
     name: str
@@ -114,6 +117,7 @@ class MapKind:
     load_predictor: Callable | None = None
     constraints: Mapping[str, str] = field(default_factory=dict)
     data: Callable[..., dict] | None = None
+    accuracy: Callable[..., dict] | None = None
 
     @property
     def learned(self) -> bool:
@@ -315,7 +319,7 @@ def _grid_data(cfd, **options) -> dict:
 
 def _build_grid(options, valve, base):
     from ..data.loaders import load_cfd_samples
-    from .grid import GridFlowMap, GridForceMap
+    from .grid import grid_maps_on
 
     path = resolve_file(options.get("cfd", SHIPPED), base, SHIPPED_CFD_SAMPLES)
     expected = options.get("cfd_sha256")
@@ -323,8 +327,20 @@ def _build_grid(options, valve, base):
         raise InputError(f"{path}: these CFD samples are not the ones the model was built from "
                          f"(SHA-256 {file_hash(path)[:12]}…, the model records {expected[:12]}…); "
                          "refit the model on them, or point cfd = ... at the original file")
-    samples = load_cfd_samples(path)
-    return GridFlowMap.from_samples(samples), GridForceMap.from_samples(samples, valve)
+    return grid_maps_on(load_cfd_samples(path), valve)
+
+
+def _grid_accuracy(options, valve, base):
+    flow, _ = build_maps(MapSource.of("grid", **options), valve, base)
+    return flow.uncertainty.summary()
+
+
+def cross_validation_summary(source: MapSource, valve: ValveParameters,
+                             base: str | Path = ".") -> dict | None:
+    """How accurate the maps of ``source`` are by cross-validation, per scheme
+    (:func:`surrogate.crossval.summary`); None for kinds without data."""
+    kind = map_kind(source.kind)
+    return None if kind.accuracy is None else kind.accuracy(source.settings, valve, Path(base))
 
 
 def trained_folder(kind: str) -> Path:
@@ -353,6 +369,15 @@ def _learned_builder(kind: str):
             raise InputError(f"{path}: holds a {flow.kind!r} surrogate, not {kind!r}")
         return flow, force
     return build
+
+
+def _learned_accuracy(kind: str):
+    def accuracy(options, valve, base):
+        from .learned import read_manifest
+
+        manifest = read_manifest(_learned_folder(kind, options.get("folder", SHIPPED), base))
+        return manifest.get("metrics", {}).get("cross_validation")
+    return accuracy
 
 
 def _learned_data(kind: str):
@@ -411,22 +436,25 @@ register(MapKind(
     "grid", "interpolation of the CFD samples (surrogate/maps/grid.py)", _build_grid,
     (Option("cfd", "the CFD-sample file (default: the shipped one)", default=SHIPPED, path=True),
      Option("cfd_sha256", "SHA-256 of the CFD-sample file the model was built from", _sha256)),
-    data=_grid_data))
+    data=_grid_data, accuracy=_grid_accuracy))
 register(MapKind(
-    "nn", "monotone neural-network ensemble on dimensionless features", _learned_builder("nn"),
+    "nn", "neural-network ensembles on dimensionless features: a monotone flow network, a "
+          "force network bridged across openings", _learned_builder("nn"),
     (_FOLDER, _SURROGATE_HASH), trainer="surrogate.learn.training:train_networks",
-    data=_learned_data("nn"),
+    data=_learned_data("nn"), accuracy=_learned_accuracy("nn"),
     save_predictor=_save_network, load_predictor=_load_network,
     constraints={
         "flow": "q non-decreasing in p_L and in u by construction: |dlnCd/dlnRe_q| <= 0.98, "
                 "|dlnCd/dln(u/U)| <= 0.98, dlnCd/dln(sigma_q) >= 0",
-        "force": "f_sim non-decreasing in p_L by construction: d ln(1+alpha)/dlnRe >= 0, "
-                 "d ln(1+alpha)/dln(sigma) <= 0; alpha kept in (-1, 0) when every training "
-                 "sample's flow force closes the valve"}))
+        "force": "alpha < 0 (the flow force closes the valve) by construction when every "
+                 "sample's does; ln(-alpha) linear in ln u between sampled openings and held "
+                 "beyond them; monotonicity in p_L measured, not guaranteed"}))
 register(MapKind(
-    "gp", "additive Gaussian processes on dimensionless features, with a standard deviation",
+    "gp", "Gaussian processes on dimensionless features (the force's bridged across openings), "
+          "with a standard deviation",
     _learned_builder("gp"), (_FOLDER, _SURROGATE_HASH),
     trainer="surrogate.learn.training:train_processes", data=_learned_data("gp"),
+    accuracy=_learned_accuracy("gp"),
     save_predictor=_save_process, load_predictor=_load_process,
     constraints={"flow": "none (monotonicity measured, not guaranteed)",
                  "force": "none (monotonicity measured, not guaranteed)"}))

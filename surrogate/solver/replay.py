@@ -36,8 +36,9 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from ..model import ValveModel
-from ..points import CLOSING, OPENING, OperatingPoints, concatenate
+from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
 from .steady import Status, solve_steady
+from .uncertainty import pressure_drop_std
 
 
 @dataclass(frozen=True)
@@ -56,11 +57,15 @@ class Replay:
         :class:`~surrogate.solver.steady.Status` per sample.
     moving : numpy.ndarray of bool
         True where the piston moved at this sample, False where friction held it.
-    extrapolating : numpy.ndarray of bool
-        True where the maps are queried outside their data.
+    reasons_outside : numpy.ndarray of int
+        Why the maps are queried outside their data: bit flags of
+        :mod:`surrogate.maps.coverage`, 0 inside.
     band : numpy.ndarray
         (2, n): the friction band's edges u_open and u_close at each sample [m], kept so that a
         replay with nearby parameters can start from them (``replay(..., guess=...)``).
+    dp_std : numpy.ndarray or None
+        Standard deviation of ``dp`` [Pa] that the maps' uncertainty implies
+        (:mod:`.uncertainty`); None for maps without one, or when not asked for.
     """
 
     points: OperatingPoints
@@ -68,8 +73,14 @@ class Replay:
     dp: np.ndarray
     status: np.ndarray
     moving: np.ndarray
-    extrapolating: np.ndarray
+    reasons_outside: np.ndarray
     band: np.ndarray
+    dp_std: np.ndarray | None = None
+
+    @property
+    def extrapolating(self) -> np.ndarray:
+        """True where the maps are queried outside their data."""
+        return self.reasons_outside != 0
 
     @property
     def p_L(self) -> np.ndarray:
@@ -83,12 +94,13 @@ class Replay:
     def take(self, index) -> "Replay":
         """The replay of some samples only (whole runs, for the friction state to make sense)."""
         return Replay(self.points[index], self.u[index], self.dp[index], self.status[index],
-                      self.moving[index], self.extrapolating[index], self.band[:, index])
+                      self.moving[index], self.reasons_outside[index], self.band[:, index],
+                      None if self.dp_std is None else self.dp_std[index])
 
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
            u_start: float = 0.0, guess: Replay | None = None,
-           extrapolation: bool = True, smoothing: int = 1) -> Replay:
+           diagnostics: bool = True, smoothing: int = 1) -> Replay:
     """Replay samples in time order with friction as a play.
 
     Parameters
@@ -103,8 +115,10 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         Piston position before each run's first sample [m]; 0, closed, for a ramp from rest.
     guess : Replay, optional
         A replay of the same points with nearby parameters; its friction band starts the solver.
-    extrapolation : bool
-        False skips the extrapolation flags (all False), for the inner loop of a fit.
+    diagnostics : bool
+        False skips what the maps say about themselves, the reasons a sample lies outside their
+        data (all 0) and the Δp standard deviation (None): the inner loop of a fit needs
+        neither.
     smoothing : int
         Samples over which the band edges are smoothed for the friction state (see the module
         docstring); 1, the default, is the classic play on the edges as they are.
@@ -127,17 +141,25 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
                               u_start, smoothing)
     fluid = model.fluid(points)
     dp = np.full(count, np.nan)
-    extrapolating = np.zeros(count, dtype=bool)
+    reasons = np.zeros(count, dtype=np.int64)
     solved = np.flatnonzero(status >= 0)
     if solved.size:
         sub = points[solved]
         dp[solved] = model.balance(u[solved], sub, fluid[solved]).dp
-        if extrapolation:
-            extrapolating[solved] = model.extrapolating(u[solved], sub.p_B + dp[solved], sub,
-                                                        fluid[solved])
+        if diagnostics:
+            reasons[solved] = model.extrapolation_reasons(u[solved], sub.p_B + dp[solved], sub,
+                                                          fluid[solved])
     at_stop = (status == Status.OK) & (u >= model.valve.U_max)
     status[at_stop] = Status.AT_STOP
-    return Replay(points, u, dp, status, moving, extrapolating, u_edges)
+    dp_std = None
+    if diagnostics:
+        # a sliding piston sits on the band's edge of its direction; a stuck one stays put
+        floats = moving if model.has_friction else np.ones(count, dtype=bool)
+        side = np.where(~model.has_friction | ~moving, STEADY,
+                        np.where(u <= np.fmin(u_edges[0], u_edges[1]), OPENING, CLOSING))
+        dp_std = pressure_drop_std(model, points, u, dp, side,
+                                   ~floats | (status == Status.AT_STOP))
+    return Replay(points, u, dp, status, moving, reasons, u_edges, dp_std)
 
 
 def _segment_starts(segments, count: int) -> np.ndarray:

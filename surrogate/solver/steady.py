@@ -29,10 +29,12 @@ from enum import IntEnum
 import numpy as np
 import pandas as pd
 
+from ..maps.coverage import describe_all
 from ..model import ValveModel
 from ..points import OperatingPoints
 from ..roots import find_roots, invert_increasing
 from ..units import BAR, from_si
+from .uncertainty import pressure_drop_std
 
 _OPENING_FLOOR = 1e-7  # smallest opening tried, as a fraction of the stroke
 # a guessed opening is bracketed within ±2 %, then on the root's side within 10 % and 40 %,
@@ -77,15 +79,25 @@ class SteadyState:
     dp : numpy.ndarray
         Pressure drop p_L − p_B [Pa]; NaN where the point failed.
     status : numpy.ndarray of int
-    extrapolating : numpy.ndarray of bool
-        True where the solution queries a map outside its data.
+    reasons_outside : numpy.ndarray of int
+        Why the solution queries a map outside its data: bit flags of
+        :mod:`surrogate.maps.coverage`, 0 inside.
+    dp_std : numpy.ndarray or None
+        Standard deviation of ``dp`` [Pa] that the maps' uncertainty implies
+        (:mod:`.uncertainty`); None for maps without one.
     """
 
     points: OperatingPoints
     u: np.ndarray
     dp: np.ndarray
     status: np.ndarray
-    extrapolating: np.ndarray
+    reasons_outside: np.ndarray
+    dp_std: np.ndarray | None = None
+
+    @property
+    def extrapolating(self) -> np.ndarray:
+        """True where the solution queries a map outside its data."""
+        return self.reasons_outside != 0
 
     @property
     def p_L(self) -> np.ndarray:
@@ -117,8 +129,11 @@ class SteadyState:
             "u_mm": from_si(self.u, "mm"),
             "p_L_bar": from_si(self.p_L, "bar"),
             "dp_bar": from_si(self.dp, "bar"),
+            "dp_std_bar": (np.full(len(self.dp), np.nan) if self.dp_std is None
+                           else from_si(self.dp_std, "bar")),
             "status": [Status(code).name.lower() for code in self.status],
             "extrapolating": self.extrapolating,
+            "outside_samples": describe_all(self.reasons_outside),
             "reason": self.reasons(),
         })
 
@@ -141,7 +156,8 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
         Points whose root lies further away widen that bracket on the root's side first.
     positions_only : bool
         True skips what only a caller of the pressure drop needs: ``dp`` of flowing points stays
-        NaN and ``extrapolating`` False. The replay asks for the friction band's edges this way.
+        NaN, ``reasons_outside`` 0 and ``dp_std`` None. The replay asks for the friction band's
+        edges this way.
     """
     count = len(points)
     u = np.full(count, np.nan)
@@ -161,13 +177,16 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
     if still.size:
         u[still], dp[still], status[still] = _solve_still(model, points[still], sign[still])
 
-    extrapolating = np.zeros(count, dtype=bool)
+    reasons = np.zeros(count, dtype=np.int64)
     solved = np.flatnonzero(status >= 0)
-    if solved.size and not positions_only:
+    if positions_only:
+        return SteadyState(points, u, dp, status, reasons)
+    if solved.size:
         sub = points[solved]
-        extrapolating[solved] = model.extrapolating(u[solved], sub.p_B + dp[solved], sub,
-                                                    model.fluid(sub))
-    return SteadyState(points, u, dp, status, extrapolating)
+        reasons[solved] = model.extrapolation_reasons(u[solved], sub.p_B + dp[solved], sub,
+                                                      model.fluid(sub))
+    dp_std = pressure_drop_std(model, points, u, dp, sign, status == Status.AT_STOP)
+    return SteadyState(points, u, dp, status, reasons, dp_std)
 
 
 class _FlowingBalance:

@@ -7,7 +7,10 @@ sample is the model's Δp = p_L − p_B minus the measured one. The comparison s
 * per run: RMS, bias, the error in hysteresis width and the worst samples;
 * per pilot set point × temperature: RMS;
 * per operating region (flow band × temperature × set point), ranked by RMS, with how much of it
-  lies where the model extrapolates its maps.
+  lies where the model extrapolates its maps;
+* the maps' own uncertainty: the Δp standard deviation it implies (RMS per run and overall,
+  :mod:`surrogate.solver.uncertainty`), and the share of samples outside the CFD samples per
+  reason (:mod:`surrogate.maps.coverage`).
 
 Statistics are computed in SI; the tables are for display and hold bar, L/min and °C (their
 column names say which). Samples the solver could not solve (NaN residual) are left out of every
@@ -23,7 +26,9 @@ import numpy as np
 import pandas as pd
 
 from ..data.loaders import BenchLog
+from ..maps.coverage import shares
 from ..model import ValveModel
+from ..solver.steady import Status
 from ..units import from_si
 from .residuals import LogReplay, noise_floor, replay_log
 
@@ -54,8 +59,9 @@ class Comparison:
         ``temperature_nominal_C`` (rounded to :data:`TEMPERATURE_STEP_C`), ``p_Pe_bar`` (set
         point), ``samples``, ``failed``, ``rms_bar``, ``bias_bar`` (mean residual), ``noise_bar``
         (the run's noise floor), ``hysteresis_measured_bar``, ``hysteresis_model_bar``,
-        ``hysteresis_error_bar`` (model minus measured width, see :func:`hysteresis_width`) and
-        ``extrapolating_fraction``.
+        ``hysteresis_error_bar`` (model minus measured width, see :func:`hysteresis_width`),
+        ``dp_std_bar`` (RMS over the run of the Δp standard deviation the maps' uncertainty
+        implies; NaN for maps without one) and ``extrapolating_fraction``.
     pivot : pandas.DataFrame
         RMS [bar] with the set point ``p_Pe_bar`` as index and ``temperature_C`` (nominal) as
         columns.
@@ -97,6 +103,20 @@ class Comparison:
         ok = self.played.ok
         return float(np.mean(self.played.replay.extrapolating[ok])) if ok.any() else float("nan")
 
+    @property
+    def outside_shares(self) -> dict[str, float]:
+        """Share of the solved samples outside the CFD samples, for any reason and per reason."""
+        return shares(self.played.replay.reasons_outside[self.played.ok])
+
+    @property
+    def dp_std(self) -> float:
+        """RMS over the solved samples of the Δp standard deviation the maps' uncertainty
+        implies [Pa]; NaN for maps without one."""
+        std = self.played.replay.dp_std
+        if std is None or not self.played.ok.any():
+            return float("nan")
+        return float(np.sqrt(np.nanmean(std[self.played.ok] ** 2)))
+
     def to_json(self) -> dict:
         """Plain JSON data in display units, numbers rounded to 4 decimals, NaN as null."""
         worst = {run: _records(group.drop(columns="run"))
@@ -111,7 +131,9 @@ class Comparison:
             "rms_bar": _plain(from_si(self.rms, "bar")),
             "noise_floor_bar": _plain(from_si(self.noise_floor, "bar")),
             "rms_over_noise": _plain(self.rms_over_noise),
+            "dp_std_bar": _plain(from_si(self.dp_std, "bar")),
             "extrapolating_fraction": _plain(self.extrapolating_fraction),
+            "outside_samples": {key: _plain(value) for key, value in self.outside_shares.items()},
             "runs": runs,
             "rms_by_p_Pe_and_temperature": _records(pivot),
             "regions": _records(self.regions),
@@ -127,17 +149,20 @@ class Comparison:
             f"  residual (model − measured Δp) RMS {rms:.3f} bar, noise floor {floor:.3f} bar "
             f"({self.rms_over_noise:.1f}x); maps extrapolated at "
             f"{100 * self.extrapolating_fraction:.0f} % of samples",
+            self._uncertainty_line(),
             "",
             f"  {'run':<6}{'T [°C]':>7}{'p_Pe [bar]':>11}{'samples':>8}{'RMS':>8}{'bias':>8}"
-            f"{'noise':>7}{'hyst. data':>11}{'model':>7}{'error':>7}{'extrap.':>8}",
+            f"{'noise':>7}{'maps σ':>7}{'hyst. data':>11}{'model':>7}{'error':>7}"
+            f"{'extrap.':>8}",
         ]
         for r in self.runs.itertuples(index=False):
             lines.append(
                 f"  {r.run:<6}{r.temperature_C:>7.1f}{r.p_Pe_bar:>11g}{r.samples:>8}"
-                f"{r.rms_bar:>8.3f}{r.bias_bar:>+8.3f}{r.noise_bar:>7.3f}"
+                f"{r.rms_bar:>8.3f}{r.bias_bar:>+8.3f}{r.noise_bar:>7.3f}{r.dp_std_bar:>7.3f}"
                 f"{r.hysteresis_measured_bar:>11.3f}{r.hysteresis_model_bar:>7.3f}"
                 f"{r.hysteresis_error_bar:>+7.3f}{100 * r.extrapolating_fraction:>7.0f}%")
-        lines.append("  (in bar; hysteresis width: Δp of the ramp up − ramp down at equal q)")
+        lines.append("  (in bar; maps σ: RMS of the Δp standard deviation the maps' uncertainty "
+                     "implies; hysteresis width: Δp of the ramp up − ramp down at equal q)")
 
         lines += ["", "  RMS [bar] by p_Pe set point (rows) and temperature (columns):",
                   "  " + " " * 10 + "".join(f"{t:>8g} °C" for t in self.pivot.columns)]
@@ -154,12 +179,45 @@ class Comparison:
         return "\n".join(lines)
 
 
+    def sample_table(self) -> pd.DataFrame:
+        """One row per sample in display units: inputs, measured and model Δp, the model's Δp
+        standard deviation from the maps, residual, solver status, whether the piston moved,
+        and why the maps' query lies outside the CFD samples (empty inside)."""
+        frame = self.played.frame()
+        return pd.DataFrame({
+            "run": frame["run"].to_numpy(),
+            "line": frame["line"].to_numpy(),
+            "time_s": frame["time"].to_numpy(),
+            "direction": frame["direction"].to_numpy(),
+            "q_lpm": from_si(frame["q"].to_numpy(), "L/min"),
+            "p_P_bar": from_si(frame["p_P"].to_numpy(), "bar"),
+            "p_B_bar": from_si(frame["p_B"].to_numpy(), "bar"),
+            "temperature_C": from_si(frame["temperature"].to_numpy(), "degC"),
+            "dp_measured_bar": from_si(frame["dp_measured"].to_numpy(), "bar"),
+            "dp_model_bar": from_si(frame["dp_predicted"].to_numpy(), "bar"),
+            "dp_std_bar": from_si(frame["dp_std"].to_numpy(), "bar"),
+            "residual_bar": from_si(frame["residual"].to_numpy(), "bar"),
+            "status": [Status(code).name.lower() for code in frame["status"]],
+            "moving": frame["moving"].to_numpy(),
+            "outside_samples": frame["outside_samples"].to_numpy(),
+        })
+
+    def _uncertainty_line(self) -> str:
+        """The maps' Δp standard deviation and why samples lie outside the CFD samples."""
+        std = from_si(self.dp_std, "bar")
+        head = ("  maps' uncertainty: none (maps without data)" if not np.isfinite(std) else
+                f"  maps' uncertainty: Δp standard deviation {std:.3f} bar RMS")
+        reasons = [f"{100 * share:.0f} % {reason}" for reason, share in
+                   self.outside_shares.items() if reason != "any" and share > 0]
+        return head + ("; outside the CFD samples: " + ", ".join(reasons) if reasons else "")
+
+
 def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None) -> Comparison:
     """Replay ``model`` over ``log`` and summarise the residual (see the module doc).
 
     ``played``: the model's replay of ``log``, if already computed. It must have been made with
-    extrapolation flags on (the default of :func:`.replay_log`), or every region reads as inside
-    the maps.
+    diagnostics on (the default of :func:`.replay_log`), or every region reads as inside the maps
+    and no uncertainty is shown.
     """
     played = played if played is not None else replay_log(model, log)
     if len(played.residual) != len(log):
@@ -216,6 +274,7 @@ def _samples(played: LogReplay) -> pd.DataFrame:
     """The replay's per-sample frame (SI) with the squared residual and the nominal temperature."""
     samples = played.frame()
     samples["residual_squared"] = samples["residual"] ** 2
+    samples["dp_variance"] = samples["dp_std"] ** 2
     run_temperature = samples.groupby("run", sort=False)["temperature"].transform("mean")
     samples["temperature_nominal_C"] = TEMPERATURE_STEP_C * np.round(
         from_si(run_temperature.to_numpy(), "degC") / TEMPERATURE_STEP_C)
@@ -248,6 +307,7 @@ def _run_table(samples: pd.DataFrame, solved: pd.DataFrame, run_ids: list[str]) 
         "hysteresis_measured_bar": _display(measured, "bar"),
         "hysteresis_model_bar": _display(predicted, "bar"),
         "hysteresis_error_bar": _display(predicted - measured, "bar"),
+        "dp_std_bar": _display(np.sqrt(good["dp_variance"].mean()), "bar"),
         "extrapolating_fraction": good["extrapolating"].mean().astype(float),
     }).reindex(run_ids)
     table.index.name = "run"

@@ -254,7 +254,7 @@ class _DiagnosisProblem(FitProblem):
         self.base_evaluation = Evaluation(base.residual[self.ok], base)
 
     def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
-        played = replay_log(model, self.log, guess=self.base, extrapolation=False)
+        played = replay_log(model, self.log, guess=self.base, diagnostics=False)
         return Evaluation(played.residual[self.ok], played)
 
     def effective_samples(self, evaluation: Evaluation) -> float:

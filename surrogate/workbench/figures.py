@@ -17,6 +17,7 @@ import pandas as pd
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from ..outputs import atomic_directory
 from ..units import from_si, label
@@ -68,6 +69,7 @@ def _samples(comparison: Comparison) -> pd.DataFrame:
         "up": (frame["direction"] == "up").to_numpy(),
         "dp_measured_bar": from_si(frame["dp_measured"].to_numpy(), "bar"),
         "dp_model_bar": from_si(frame["dp_predicted"].to_numpy(), "bar"),
+        "dp_std_bar": from_si(frame["dp_std"].to_numpy(), "bar"),
         "residual_bar": from_si(frame["residual"].to_numpy(), "bar"),
     })
 
@@ -110,7 +112,8 @@ def _shade(colour, amount: float):
 
 def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
     """Δp(q) of every run, one panel per temperature: measured as light dots, the model as a
-    dark line, both in the set point's hue, so the two differ in marker and in colour."""
+    dark line, both in the set point's hue, so the two differ in marker and in colour; around
+    the model, a shaded ±2σ band of the Δp uncertainty its maps imply (where they have one)."""
     levels = sorted(set(samples["temperature_nominal_C"]))
     set_points = sorted(set(samples["p_Pe_bar"]))
     palette = colormaps["viridis"].resampled(max(len(set_points), 2))
@@ -124,6 +127,7 @@ def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
             c = colour[group["p_Pe_bar"].iloc[0]]
             ax.plot(group["q_lpm"], group["dp_measured_bar"], "o", color=_tint(c, 0.55),
                     markersize=1.6, markeredgewidth=0, rasterized=True)
+            _band(ax, group, _tint(c, 0.3))
             # time order, so each run draws its loop: up the ramp and back down
             ax.plot(group["q_lpm"], group["dp_model_bar"], "-", color=_shade(c, 0.35),
                     linewidth=1.3)
@@ -136,9 +140,33 @@ def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
     handles += [Line2D([], [], color=_tint("0.2", 0.55), marker="o", linestyle="",
                        markersize=4, label="measured (dots, light)"),
                 Line2D([], [], color="0.2", linewidth=1.3, label="model (line, dark)")]
+    if samples["dp_std_bar"].notna().any():
+        handles.append(Patch(color=_tint("0.2", 0.75), label="model ± 2σ of its maps"))
     figure.legend(handles=handles, fontsize=8, loc="outside right upper")
     figure.suptitle(_title(comparison, "Δp over q"))
     return figure
+
+
+def _band(ax, run: pd.DataFrame, colour) -> None:
+    """The model's ±2σ band over one run, drawn per ramp (each ramp's flow runs one way, so its
+    upper edge and its lower edge reversed close a polygon). σ is drawn as a running median over
+    a twentieth of the ramp: it jumps between samples where friction holds the piston (the flow
+    map's error alone) and where it slides (the force map's too), which would hide the band's
+    course; samples.csv keeps every sample's own."""
+    if run["dp_std_bar"].isna().all():
+        return
+    ramp = (run["up"] != run["up"].shift()).cumsum()
+    for _, part in run.groupby(ramp, sort=False):
+        part = part[part["dp_std_bar"].notna() & part["dp_model_bar"].notna()]
+        if len(part) < 2:
+            continue
+        q = part["q_lpm"].to_numpy()
+        window = max(5, len(part) // 20)
+        std = part["dp_std_bar"].rolling(window, center=True, min_periods=1).median()
+        upper = (part["dp_model_bar"] + 2 * std).to_numpy()
+        lower = (part["dp_model_bar"] - 2 * std).to_numpy()
+        ax.fill(np.concatenate([q, q[::-1]]), np.concatenate([upper, lower[::-1]]),
+                color=colour, alpha=0.35, linewidth=0, rasterized=True)
 
 
 RESIDUAL_PANELS = (("q_lpm", f"q [{LPM}]"), ("p_L_bar", f"p_L [{BAR}]"),

@@ -28,7 +28,7 @@ class LogProblem(FitProblem):
         self.last = start
 
     def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
-        played = replay_log(model, self.log, guess=self.last, extrapolation=False)
+        played = replay_log(model, self.log, guess=self.last, diagnostics=False)
         # only the fit's own steps move the warm start: the Jacobian's columns, on threads,
         # start from the point they differentiate at, so the result does not depend on timing
         if own:
@@ -40,7 +40,7 @@ class LogProblem(FitProblem):
             return super().column(model, parameter)
         rows = run_rows(self.log, parameter.scope)
         start = self.last
-        played = replay_log(model, self.log.take(rows), extrapolation=False,
+        played = replay_log(model, self.log.take(rows), diagnostics=False,
                             guess=None if start is None else start.take(rows))
         return rows, played.residual
 
@@ -96,7 +96,7 @@ def probe_change(model: ValveModel, effect_name: str, parameter_name: str, log: 
     parameter = trial.effect(effect_name).params[parameter_name]
     step = probe_step(parameter)
     parameter.value += step
-    played = replay_log(trial, log, guess=base, extrapolation=False)
+    played = replay_log(trial, log, guess=base, diagnostics=False)
     return step, played.replay.dp - base.replay.dp
 
 
@@ -122,7 +122,7 @@ def _felt(model: ValveModel, log: BenchLog, names: Sequence[str] | None,
         if rows.size == 0:
             return True
         run = log.take(rows)
-        base = replay_log(model, run, extrapolation=False,
+        base = replay_log(model, run, diagnostics=False,
                           guess=None if start is None else start.take(rows))
         _, change = probe_change(model, *split_key(name), run, base)
         return not felt(change, scoped=True)

@@ -308,6 +308,63 @@ def staircase_section(workflow) -> str:
     ])
 
 
+def staircases_figure(workflows: dict) -> Figure:
+    """The staircases of several map kinds side by side ({kind: Workflow}), on one RMS axis."""
+    figure = Figure(figsize=(4.6 * len(workflows) + 0.6, 4.6), layout="constrained")
+    axes = figure.subplots(1, len(workflows), sharey=True, squeeze=False)[0]
+    for ax, (kind, workflow) in zip(axes, workflows.items()):
+        rms = [from_si(step.rms, "bar") for step in workflow.steps]
+        positions = np.arange(len(rms))
+        ax.step(positions, rms, where="mid", color="tab:blue")
+        ax.plot(positions, rms, "o", color="tab:blue")
+        for x, y in zip(positions, rms):
+            ax.annotate(f"{y:.2f}", (x, y), textcoords="offset points", xytext=(0, 6),
+                        ha="center", fontsize=7)
+        floor = from_si(workflow.noise_floor, "bar")
+        ax.axhline(floor, color="tab:red", linestyle="--", label=f"noise floor {floor:.2f} bar")
+        labels = [", ".join(step.added) or step.model.name for step in workflow.steps]
+        ax.set_xticks(positions, [f"{i + 1}. {_short(text)}" for i, text in enumerate(labels)],
+                      rotation=40, ha="right", fontsize=7)
+        ax.set_yscale("log")
+        ax.set_title(f"{kind} maps: {rms[-1]:.2f} bar after {len(rms)} steps", fontsize=10)
+        ax.legend(fontsize=7, loc="upper right")
+    axes[0].set_ylabel("residual RMS [bar]")
+    return figure
+
+
+def _short(text: str, length: int = 28) -> str:
+    return text if len(text) <= length else text[: length - 1] + "…"
+
+
+def staircases_section(workflows: dict, main: str, scores: dict | None = None) -> str:
+    """The staircases of every map kind side by side, and why ``main`` is the report's."""
+    rows = []
+    for kind, workflow in workflows.items():
+        rows.append({"maps": kind + (" (main)" if kind == main else ""),
+                     "flow-force CV error [%]": (100 * scores[kind] if scores and kind in scores
+                                                 else float("nan")),
+                     "steps": len(workflow.steps),
+                     "added by diagnosis": ", ".join(
+                         name for step in workflow.steps[4:] for name in step.added) or "—",
+                     "final rms [bar]": from_si(workflow.final.rms, "bar"),
+                     "× noise floor": workflow.final.rms / workflow.noise_floor})
+    why = ("chosen with --maps" if not scores else
+           "the kind whose flow force is the most accurate by cross-validation (mean relative "
+           "RMS error over the four schemes, table's second column)")
+    return "\n".join([
+        "<h2>The staircase on every kind of map</h2>",
+        f"<p>The same loop run on grid, neural-network and Gaussian-process maps. The rest of "
+        f"this report follows the <b>{html.escape(main)}</b> maps: {why}. Effects that only one "
+        f"kind's loop adds are more likely to make up for that kind's map error than to be "
+        f"physics.</p>",
+        _table(pd.DataFrame(rows), ("maps", "added by diagnosis"),
+               {"flow-force CV error [%]": ".1f", "final rms [bar]": ".3f",
+                "× noise floor": ".2f"}),
+        _figure(figure_png(staircases_figure(workflows)), "staircases of every map kind",
+                "Residual RMS after each step, per kind of map, on one axis."),
+    ])
+
+
 def write_html(path: str | Path, title: str, sections: list[str], note: str = "") -> Path:
     """Write the report (to a temporary name first, then renamed into place)."""
     path = Path(path)

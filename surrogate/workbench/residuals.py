@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..data.loaders import BenchLog
 from ..errors import InputError
+from ..maps.coverage import describe_all
 from ..model import ValveModel
 from ..points import OperatingPoints
 from ..solver import Replay, replay
@@ -68,13 +69,17 @@ class LogReplay:
                          self.residual[rows])
 
     def frame(self) -> pd.DataFrame:
-        """One row per sample (SI): the log's columns, predicted and measured Δp, residual,
-        whether the maps extrapolate there and whether the piston moved."""
+        """One row per sample (SI): the log's columns, predicted and measured Δp, residual, the
+        predicted Δp's standard deviation from the maps (NaN for maps without one), whether and
+        why the maps extrapolate there, and whether the piston moved."""
         frame = self.log.frame.copy()
         frame["dp_measured"] = self.measured
         frame["dp_predicted"] = self.replay.dp
         frame["residual"] = self.residual
+        frame["dp_std"] = (np.full(len(frame), np.nan) if self.replay.dp_std is None
+                           else self.replay.dp_std)
         frame["extrapolating"] = self.replay.extrapolating
+        frame["outside_samples"] = describe_all(self.replay.reasons_outside)
         frame["moving"] = self.replay.moving
         frame["status"] = self.replay.status
         return frame
@@ -108,15 +113,17 @@ def state_smoothing_samples(log: BenchLog, seconds: float = STATE_SMOOTHING) -> 
 
 
 def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = None,
-               extrapolation: bool = True) -> LogReplay:
+               diagnostics: bool = True) -> LogReplay:
     """Replay every run of ``log`` with ``model`` (friction as a play within each run, its state
     blind to the inputs' sample-to-sample noise over :data:`STATE_SMOOTHING`).
 
     ``guess``: a replay of the same log with nearby parameters, to start the solver from.
+    ``diagnostics=False`` skips the maps' extrapolation reasons and Δp standard deviation
+    (:func:`surrogate.solver.replay.replay`), for the inner loop of a fit.
     """
     points = OperatingPoints.from_bench(log.frame)
     played = replay(model, points, log.frame["run"].to_numpy(),
-                    guess=None if guess is None else guess.replay, extrapolation=extrapolation,
+                    guess=None if guess is None else guess.replay, diagnostics=diagnostics,
                     smoothing=state_smoothing_samples(log))
     measured = measured_dp(log)
     residual = np.where(played.ok, played.dp - measured, np.nan)

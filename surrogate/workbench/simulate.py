@@ -125,7 +125,7 @@ def simulate(truth: ValveModel, sequence: BenchLog, *, noise: SensorNoise | None
         silently missing value).
     """
     noise = SensorNoise() if noise is None else noise
-    played = replay_log(truth, sequence, extrapolation=False)
+    played = replay_log(truth, sequence, diagnostics=False)
     if not played.ok.all():
         bad = np.flatnonzero(~played.ok)
         raise InputError(f"the truth model {truth.name!r} cannot be solved at {bad.size} "

@@ -77,13 +77,14 @@ class Workflow:
     final_diagnosis: Diagnosis
     noise_floor: float  # [Pa], of the final model's residual
     seconds: float = 0.0
+    maps: str = ""  # the kind of the CFD steps' maps ("" when started from a given model)
 
     @property
     def final(self) -> Step:
         return self.steps[-1]
 
     def to_json(self) -> dict:
-        return {"data": self.log.source, "samples": len(self.log),
+        return {"data": self.log.source, "samples": len(self.log), "maps": self.maps,
                 "noise_floor_bar": round(float(from_si(self.noise_floor, "bar")), 4),
                 "final_rms_over_noise": round(self.final.rms / self.noise_floor, 3),
                 "summary": self.final_diagnosis.summary,
@@ -178,12 +179,13 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     """
     began = time.perf_counter()
     staircase = _Staircase(log, progress or (lambda message: None))
+    maps_spec = maps_spec or maps("grid")
     if start is None:
         spec = bmbe(valve)
         staircase.record(spec.build(library), [], "the paper's basic model BMBE: orifice "
                                                   "equation with C_d = 0.4 and a uniform "
                                                   "pressure on the piston")
-        for make, added, reason in paper_steps(spec.valve, maps_spec or maps("grid")):
+        for make, added, reason in paper_steps(spec.valve, maps_spec):
             spec = make(staircase.last.model.to_spec())  # from the fitted previous step
             staircase.record(spec.build(library), added, reason)
     else:
@@ -191,5 +193,6 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     diagnosis = staircase.add_diagnosed(library, candidates, max_additions)
     steps = staircase.steps
     floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs)
-    return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began)
+    return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began,
+                    maps_spec.flow.kind if start is None else "")
 

@@ -37,17 +37,23 @@ class FeatureDomain:
         reach = float(np.max(np.min(distances, axis=1))) if len(points) > 1 else 0.0
         return cls(features.min(axis=0), features.max(axis=0), mean, std, points, reach)
 
-    def contains(self, features: np.ndarray) -> np.ndarray:
-        """True where a query (row of ``features``) lies inside the data."""
-        slack = _RANGE_SLACK * (self.upper - self.lower)
-        inside = np.all((features >= self.lower - slack) & (features <= self.upper + slack), axis=1)
+    def distance(self, features: np.ndarray) -> np.ndarray:
+        """Distance from each query (row of ``features``) to the nearest training sample, in
+        standardised features."""
         nearest = np.empty(len(features))
         scaled = (features - self.mean) / self.std
         for start in range(0, len(features), _CHUNK):
             block = scaled[start:start + _CHUNK]
-            nearest[start:start + _CHUNK] = np.min(
-                np.linalg.norm(block[:, None, :] - self.points[None, :, :], axis=-1), axis=1)
-        return inside & (nearest <= self.reach * (1 + 1e-9))
+            nearest[start:start + _CHUNK] = np.sqrt(np.maximum(np.min(
+                np.sum(block**2, axis=1)[:, None] + np.sum(self.points**2, axis=1)[None, :]
+                - 2.0 * block @ self.points.T, axis=1), 0.0))
+        return nearest
+
+    def contains(self, features: np.ndarray) -> np.ndarray:
+        """True where a query (row of ``features``) lies inside the data."""
+        slack = _RANGE_SLACK * (self.upper - self.lower)
+        inside = np.all((features >= self.lower - slack) & (features <= self.upper + slack), axis=1)
+        return inside & (self.distance(features) <= self.reach * (1 + 1e-9))
 
     def to_dict(self) -> dict:
         return {"lower": self.lower.tolist(), "upper": self.upper.tolist(),

@@ -1,0 +1,215 @@
+"""Cross-validation of flow and force maps: how wrong a map kind is on CFD runs it did not see,
+and the calibration of its uncertainty that follows.
+
+Every kind is trained (or, for the grid, built) on part of the samples and asked about the rest,
+in four schemes:
+
+* **k-fold by sweep**: the sweeps (one temperature, opening and back pressure each) in five folds;
+* **leave one opening out**: each interior opening of the main set in turn;
+* **leave one temperature out**: each temperature in turn (two of them are extrapolations in ν);
+* **back-pressure set out**: trained on the reference back pressure, asked about the others.
+
+For each left-out sample the errors are the relative errors of C_d at the sample's flow (δln C_d,
+which is δln q at its pressure drop up to the map's slope) and of the flow force at its pressure
+drop, together with the kind's own spread and the distance to the training data there; a
+:class:`~surrogate.maps.calibration.Calibration` fitted to all of them makes the kind's ±2σ bands
+honest, and the coverage per scheme says whether they are.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from .data.loaders import CfdSamples
+from .features import FeatureSpec
+from .fluid import FluidState
+from .learn import splits
+from .maps.calibration import Calibration, coverage_of
+from .valve import ValveParameters
+
+SCHEMES = ("k-fold by sweep", "leave one opening out", "leave one temperature out",
+           "back-pressure set out")
+K_FOLDS = 5
+FOLD_SEED = 0
+
+
+@dataclass(frozen=True)
+class Fold:
+    """One training set and the samples it is asked about."""
+
+    scheme: str
+    label: str
+    train: np.ndarray
+    test: np.ndarray
+
+
+def folds(frame: pd.DataFrame) -> list[Fold]:
+    """Every fold of the four schemes (:data:`SCHEMES`), deterministic."""
+    keys = splits.sweep_keys(frame).to_numpy()
+    order = np.random.default_rng(FOLD_SEED).permutation(np.unique(keys))
+    result = []
+    for index in range(K_FOLDS):
+        test = np.isin(keys, order[index::K_FOLDS])
+        result.append(Fold(SCHEMES[0], f"fold {index + 1}", ~test, test))
+    result += [Fold(SCHEMES[1], label, train, test)
+               for label, train, test in splits.leave_one_opening_out(frame)]
+    result += [Fold(SCHEMES[2], label, train, test)
+               for label, train, test in splits.leave_one_temperature_out(frame)]
+    if splits.back_pressure_set(frame).any():
+        result.append(Fold(SCHEMES[3], "back-pressure set", splits.main_set(frame),
+                           splits.back_pressure_set(frame)))
+    return result
+
+
+def errors_on(flow_map, force_map, frame: pd.DataFrame, valve: ValveParameters) -> pd.DataFrame:
+    """The maps' errors at the samples of ``frame`` (one row each), with what their calibrated
+    standard deviation is made of there (``calibration_inputs``: own spread, distances from the
+    data as columns ``<map>_distance:<name>``)."""
+    spec = FeatureSpec.for_valve(valve)
+    fluid = FluidState(frame["nu"].to_numpy(), frame["rho"].to_numpy())
+    q, p_L, p_B, u = (frame[name].to_numpy() for name in ("q", "p_L", "p_B", "u"))
+    dp = flow_map.pressure_drop(q, p_B, u, fluid)
+    flow_force = force_map.flow_force(p_L, p_B, u, fluid)
+    flow_force_true = frame["f_sim"].to_numpy() - spec.uniform_force(p_L, p_B)
+    columns = {
+        "case": frame["case"].to_numpy(),
+        # δln C_d at the sample's flow: Δp ∝ C_d^−2
+        "discharge_error": 0.5 * np.log((p_L - p_B) / dp),
+        "q_error": flow_map.flow(p_L, p_B, u, fluid) / q - 1.0,
+        "force_error": flow_force / flow_force_true - 1.0,
+    }
+    for name, inputs in (("flow", flow_map.calibration_inputs(q, p_B, u, fluid)),
+                         ("force", force_map.calibration_inputs(p_L, p_B, u, fluid))):
+        spread, distances = inputs
+        columns[f"{name}_spread"] = np.zeros(len(frame)) if spread is None else spread
+        for key, distance in distances.items():
+            columns[f"{name}_distance:{key}"] = distance
+    return pd.DataFrame(columns)
+
+
+def _distances(errors: pd.DataFrame, name: str) -> dict[str, np.ndarray]:
+    prefix = f"{name}_distance:"
+    return {column[len(prefix):]: errors[column].to_numpy() for column in errors
+            if column.startswith(prefix)}
+
+
+def cross_validate(samples: CfdSamples, valve: ValveParameters,
+                   fit_maps: Callable[[np.ndarray], tuple], *,
+                   progress: Callable[[str], None] = lambda message: None,
+                   workers: int = 1) -> pd.DataFrame:
+    """The errors of the maps ``fit_maps(train_mask)`` returns, on every fold's left-out
+    samples: one row per (fold, sample), see :func:`errors_on`.
+
+    ``workers`` > 1 runs folds in that many fresh processes of one thread each (the learned
+    kinds' training holds the interpreter); ``fit_maps`` must then be picklable (a module-level
+    function, or a :func:`functools.partial` of one).
+    """
+    every = folds(samples.frame)
+    jobs = [(fit_maps, samples.frame, valve, fold) for fold in every]
+    parts = [None] * len(jobs)
+
+    def report(done: int, index: int) -> None:
+        progress(f"cross-validation {done}/{len(every)} done: {every[index].scheme}, "
+                 f"{every[index].label}")
+
+    if workers > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        # fresh interpreters: a forked copy of a process that already ran PyTorch's thread pool
+        # can hang
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(workers, mp_context=context,
+                                 initializer=_one_thread) as pool:
+            futures = {pool.submit(_run_fold, job): index for index, job in enumerate(jobs)}
+            for done, future in enumerate(as_completed(futures), start=1):
+                parts[futures[future]] = future.result()
+                report(done, futures[future])
+    else:
+        for index, job in enumerate(jobs):
+            parts[index] = _run_fold(job)
+            report(index + 1, index)
+    return pd.concat(parts, ignore_index=True)
+
+
+def _one_thread() -> None:
+    """Worker start-up: one math thread each, the workers being the parallelism (two workers
+    with two BLAS threads each on two cores run four times slower than one)."""
+    import os
+
+    from threadpoolctl import threadpool_limits
+
+    os.environ["OMP_NUM_THREADS"] = "1"  # read by PyTorch when a training imports it
+    threadpool_limits(1)  # the BLAS NumPy already loaded
+
+
+def _run_fold(job) -> pd.DataFrame:
+    fit_maps, frame, valve, fold = job
+    flow_map, force_map = fit_maps(fold.train)
+    result = errors_on(flow_map, force_map, frame[fold.test], valve)
+    return result.assign(scheme=fold.scheme, fold=fold.label)
+
+
+def calibrate(errors: pd.DataFrame, *, use_spread: bool) -> tuple[Calibration, Calibration]:
+    """The flow and force calibrations that make the cross-validated errors most likely, each
+    scheme weighted alike (:meth:`~surrogate.maps.calibration.Calibration.fit`)."""
+    weights = 1.0 / errors.groupby("scheme")["case"].transform("size").to_numpy()
+    return tuple(Calibration.fit(errors[error], errors[f"{name}_spread"],
+                                 _distances(errors, name), weights=weights,
+                                 use_spread=use_spread)
+                 for name, error in (("flow", "discharge_error"), ("force", "force_error")))
+
+
+def standard_deviations(errors: pd.DataFrame, flow: Calibration, force: Calibration):
+    """The calibrated standard deviations (of ln C_d, of the flow force) at each row."""
+    return tuple(np.asarray(calibration.std(errors[f"{name}_spread"], _distances(errors, name)))
+                 for name, calibration in (("flow", flow), ("force", force)))
+
+
+def summary(errors: pd.DataFrame, flow: Calibration, force: Calibration) -> dict:
+    """Per scheme: relative RMS error of q and of the flow force, and the share of left-out
+    samples inside the calibrated ±2σ bands (of ln C_d, i.e. of q at its Δp, and of the flow
+    force)."""
+    flow_std, force_std = standard_deviations(errors, flow, force)
+    result = {}
+    for scheme in SCHEMES:
+        at = (errors["scheme"] == scheme).to_numpy()
+        if not at.any():
+            continue
+        part = errors[at]
+        result[scheme] = {
+            "samples": int(at.sum()),
+            "q_rel_rmse": float(np.sqrt(np.mean(part["q_error"] ** 2))),
+            "flow_force_rel_rmse": float(np.sqrt(np.mean(part["force_error"] ** 2))),
+            "q_coverage_2sigma": coverage_of(part["discharge_error"], flow_std[at]),
+            "flow_force_coverage_2sigma": coverage_of(part["force_error"], force_std[at]),
+        }
+    return result
+
+
+def flow_force_score(summary_of_kind: dict | None) -> float:
+    """One number to rank map kinds by: the flow-force relative RMS error averaged over the
+    schemes (nan without a summary). The flow force decides the computed Δp (1 N moves it by
+    about 1 bar on the shipped valve); the flow maps of every kind are within a few per cent of
+    each other's accuracy, and a floating piston absorbs their error."""
+    if not summary_of_kind:
+        return float("nan")
+    return float(np.mean([row["flow_force_rel_rmse"] for row in summary_of_kind.values()]))
+
+
+def most_accurate_kind(valve: ValveParameters, kinds=None) -> tuple[str, dict[str, float]]:
+    """The map kind built from the shipped CFD samples whose flow force is the most accurate by
+    cross-validation (:func:`flow_force_score`), and every kind's score."""
+    from .maps.registry import MAP_KINDS, cross_validation_summary, map_kind
+
+    kinds = kinds or [name for name, kind in MAP_KINDS.items() if kind.accuracy is not None]
+    scores = {kind: flow_force_score(cross_validation_summary(map_kind(kind).source(), valve))
+              for kind in kinds}
+    ranked = [kind for kind in kinds if np.isfinite(scores[kind])]
+    if not ranked:
+        raise ValueError("no map kind has a cross-validation summary")
+    return min(ranked, key=scores.get), scores

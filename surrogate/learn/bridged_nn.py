@@ -1,0 +1,90 @@
+"""Training the bridged network of the learned flow-force maps, in PyTorch.
+
+The network (:class:`surrogate.maps.network.BridgedArchitecture`) is one small network of the
+Reynolds number per sampled opening, blended linearly between openings, plus one network of the
+cavitation number shared by all openings; :class:`surrogate.maps.network.BridgedNet` evaluates it
+with NumPy. This module fits its parameters: Adam with a cosine schedule, then L-BFGS.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ..maps.network import BridgedArchitecture, hat_weights
+from .monotone_nn import _hold
+
+#: weight decay on the hidden weights (keeps the small networks smooth)
+DECAY = 1e-4
+
+
+class TorchBridgedNet(torch.nn.Module):
+    """The bridged network as a PyTorch module (see :class:`BridgedArchitecture`)."""
+
+    def __init__(self, architecture: BridgedArchitecture, seed: int, offset: float):
+        super().__init__()
+        self.architecture = architecture
+        knots, width = len(architecture.knots), architecture.width
+        generator = torch.Generator().manual_seed(seed)
+
+        def parameter(*shape, scale=1.0, fill=None):
+            value = (torch.full(shape, fill, dtype=torch.float64) if fill is not None
+                     else scale * torch.randn(*shape, generator=generator, dtype=torch.float64))
+            return torch.nn.Parameter(value)
+
+        self.local_W = parameter(knots, width, scale=0.5)
+        self.local_b = parameter(knots, width, scale=0.5)
+        self.local_v = parameter(knots, width, scale=0.1)
+        self.local_c = parameter(knots, fill=offset)
+        self.local_l = parameter(knots, fill=0.0)
+        self.shared_W = parameter(width, scale=0.5)
+        self.shared_b = parameter(width, scale=0.5)
+        self.shared_v = parameter(width, scale=0.1)
+        self.shared_l = parameter(1, fill=0.0)
+
+    def forward(self, weights: torch.Tensor, local: torch.Tensor, shared: torch.Tensor):
+        hidden = torch.tanh(local[:, None, None] * self.local_W[None] + self.local_b[None])
+        per_opening = ((hidden * self.local_v[None]).sum(-1) + self.local_c[None]
+                       + local[:, None] * self.local_l[None])
+        cavitation = ((torch.tanh(shared[:, None] * self.shared_W[None] + self.shared_b[None])
+                       * self.shared_v[None]).sum(-1) + self.shared_l * shared)
+        return (weights * per_opening).sum(1) + cavitation
+
+    def penalty(self) -> torch.Tensor:
+        return torch.sum(self.local_W**2) + torch.sum(self.shared_W**2)
+
+
+def train_bridged(architecture: BridgedArchitecture, z: np.ndarray, target: np.ndarray, *,
+                  seed: int, epochs: int = 2000, polish: int = 300,
+                  learning_rate: float = 2e-2) -> dict[str, np.ndarray]:
+    """Fit the network to ``target`` at standardised features ``z`` by least squares; return its
+    parameters as NumPy arrays (the state :class:`~surrogate.maps.network.BridgedNet` reads)."""
+    network = TorchBridgedNet(architecture, seed, float(np.mean(target)))
+    weights = torch.as_tensor(hat_weights(z[:, architecture.bridge_column], architecture.knots))
+    held = _hold(torch.as_tensor(z), architecture.held)  # as the NumPy network holds them
+    local = held[:, architecture.local_column]
+    shared = held[:, architecture.shared_column]
+    goal = torch.as_tensor(target)
+
+    def objective():
+        return torch.mean((network(weights, local, shared) - goal) ** 2) + DECAY * network.penalty()
+
+    adam = torch.optim.Adam(network.parameters(), lr=learning_rate)
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(adam, epochs)
+    for _ in range(epochs):
+        adam.zero_grad()
+        loss = objective()
+        loss.backward()
+        adam.step()
+        schedule.step()
+    lbfgs = torch.optim.LBFGS(network.parameters(), max_iter=polish, history_size=50,
+                              line_search_fn="strong_wolfe")
+
+    def closure():
+        lbfgs.zero_grad()
+        loss = objective()
+        loss.backward()
+        return loss
+
+    lbfgs.step(closure)
+    return {key: value.detach().numpy().copy() for key, value in network.state_dict().items()}

@@ -1,0 +1,112 @@
+"""Calibrated uncertainty of a map: how far its prediction may be from the CFD, in ln units.
+
+Every map kind reports a standard deviation of the logarithm of what it predicts (C_d, i.e. the
+flow at a given pressure drop; the flow force), so that ±2σ brackets the truth about 95 % of the
+time:
+
+    σ² = (scale·s)² + floor² + Σ_i (slope_i·d_i^power)²,
+
+with
+
+* s the kind's own spread: a GP's posterior standard deviation, a deep ensemble's spread (none
+  for the grid);
+* d_i distances of the query from the data, as the kind measures them (its map's
+  ``calibration_inputs``):
+
+  - learned kinds: from the nearest CFD sample in standardised features
+    (:meth:`~.domain.FeatureDomain.distance`);
+  - grid: from the nearest sampled opening (|ln u|) and fluid state (|ln ν|), the distances it
+    interpolates over, each with its own slope;
+  - every kind: of the back pressure from the nearest sampled one, as |ln| of the ratio of
+    absolute pressures (:meth:`~.coverage.Coverage.back_pressure_distance`). The CFD runs at few
+    back pressures, and cavitation changes the flow and its force between them in ways the
+    features do not fully carry;
+
+* power: lets the error grow faster than the distance, as an interpolation's does;
+* floor: the error that remains next to the samples (the CFD's own scatter, the features'
+  limits).
+
+The constants are fitted by maximum likelihood to the errors the kind makes on samples it did not
+see (:mod:`surrogate.crossval`), each cross-validation scheme weighted alike, so that the 16
+samples of the back-pressure set count as much as the 150 of the k-fold.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+_POWER = (0.5, 4.0)  # the range the fitted power is kept in
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """σ² = (scale·s)² + floor² + Σ_i (slope_i·d_i^power)² [ln units] (see the module
+    docstring); ``slopes`` maps each distance's name to its slope."""
+
+    scale: float = 1.0
+    floor: float = 0.0
+    slopes: Mapping[str, float] = field(default_factory=dict)
+    power: float = 1.0
+
+    def std(self, spread, distances: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
+        """σ [ln units] from the kind's own spread (None: none) and its distances from the
+        data (a name -> array mapping; names without a slope count zero)."""
+        variance = self.floor**2 + (0.0 if spread is None
+                                    else (self.scale * np.asarray(spread, float)) ** 2)
+        for name, distance in (distances or {}).items():
+            slope = self.slopes.get(name, 0.0)
+            if slope:
+                variance = variance + (slope * np.asarray(distance, float) ** self.power) ** 2
+        return np.sqrt(variance)
+
+    def to_dict(self) -> dict:
+        return {"scale": self.scale, "floor": self.floor, "slopes": dict(self.slopes),
+                "power": self.power}
+
+    @classmethod
+    def from_dict(cls, data: dict | None) -> "Calibration":
+        data = data or {}
+        return cls(float(data.get("scale", 1.0)), float(data.get("floor", 0.0)),
+                   {str(k): float(v) for k, v in data.get("slopes", {}).items()},
+                   float(data.get("power", 1.0)))
+
+    @classmethod
+    def fit(cls, errors, spread, distances: Mapping[str, np.ndarray], *, weights=None,
+            use_spread: bool = True) -> "Calibration":
+        """The constants that make ``errors`` (ln prediction − ln truth) most likely as zero-mean
+        Gaussians of standard deviation σ, each error's log-likelihood weighted by ``weights``
+        (default alike); ``use_spread=False`` for kinds without a spread of their own. A
+        distance that is zero everywhere gets no slope."""
+        errors = np.asarray(errors, float)
+        spread = None if spread is None or not use_spread else np.asarray(spread, float)
+        distances = {name: np.asarray(d, float) for name, d in distances.items()
+                     if np.any(np.asarray(d) > 0)}
+        names = list(distances)
+        weights = np.ones_like(errors) if weights is None else np.asarray(weights, float)
+        low, high = _POWER
+
+        def unpack(theta) -> "Calibration":
+            scale, floor, *slopes = np.exp(theta[:-1])
+            return cls(float(scale) if spread is not None else 0.0, float(floor),
+                       {name: float(s) for name, s in zip(names, slopes)},
+                       float(low + (high - low) / (1.0 + np.exp(-theta[-1]))))
+
+        def negative_log_likelihood(theta):
+            variance = unpack(theta).std(spread, distances) ** 2
+            return float(weights @ (0.5 * np.log(variance) + 0.5 * errors**2 / variance))
+
+        start = np.array([0.0, np.log(max(float(np.std(errors)) / 2, 1e-4))]
+                         + [np.log(0.1)] * len(names) + [-1.4])  # power 1 to start
+        best = minimize(negative_log_likelihood, start, method="Nelder-Mead",
+                        options={"xatol": 1e-7, "fatol": 1e-10, "maxiter": 20000})
+        return unpack(best.x)
+
+
+def coverage_of(errors, std, width: float = 2.0) -> float:
+    """The share of ``errors`` within ±``width``·``std``."""
+    errors, std = np.asarray(errors, float), np.asarray(std, float)
+    return float(np.mean(np.abs(errors) <= width * std)) if errors.size else float("nan")
