@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .effects.base import KINDS, BalanceState, Effect, FlowState
+from .effects.base import CATEGORIES, KINDS, BalanceState, Effect, FlowState
 from .effects.library import EffectLibrary
 from .fluid import FluidState, Oil
 from .maps.base import FlowMap, ForceMap, MapResult
@@ -142,7 +142,7 @@ def check_effect(cls: type[Effect], valve: ValveParameters | None = None, *, cou
                  seed: int = 0) -> None:
     """Check the effect contract on a grid of states and parameter values.
 
-    * a name and a kind, and the kind's hook (and no other) overridden;
+    * a name, a kind and a category, and the kind's hook (and no other) overridden;
     * the default values switch the effect off: the inputs, the restriction's flow, the leakage,
       the force and the friction stay what they are without it;
     * at the defaults and at values inside the bounds, the hook returns finite values of the
@@ -153,6 +153,8 @@ def check_effect(cls: type[Effect], valve: ValveParameters | None = None, *, cou
     valve = valve or load_valve()
     name = getattr(cls, "name", "") or cls.__name__
     assert cls.name and cls.kind in KINDS, f"{name}: needs a name and a kind in {KINDS}"
+    assert cls.category in CATEGORIES, (f"{name}: needs a category in {CATEGORIES} (what a "
+                                        "diagnosis that picks it says about the valve)")
     overridden = [kind for kind, hook in _HOOKS.items()
                   if getattr(cls, hook) is not getattr(Effect, hook)]
     assert overridden == [cls.kind], (f"{name}: a {cls.kind} effect must override "

@@ -77,14 +77,16 @@ def test_the_effect_contract_catches_a_broken_effect():
     from surrogate.effects import Effect, Parameter
 
     class AlwaysOn(Effect):
-        name, kind, title = "always_on", "force", "a force that never switches off"
+        name, kind, category = "always_on", "force", "physics"
+        title = "a force that never switches off"
         parameter_specs = (Parameter("f", 5.0, "N", min=0.0, max=10.0),)
 
         def force(self, state):
             return np.full(state.u.shape, self["f"])
 
     class NegativeFriction(Effect):
-        name, kind, title = "negative_friction", "friction", "friction below zero"
+        name, kind, category = "negative_friction", "friction", "physics"
+        title = "friction below zero"
         parameter_specs = (Parameter("k", 0.0, "N", min=-5.0, max=5.0),)
 
         def friction(self, state):

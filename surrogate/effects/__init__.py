@@ -5,7 +5,7 @@ a model and bench data disagree; users add their own with :func:`custom_effect` 
 their own, loaded as a library of its own (``LIBRARY + load_effects_file(path)``).
 """
 
-from .base import KINDS, BalanceState, Effect, FlowState
+from .base import CATEGORIES, KINDS, BalanceState, Effect, FlowState
 from .custom import custom_effect, load_effects_file
 from .flow import DischargeScale, LaminarLeakage
 from .flow_force import BackPressureFlowForce, FlowForceScale, NearSeatFlowForce
@@ -25,6 +25,6 @@ BUILT_IN = (FlowForceScale, BackPressureFlowForce, NearSeatFlowForce, SpringPrel
 #: the built-in effects, by name
 LIBRARY = EffectLibrary(BUILT_IN)
 
-__all__ = ["BUILT_IN", "KINDS", "LIBRARY", "BalanceState", "Effect", "EffectLibrary", "FlowState",
+__all__ = ["BUILT_IN", "CATEGORIES", "KINDS", "LIBRARY", "BalanceState", "Effect", "EffectLibrary", "FlowState",
            "Parameter", "PerRunEffect", "custom_effect", "load_effects_file",
            *(c.__name__ for c in BUILT_IN)]

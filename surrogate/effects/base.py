@@ -36,6 +36,13 @@ from ..valve import ValveParameters
 
 KINDS = ("sensor", "flow", "leakage", "force", "friction")
 
+#: what an effect says about the valve, as a diagnosis reports it: **physics** of the valve itself
+#: (friction, springs, leakage); a **map correction**, which patches the CFD maps where they are
+#: wrong (a flow-force or discharge scale, a near-seat or back-pressure flow force); or a
+#: **sensor** error of the bench. Only the first is news about the valve; the second says where
+#: the CFD needs another look, the third where the bench does.
+CATEGORIES = ("physics", "map correction", "sensor")
+
 
 @dataclass(frozen=True)
 class FlowState:
@@ -88,6 +95,8 @@ class Effect:
         Registry key, e.g. ``"friction_pilot_pressure"``.
     kind : str
         One of :data:`KINDS`: which stage of the model it acts in.
+    category : str
+        One of :data:`CATEGORIES`: valve physics, a map correction or a sensor error.
     title : str
         What it is, in words an engineer recognises.
     parameter_specs : tuple of Parameter
@@ -100,6 +109,7 @@ class Effect:
 
     name: ClassVar[str] = ""
     kind: ClassVar[str] = ""
+    category: ClassVar[str] = ""
     title: ClassVar[str] = ""
     parameter_specs: ClassVar[tuple[Parameter, ...]] = ()
     validity: ClassVar[str] = ""

@@ -48,7 +48,7 @@ import numpy as np
 from ..errors import InputError
 from ..limits import FORCE
 from ..units import known_units, to_si
-from .base import KINDS, Effect, Parameter
+from .base import CATEGORIES, KINDS, Effect, Parameter
 
 _POSITIONAL = {"sensor": 1, "flow": 2, "leakage": 2, "force": 1, "friction": 1}
 _HOOKS = {"sensor": "correct_inputs", "flow": "restriction_flow", "leakage": "leakage",
@@ -57,7 +57,8 @@ _HOOKS = {"sensor": "correct_inputs", "flow": "restriction_flow", "leakage": "le
 
 def custom_effect(kind: str, *, units: dict[str, str] | None = None,
                   bounds: dict[str, tuple[float, float]] | None = None,
-                  title: str | None = None, validity: str = "user-defined"):
+                  title: str | None = None, validity: str = "user-defined",
+                  category: str | None = None):
     """Decorator: turn a function into an :class:`Effect` class (named after the function).
 
     Parameters
@@ -72,19 +73,27 @@ def custom_effect(kind: str, *, units: dict[str, str] | None = None,
         Short name in reports; default the docstring's first line.
     validity : str
         Where the term holds.
+    category : str, optional
+        One of ``"physics"``, ``"map correction"``, ``"sensor"`` (:data:`.base.CATEGORIES`):
+        what the effect says if a diagnosis picks it. Default ``"sensor"`` for a sensor effect,
+        ``"physics"`` otherwise.
     """
     if kind not in KINDS:
         raise InputError(f"custom effect kind {kind!r} is not one of {', '.join(KINDS)}")
+    category = category or ("sensor" if kind == "sensor" else "physics")
+    if category not in CATEGORIES:
+        raise InputError(f"custom effect category {category!r} is not one of "
+                         f"{', '.join(CATEGORIES)}")
     units, bounds = dict(units or {}), dict(bounds or {})
 
     def make(function) -> type[Effect]:
-        return effect_from_function(function, kind, units, bounds, title, validity)
+        return effect_from_function(function, kind, units, bounds, title, validity, category)
 
     return make
 
 
 def effect_from_function(function, kind: str, units: dict, bounds: dict, title: str | None,
-                         validity: str) -> type[Effect]:
+                         validity: str, category: str = "physics") -> type[Effect]:
     """The :class:`Effect` subclass behind :func:`custom_effect`."""
     name = function.__name__
     where = f"custom effect {name!r}"
@@ -131,7 +140,7 @@ def effect_from_function(function, kind: str, units: dict, bounds: dict, title: 
         return checked_result(name, kind, result, positional, values, specs)
 
     attributes = {
-        "name": name, "kind": kind, "title": title or (doc.splitlines()[0] if doc else name),
+        "name": name, "kind": kind, "category": category, "title": title or (doc.splitlines()[0] if doc else name),
         "parameter_specs": tuple(specs), "validity": validity, "__doc__": doc or name,
         "__module__": function.__module__, hook: call, "custom": True, "function": function,
         "source": function.__module__,

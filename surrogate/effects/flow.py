@@ -17,6 +17,7 @@ class DischargeScale(Effect):
 
     name = "discharge_scale"
     kind = "flow"
+    category = "map correction"
     title = "discharge-coefficient scale"
     parameter_specs = (Parameter("c", 1.0, "1", min=0.2, max=3.0,
                                  description="factor on the discharge coefficient"),)
@@ -35,6 +36,7 @@ class LaminarLeakage(Effect):
 
     name = "laminar_leakage"
     kind = "leakage"
+    category = "physics"
     title = "laminar leakage past the piston"
     parameter_specs = (Parameter("G", 0.0, "L/min/bar", min=0.0, max=0.05 * LPM / BAR,
                                  description="leakage flow per bar of pressure drop"),)

@@ -18,6 +18,7 @@ class FlowForceScale(Effect):
 
     name = "flow_force_scale"
     kind = "force"
+    category = "map correction"
     title = "flow-force scale"
     parameter_specs = (
         Parameter("scale", 1.0, "1", min=0.0, max=3.0,
@@ -39,6 +40,7 @@ class BackPressureFlowForce(Effect):
 
     name = "back_pressure_flow_force"
     kind = "force"
+    category = "map correction"
     title = "flow force depending on back pressure"
     parameter_specs = (
         Parameter("gamma", 0.0, "1/bar", min=-0.5 / BAR, max=0.5 / BAR,
@@ -65,6 +67,7 @@ class NearSeatFlowForce(Effect):
 
     name = "seat_flow_force"
     kind = "force"
+    category = "map correction"
     title = "flow force fading near the seat"
     parameter_specs = (
         Parameter("k", 0.0, "1", min=0.0, max=3.0,

@@ -23,6 +23,7 @@ class ConstantFriction(Effect):
 
     name = "friction_constant"
     kind = "friction"
+    category = "physics"
     title = "constant Coulomb friction"
     parameter_specs = (Parameter("K1", 0.0, "N", min=0.0, max=200.0,
                                  description="friction force"),)
@@ -37,6 +38,7 @@ class LoadPressureFriction(Effect):
 
     name = "friction_load_pressure"
     kind = "friction"
+    category = "physics"
     title = "friction proportional to the load pressure"
     parameter_specs = (Parameter("K2", 0.0, "N/bar", min=0.0, max=_K_MAX,
                                  description="friction per bar of load pressure"),)
@@ -55,6 +57,7 @@ class PilotPressureFriction(Effect):
 
     name = "friction_pilot_pressure"
     kind = "friction"
+    category = "physics"
     title = "friction proportional to the pilot pressure"
     parameter_specs = (Parameter("K_P", 0.0, "N/bar", min=0.0, max=_K_MAX,
                                  description="friction per bar of pilot pressure"),)
@@ -73,6 +76,7 @@ class SealPressureFriction(Effect):
 
     name = "friction_seal_pressure"
     kind = "friction"
+    category = "physics"
     title = "friction proportional to the load–pilot pressure difference"
     parameter_specs = (Parameter("K_LP", 0.0, "N/bar", min=0.0, max=_K_MAX,
                                  description="friction per bar across the load/pilot seal"),)
@@ -90,6 +94,7 @@ class PilotDifferentialFriction(Effect):
 
     name = "friction_pilot_differential"
     kind = "friction"
+    category = "physics"
     title = "friction proportional to p_Pe = p_P − p_B"
     parameter_specs = (Parameter("K_Pe", 0.0, "N/bar", min=0.0, max=_K_MAX,
                                  description="friction per bar of p_P − p_B"),)
@@ -108,6 +113,7 @@ class ViscousFriction(Effect):
 
     name = "friction_viscous"
     kind = "friction"
+    category = "physics"
     title = "friction growing with viscosity (falling temperature)"
     parameter_specs = (
         Parameter("K_nu", 0.0, "N", min=0.0, max=100.0,

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator, Mapping
 
 from ..errors import InputError
-from .base import KINDS, Effect
+from .base import CATEGORIES, KINDS, Effect
 
 
 class EffectLibrary(Mapping[str, type[Effect]]):
@@ -20,7 +20,7 @@ class EffectLibrary(Mapping[str, type[Effect]]):
     Raises
     ------
     InputError
-        For an effect without a name or a known kind, or two different effects of one name.
+        For an effect without a name, a known kind or a known category, or two different effects of one name.
     """
 
     def __init__(self, effects: Iterable[type[Effect]] = ()):
@@ -29,6 +29,9 @@ class EffectLibrary(Mapping[str, type[Effect]]):
             if not cls.name or cls.kind not in KINDS:
                 raise InputError(f"{cls.__name__}: an effect needs a name and a kind in "
                                  f"{', '.join(KINDS)}")
+            if cls.category not in CATEGORIES:
+                raise InputError(f"effect {cls.name!r}: its category {cls.category!r} is not one "
+                                 f"of {', '.join(CATEGORIES)}")
             existing = self._effects.get(cls.name)
             if existing is not None and existing is not cls:
                 raise InputError(f"an effect named {cls.name!r} exists already; choose another "

@@ -16,6 +16,7 @@ class PilotTransducerOffset(Effect):
 
     name = "pilot_transducer_offset"
     kind = "sensor"
+    category = "sensor"
     title = "pilot-pressure transducer offset"
     parameter_specs = (Parameter("delta", 0.0, "bar", min=-5.0 * BAR, max=5.0 * BAR,
                                  description="reading minus true pilot pressure"),)
@@ -36,6 +37,7 @@ class PilotZeroDrift(PerRunEffect):
 
     name = "pilot_zero_drift"
     kind = "sensor"
+    category = "sensor"
     title = "pilot-pressure transducer zero, different in each run"
     template = Parameter("delta", 0.0, "bar", min=-2.0 * BAR, max=2.0 * BAR,
                          description="reading minus true pilot pressure in this run")
@@ -55,6 +57,7 @@ class FlowmeterGain(Effect):
 
     name = "flowmeter_gain"
     kind = "sensor"
+    category = "sensor"
     title = "flowmeter gain error"
     parameter_specs = (Parameter("g", 0.0, "1", min=-0.3, max=0.3,
                                  description="relative error of the flow reading"),)

@@ -16,6 +16,7 @@ class SpringPreloadOffset(Effect):
 
     name = "spring_preload_offset"
     kind = "force"
+    category = "physics"
     title = "spring preload offset"
     parameter_specs = (
         Parameter("delta_F", 0.0, "N", min=-150.0, max=150.0,
@@ -36,6 +37,7 @@ class ProgressiveSpring(Effect):
 
     name = "progressive_spring"
     kind = "force"
+    category = "physics"
     title = "progressive spring"
     parameter_specs = (
         Parameter("beta", 0.0, "1", min=-0.9, max=3.0,
