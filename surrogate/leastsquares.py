@@ -134,6 +134,9 @@ class FitResult:
         The fitted parameters (the model's own objects).
     evaluation : Evaluation or None
         The problem's evaluation at the optimum (its payload: a replay, say).
+    jacobian : numpy.ndarray or None
+        ∂residual/∂parameter at the optimum, per display unit of each parameter (None when
+        nothing was fitted); what a linearised refit on part of the data starts from.
     """
 
     model: ValveModel
@@ -148,6 +151,7 @@ class FitResult:
     evaluations: int
     parameters: list[Parameter] = field(default_factory=list)
     evaluation: Evaluation | None = None
+    jacobian: np.ndarray | None = None
 
     def report(self) -> str:
         """A readable summary, like lmfit's ``fit_report``."""
@@ -332,6 +336,12 @@ class Minimizer:
         refinement.assign(refinement.best_z)
         return refinement.best, refinement.best_rss
 
+    @property
+    def refined_jacobian(self) -> np.ndarray:
+        """The refinement's Jacobian (Broyden-updated) at its best point, per step of each
+        parameter."""
+        return self._refinement.jacobian
+
     def refinement_errors(self) -> None:
         """Standard errors of the refinement's best point, set on the parameters."""
         refinement = self._refinement
@@ -364,7 +374,7 @@ class Minimizer:
         rms = float(np.sqrt(np.mean(residual**2))) if len(residual) else 0.0
         return FitResult(self.model, list(self.names), rms, len(residual), aic, bic,
                          correlation, success, message, evaluations, list(self.parameters),
-                         evaluation)
+                         evaluation, None if jacobian is None else np.asarray(jacobian))
 
 
 def fit(model: ValveModel, problem: FitProblem | object, names: Sequence[str] | None = None, *,

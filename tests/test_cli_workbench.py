@@ -58,12 +58,18 @@ def test_diagnose_json_contract_names_the_hidden_effect(capsys, small_log):
     result = run_json(capsys, ["diagnose", "--model", "cfda", "--data", str(small_log), "--json"])
     assert {"rms_before_bar", "noise_floor_bar", "summary", "candidates"} <= set(result)
     best = result["candidates"][0]
-    assert {"name", "description", "rms_after_bar", "delta_bic", "significant", "params"} <= set(
-        best)
+    assert {"name", "description", "category", "rms_after_bar", "heldout_rms_bar", "inclusion",
+            "delta_bic", "significant", "params"} <= set(best)
     assert best["name"] == "friction_viscous" and best["significant"]
+    assert best["category"] == "physics"
+    assert best["heldout_rms_bar"] < result["heldout_rms_bar"]  # it predicts unseen runs better
+    assert best["inclusion"] > 0.5
     assert "friction_viscous" in result["summary"]
-    after = [c["rms_after_bar"] for c in result["candidates"]]
-    assert after == sorted(after)
+    # ranked by ΔBIC against the maps' own error, best first
+    ranked = [c["delta_bic"] for c in result["candidates"]]
+    assert ranked == sorted(ranked)
+    assert all(c["category"] in ("physics", "map correction", "sensor")
+               for c in result["candidates"])
 
 
 def test_fit_writes_a_model_file_that_loads_and_compares(capsys, small_log, tmp_path):

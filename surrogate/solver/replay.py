@@ -38,7 +38,7 @@ from scipy.signal import savgol_filter
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
 from .steady import Status, solve_steady
-from .uncertainty import pressure_drop_std
+from .uncertainty import map_error_effects
 
 
 @dataclass(frozen=True)
@@ -63,9 +63,10 @@ class Replay:
     band : numpy.ndarray
         (2, n): the friction band's edges u_open and u_close at each sample [m], kept so that a
         replay with nearby parameters can start from them (``replay(..., guess=...)``).
-    dp_std : numpy.ndarray or None
-        Standard deviation of ``dp`` [Pa] that the maps' uncertainty implies
-        (:mod:`.uncertainty`); None for maps without one, or when not asked for.
+    map_error : numpy.ndarray or None
+        (2, n): how far ``dp`` [Pa] moves for a one-σ error of the flow map (row 0) and of the
+        force map (row 1) (:func:`.uncertainty.map_error_effects`); None for maps without an
+        uncertainty, or when not asked for.
     """
 
     points: OperatingPoints
@@ -75,7 +76,12 @@ class Replay:
     moving: np.ndarray
     reasons_outside: np.ndarray
     band: np.ndarray
-    dp_std: np.ndarray | None = None
+    map_error: np.ndarray | None = None
+
+    @property
+    def dp_std(self) -> np.ndarray | None:
+        """Standard deviation of ``dp`` [Pa] that the maps' uncertainty implies (None without)."""
+        return None if self.map_error is None else np.hypot(self.map_error[0], self.map_error[1])
 
     @property
     def extrapolating(self) -> np.ndarray:
@@ -95,7 +101,7 @@ class Replay:
         """The replay of some samples only (whole runs, for the friction state to make sense)."""
         return Replay(self.points[index], self.u[index], self.dp[index], self.status[index],
                       self.moving[index], self.reasons_outside[index], self.band[:, index],
-                      None if self.dp_std is None else self.dp_std[index])
+                      None if self.map_error is None else self.map_error[:, index])
 
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
@@ -151,15 +157,15 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
                                                           fluid[solved])
     at_stop = (status == Status.OK) & (u >= model.valve.U_max)
     status[at_stop] = Status.AT_STOP
-    dp_std = None
+    map_error = None
     if diagnostics:
         # a sliding piston sits on the band's edge of its direction; a stuck one stays put
         floats = moving if model.has_friction else np.ones(count, dtype=bool)
         side = np.where(~model.has_friction | ~moving, STEADY,
                         np.where(u <= np.fmin(u_edges[0], u_edges[1]), OPENING, CLOSING))
-        dp_std = pressure_drop_std(model, points, u, dp, side,
-                                   ~floats | (status == Status.AT_STOP))
-    return Replay(points, u, dp, status, moving, reasons, u_edges, dp_std)
+        map_error = map_error_effects(model, points, u, dp, side,
+                                      ~floats | (status == Status.AT_STOP))
+    return Replay(points, u, dp, status, moving, reasons, u_edges, map_error)
 
 
 def _segment_starts(segments, count: int) -> np.ndarray:

@@ -43,7 +43,7 @@ class Sensitivity:
     index : numpy.ndarray of int
         The points (of those given) that carry flow and a solution.
     flow_gain, force_gain : numpy.ndarray
-        [Pa] per unit ln C_d and per unit relative flow-force error.
+        [Pa] per unit ln C_d (lower) and per unit relative flow-force error (stronger); signed.
     flow_query : tuple
         (q through the restriction [m^3/s], p_B [Pa], u [m], fluid) at which the flow map is
         asked, per point of ``index``.
@@ -90,14 +90,26 @@ def sensitivity(model: ValveModel, points: OperatingPoints, u: np.ndarray, dp: n
             if model.force_map.calibration is not None else np.zeros(free.size)
         with np.errstate(divide="ignore", invalid="ignore"):
             flow_gain[free] *= 1.0 - dp_u * n_dp / total
-            force_gain[free] = np.abs(dp_u / total * flow_force)
+            force_gain[free] = -dp_u / total * flow_force
     return Sensitivity(flowing, flow_gain, force_gain, (q, sub.p_B, u_f, fluid),
                        (sub.p_B + dp_f, sub.p_B, u_f, fluid))
 
 
 def pressure_drop_std(model: ValveModel, points: OperatingPoints, u: np.ndarray,
                       dp: np.ndarray, side: np.ndarray, held: np.ndarray) -> np.ndarray | None:
-    """Standard deviation of the computed Δp [Pa] at each point, from the maps' uncertainty.
+    """Standard deviation of the computed Δp [Pa] at each point, from the maps' uncertainty
+    (arguments and result as :func:`map_error_effects`, the two maps' parts combined)."""
+    parts = map_error_effects(model, points, u, dp, side, held)
+    return None if parts is None else np.hypot(parts[0], parts[1])
+
+
+def map_error_effects(model: ValveModel, points: OperatingPoints, u: np.ndarray,
+                      dp: np.ndarray, side: np.ndarray, held: np.ndarray) -> np.ndarray | None:
+    """How much the computed Δp [Pa] moves at each point when a map errs by one of its
+    standard deviations: row 0 for the flow map (its Δp at the point's flow and opening too
+    high by 2·σ_C in ln), row 1 for the force map (its flow force too strong by σ_f). Signed,
+    so that one map error shared by many points moves them consistently (the workbench's map
+    discrepancy, :mod:`surrogate.workbench.discrepancy`); their root-sum-square is σ_Δp.
 
     Parameters
     ----------
@@ -115,21 +127,21 @@ def pressure_drop_std(model: ValveModel, points: OperatingPoints, u: np.ndarray,
     Returns
     -------
     numpy.ndarray or None
-        σ_Δp [Pa]: 0 without flow (no map involved), NaN where there is no solution; None when
-        neither map has an uncertainty (the orifice equation).
+        (2, n) [Pa]: 0 without flow (no map involved), NaN where there is no solution; None
+        when neither map has an uncertainty (the orifice equation).
     """
     flow_map, force_map = model.flow_map, model.force_map
     if flow_map.calibration is None and force_map.calibration is None:
         return None
-    std = np.where(np.isfinite(np.asarray(dp, float)) & np.isfinite(np.asarray(u, float)),
-                   0.0, np.nan)
+    solved = np.isfinite(np.asarray(dp, float)) & np.isfinite(np.asarray(u, float))
+    parts = np.where(solved, 0.0, np.nan) * np.ones((2, 1))
     gains = sensitivity(model, points, u, dp, side, held)
     if gains.index.size:
         log_cd_std = flow_map.log_discharge_std(*gains.flow_query)
-        force_std = _relative_force_std(force_map, gains.force_query)
-        std[gains.index] = np.hypot(gains.flow_gain * (0.0 if log_cd_std is None else log_cd_std),
-                                    gains.force_gain * force_std)
-    return std
+        parts[0, gains.index] = gains.flow_gain * (0.0 if log_cd_std is None else log_cd_std)
+        parts[1, gains.index] = gains.force_gain * _relative_force_std(force_map,
+                                                                        gains.force_query)
+    return parts
 
 
 def _relative_force_std(force_map, query) -> np.ndarray:

@@ -44,11 +44,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..data.loaders import BenchLog
-from ..effects import LIBRARY, Effect, EffectLibrary
+from ..effects import LIBRARY, Effect, EffectLibrary, PerRunEffect
 from ..leastsquares import Evaluation, FitProblem, Minimizer, free_parameters, split_key
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
+from .discrepancy import Discrepancy, map_discrepancy
+from .heldout import Linearised, RunBlocks, bootstrap_weights, run_groups
 from .logfit import felt, probe_change
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
 
@@ -61,6 +63,9 @@ NOISE_LEVEL = 1.3
 SAME_DIRECTION = 0.98  # cosine of two prediction changes above which they act alike
 REFINE_STEPS = 4  # Gauss–Newton steps per front-running candidate after the linear solution
 REFINED = 4  # candidates refined by those steps (with any as good as the last of them)
+#: a discovery must lower the RMS on held-out runs by at least this share of it
+HELDOUT_GAIN = 0.01
+RESAMPLES = 200  # bootstrap resamples over runs for the inclusion frequencies
 
 
 @dataclass
@@ -71,21 +76,32 @@ class Candidate:
     title: str
     description: str
     kind: str
+    category: str  # physics, map correction or sensor (:data:`..effects.CATEGORIES`)
     rms_after: float  # [Pa]
     delta_bic: float
     significant: bool = False
     group: list[str] = field(default_factory=list)
     params: list = field(default_factory=list)  # fitted Parameters of the candidate
+    heldout_rms: float = float("nan")  # [Pa] on held-out runs (pooled over the schemes)
+    heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme
+    inclusion: float = 0.0  # share of bootstrap resamples over runs that select it
+    per_run: bool = False  # a parameter per run: a sensor check, never part of the model
     change: np.ndarray | None = field(default=None, repr=False)  # prediction change [Pa]
     model: ValveModel | None = field(default=None, repr=False)  # the current model + this effect
     replay: LogReplay | None = field(default=None, repr=False)  # its replay of the log
+    extra: int = 0  # parameters of its own the data inform
+    linearised: tuple | None = field(default=None, repr=False)  # (residual, Jacobian) at its fit
 
     def to_json(self) -> dict:
         return {
             "name": self.name, "description": self.description, "title": self.title,
-            "kind": self.kind, "rms_after_bar": round(float(from_si(self.rms_after, "bar")), 4),
+            "kind": self.kind, "category": self.category, "rms_after_bar": round(float(from_si(self.rms_after, "bar")), 4),
+            "heldout_rms_bar": _rounded_bar(self.heldout_rms),
+            "heldout_rms_by_scheme_bar": {k: round(float(from_si(v, "bar")), 4)
+                                          for k, v in self.heldout.items() if k != "pooled"},
+            "inclusion": round(float(self.inclusion), 3),
             "delta_bic": round(float(self.delta_bic), 2), "significant": bool(self.significant),
-            "group": self.group,
+            "per_run": bool(self.per_run), "group": self.group,
             "params": {p.name: p.to_record() for p in self.params},
         }
 
@@ -102,6 +118,10 @@ class Diagnosis:
     candidates: list[Candidate]
     correlations: dict[str, float]
     summary: str
+    heldout_before: float = float("nan")  # [Pa] the model's RMS on held-out runs (pooled)
+    expected_rms: float = float("nan")  # [Pa] what noise and the maps' σ_Δp allow together
+    map_limits: list[str] = field(default_factory=list)  # where the maps' error is largest
+    sensor_checks: list[str] = field(default_factory=list)  # per-run readings that look off
 
     @property
     def best(self) -> Candidate | None:
@@ -113,9 +133,17 @@ class Diagnosis:
                 "rms_before_bar": round(float(from_si(self.rms_before, "bar")), 4),
                 "noise_floor_bar": round(float(from_si(self.noise_floor, "bar")), 4),
                 "effective_samples": round(self.effective_samples, 1),
+                "heldout_rms_bar": round(float(from_si(self.heldout_before, "bar")), 4),
+                "expected_rms_bar": round(float(from_si(self.expected_rms, "bar")), 4),
+                "map_limits": self.map_limits, "sensor_checks": self.sensor_checks,
                 "summary": self.summary,
                 "candidates": [c.to_json() for c in self.candidates],
                 "residual_correlations": {k: round(v, 3) for k, v in self.correlations.items()}}
+
+
+def _rounded_bar(value: float) -> float | None:
+    """[Pa] -> bar to 4 decimals, None for NaN (JSON has no NaN)."""
+    return round(float(from_si(value, "bar")), 4) if np.isfinite(value) else None
 
 
 def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
@@ -165,23 +193,115 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
         lambda entry: problem.column_of(model, entry[0]), own, workers=workers) if column.felt]
     classes = candidate_effects(model, library, candidates)
     results, refined = _refit_candidates(model, classes, problem, own_columns, steps, workers)
+    judge = _Judge(model, problem, own_columns, floor)
+    judge.judge(results)
     for number, candidate in enumerate(results, start=1):
         say(f"  [{number}/{len(classes)}] {candidate.name}: rms "
-            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
+            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, held out "
+            f"{from_si(candidate.heldout_rms, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
             + ("" if number - 1 in refined else " (not refined)"))
     # best first by ΔBIC, which weighs the gain against the parameters it took (an offset per
     # run always fits a little better than one offset; it must fit better by enough)
     results.sort(key=lambda c: (c.delta_bic, c.rms_after))
     for candidate in results:
-        candidate.significant = (candidate.delta_bic < BIC_THRESHOLD
+        candidate.significant = (not candidate.per_run
+                                 and candidate.delta_bic < BIC_THRESHOLD
                                  and problem.rms_before > NOISE_MARGIN * floor
                                  and problem.rms_before - candidate.rms_after
-                                 > GAIN_FRACTION * floor)
+                                 > GAIN_FRACTION * floor
+                                 and candidate.heldout_rms
+                                 < (1.0 - HELDOUT_GAIN) * judge.heldout_before)
     _group(results, problem.n_eff)
+    judge.inclusion(results)
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, results,
-                          residual_correlations(base), "")
+                          residual_correlations(base), "", judge.heldout_before,
+                          judge.expected_rms(base), judge.map_limits(),
+                          _sensor_checks(results))
     diagnosis.summary = summarise(diagnosis)
     return diagnosis
+
+
+class _Judge:
+    """Every candidate's refit, judged against what the maps' uncertainty allows and on runs it
+    was not fitted to, linearised at its optimum (:mod:`.heldout`, :mod:`.discrepancy`).
+
+    The penalty on the discrepancy's coefficients is s² = σ²·n/n_eff: the noise of one
+    effective sample, as the residuals are correlated in time."""
+
+    def __init__(self, model: ValveModel, problem: "_DiagnosisProblem",
+                 own_columns: list["_Column"], floor: float):
+        self.problem = problem
+        ok = problem.ok
+        self.runs = problem.base.runs[ok]
+        self.discrepancy: Discrepancy | None = map_discrepancy(model, problem.base, ok)
+        self.penalty = floor**2 * ok.sum() / problem.n_eff
+        self.schemes = run_groups(problem.log)
+        own = (np.column_stack([c.change for c in own_columns]) if own_columns
+               else np.zeros((int(ok.sum()), 0)))
+        self.base = RunBlocks(Linearised(problem.base_evaluation.residual, own),
+                              self.discrepancy, self.runs, self.penalty)
+        self.ones = np.ones(len(self.base.labels))
+        self.objective_before = self.base.objective(self.ones)
+        self.heldout_before = self.base.heldout_rms(self.schemes)["pooled"]
+        self.blocks: dict[str, tuple[RunBlocks, int]] = {}
+
+    def judge(self, candidates: list[Candidate]) -> None:
+        """Set each candidate's held-out RMS and its ΔBIC against the maps' discrepancy."""
+        for candidate in candidates:
+            blocks = RunBlocks(Linearised(candidate.linearised[0], candidate.linearised[1]),
+                               self.discrepancy, self.runs, self.penalty)
+            self.blocks[candidate.name] = (blocks, candidate.extra)
+            if not candidate.per_run:  # a run's own parameter is off for a run it never saw
+                candidate.heldout = blocks.heldout_rms(self.schemes)
+                candidate.heldout_rms = candidate.heldout["pooled"]
+            candidate.delta_bic = _delta_bic(blocks.objective(self.ones), self.objective_before,
+                                             self.problem.n_eff, candidate.extra)
+
+    def inclusion(self, candidates: list[Candidate]) -> None:
+        """Each candidate's share of bootstrap resamples over runs in which it would be added:
+        the best by ΔBIC against the discrepancy, and below the threshold."""
+        weights = bootstrap_weights(len(self.base.labels), RESAMPLES)
+        chosen = [c for c in candidates if not c.per_run]
+        counts = dict.fromkeys((c.name for c in chosen), 0)
+        for w in weights:
+            n_eff = self.problem.n_eff * w.sum() / len(w)
+            before = self.base.objective(w)
+            scores = [_delta_bic(self.blocks[c.name][0].objective(w), before, n_eff,
+                                 self.blocks[c.name][1]) for c in chosen]
+            if scores and min(scores) < BIC_THRESHOLD:
+                counts[chosen[int(np.argmin(scores))].name] += 1
+        for candidate in candidates:
+            candidate.inclusion = counts.get(candidate.name, 0) / len(weights)
+
+    def expected_rms(self, base: LogReplay) -> float:
+        """The RMS that noise and the maps' uncertainty allow together [Pa]."""
+        std = base.replay.dp_std
+        spread = 0.0 if std is None else float(np.nanmean(std[self.problem.ok] ** 2))
+        return float(np.sqrt(self.problem.noise_floor**2 + spread))
+
+    def map_limits(self, count: int = 3) -> list[str]:
+        """Where the fitted discrepancy is largest: the maps' error the residual shows most."""
+        if self.discrepancy is None:
+            return []
+        theta = self.base.nuisance()
+        share = np.sqrt(np.mean((self.discrepancy.columns * theta) ** 2, axis=0))
+        order = [i for i in np.argsort(share)[::-1] if share[i] > 0][:count]
+        return [f"{self.discrepancy.names[i]} ({from_si(share[i], 'bar'):.2f} bar RMS)"
+                for i in order]
+
+
+def _sensor_checks(candidates: list[Candidate]) -> list[str]:
+    """Plain sentences for per-run parameters well outside their standard errors."""
+    lines = []
+    for candidate in candidates:
+        if not candidate.per_run:
+            continue
+        for parameter in candidate.params:
+            if parameter.stderr and abs(parameter.value) > 3.0 * parameter.stderr:
+                lines.append(f"run {parameter.scope}: {candidate.title} looks "
+                             f"{parameter.display_value:+.2f} {parameter.unit} off "
+                             f"(± {from_si(parameter.stderr, parameter.unit):.2f})")
+    return lines
 
 
 def _refit_candidates(model: ValveModel, classes: list[type[Effect]],
@@ -221,14 +341,17 @@ def _candidate(cls: type[Effect], minimizer: Minimizer, extra: int,
     parameters are the candidate's own (the data inform them)."""
     evaluation, rss = minimizer.refined
     minimizer.refinement_errors()
+    linearised = (evaluation.residual, minimizer.refined_jacobian)
     change = np.zeros(len(problem.ok))
     change[problem.ok] = evaluation.residual - problem.base_evaluation.residual
     trial = minimizer.model
-    return Candidate(cls.name, cls.title, cls.describe(), cls.kind,
+    return Candidate(cls.name, cls.title, cls.describe(), cls.kind, cls.category,
                      float(np.sqrt(rss / problem.ok.sum())),
                      _delta_bic(rss, problem.rss_before, problem.n_eff, extra),
                      params=list(trial.effect(cls.name).params.values()), change=change,
-                     model=trial, replay=evaluation.payload)
+                     model=trial, replay=evaluation.payload,
+                     per_run=issubclass(cls, PerRunEffect), extra=extra,
+                     linearised=linearised)
 
 
 @dataclass
@@ -251,6 +374,7 @@ class _DiagnosisProblem(FitProblem):
         self.rss_before = float(np.sum(base.residual[self.ok] ** 2))
         self.rms_before = float(np.sqrt(self.rss_before / self.ok.sum()))
         self.n_eff = effective_samples(base.residual, base.runs)
+        self.noise_floor = noise_floor(base.residual, base.runs)
         self.base_evaluation = Evaluation(base.residual[self.ok], base)
 
     def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
@@ -334,25 +458,50 @@ def residual_correlations(base: LogReplay) -> dict[str, float]:
 
 
 def summarise(diagnosis: Diagnosis) -> str:
-    """A plain sentence naming the most likely missing effect, or saying that none is left."""
+    """Plain sentences: the most likely missing effect (with its category, held-out gain and
+    inclusion frequency), or why none is named, where the maps limit the diagnosis, and what
+    the per-run readings say about the sensors."""
     before = from_si(diagnosis.rms_before, "bar")
     floor = from_si(diagnosis.noise_floor, "bar")
+    expected = from_si(diagnosis.expected_rms, "bar")
     best = diagnosis.best
     if best is None:
         if diagnosis.rms_before <= NOISE_LEVEL * diagnosis.noise_floor:
-            return (f"Nothing beyond noise is left: the residual RMS ({before:.2f} bar) is within "
-                    f"{NOISE_LEVEL:.1f}x the noise floor ({floor:.2f} bar) and no candidate "
-                    "improves the model significantly.")
-        return (f"No candidate in the library explains the residual significantly, but it "
-                f"({before:.2f} bar) is still {before / floor:.1f}x the noise floor "
-                f"({floor:.2f} bar): the missing physics may lie outside the library; a custom "
-                "effect (--effects-file) can test a hypothesis.")
-    params = ", ".join(str(p) for p in best.params if p.vary)
-    sentence = (f"The most likely missing effect is {best.title} ({best.name}): adding it lowers "
-                f"the residual RMS from {before:.2f} to {from_si(best.rms_after, 'bar'):.2f} bar "
-                f"(noise floor {floor:.2f} bar, ΔBIC {best.delta_bic:.0f}) with {params}.")
-    if len(best.group) > 1:
-        others = [name for name in best.group if name != best.name]
-        sentence += (f" These data cannot tell it apart from {', '.join(others)}, which changes "
-                     "the prediction the same way; pick by physical knowledge or a dedicated test.")
+            sentence = (f"Nothing beyond noise is left: the residual RMS ({before:.2f} bar) is "
+                        f"within {NOISE_LEVEL:.1f}x the noise floor ({floor:.2f} bar) and no "
+                        "candidate improves the model significantly.")
+        elif np.isfinite(expected) and before <= expected:
+            sentence = (f"The residual ({before:.2f} bar RMS) is within what the noise "
+                        f"({floor:.2f} bar) and the maps' uncertainty allow together "
+                        f"({expected:.2f} bar), and no candidate explains more than the maps' "
+                        "own error could: nothing can be concluded beyond the maps.")
+        else:
+            sentence = (f"No candidate in the library explains the residual significantly on "
+                        f"runs it was not fitted to, but it ({before:.2f} bar) is still "
+                        f"{before / floor:.1f}x the noise floor ({floor:.2f} bar): the missing "
+                        "physics may lie outside the library, or in the maps; a custom effect "
+                        "(--effects-file) can test a hypothesis.")
+    else:
+        params = ", ".join(str(p) for p in best.params if p.vary)
+        sentence = (f"The most likely missing effect is {best.title} ({best.name}, "
+                    f"{best.category}): adding it lowers the residual RMS from {before:.2f} to "
+                    f"{from_si(best.rms_after, 'bar'):.2f} bar and the RMS on held-out runs from "
+                    f"{from_si(diagnosis.heldout_before, 'bar'):.2f} to "
+                    f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor {floor:.2f} bar, "
+                    f"ΔBIC {best.delta_bic:.0f} against the maps' own error, chosen in "
+                    f"{100 * best.inclusion:.0f} % of resamples over runs) with {params}.")
+        if best.category == "map correction":
+            sentence += (" It patches the CFD maps rather than adding valve physics: "
+                         "more CFD where the bench operates would replace it.")
+        if len(best.group) > 1:
+            others = [name for name in best.group if name != best.name]
+            sentence += (f" These data cannot tell it apart from {', '.join(others)}, which "
+                         "changes the prediction the same way; pick by physical knowledge or a "
+                         "dedicated test.")
+    if diagnosis.map_limits:
+        sentence += (" The maps' error shows most " + "; ".join(diagnosis.map_limits)
+                     + ": `suggest-cfd` lists the CFD runs that would settle it.")
+    if diagnosis.sensor_checks:
+        sentence += (" Sensor check (never part of the model): "
+                     + "; ".join(diagnosis.sensor_checks[:3]) + ".")
     return sentence

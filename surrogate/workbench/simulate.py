@@ -15,7 +15,10 @@ A synthetic log is made in three steps:
    every reading, p_L included.
 
 The model under test starts from the reference without the hidden effect and never sees the
-truth model.
+truth model. With perfect maps (the default) the truth runs on the very maps the model under test
+uses; with a :class:`~.mismatch.MapMismatch` it runs on maps of perturbed CFD samples, with
+behaviour where the CFD has no samples and a back-pressure dependence the maps lack
+(:mod:`.mismatch`), the way a real valve differs from its CFD.
 """
 
 from __future__ import annotations
@@ -24,14 +27,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..data.loaders import BenchLog
+from ..data.loaders import BenchLog, CfdSamples, load_cfd_samples
 from ..effects import LIBRARY, Effect, EffectLibrary, PerRunEffect
 from ..errors import InputError
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
+from ..paths import SHIPPED_CFD_SAMPLES
 from ..presets import cfda, cfda_effects
 from ..spec import EffectSpec, ModelSpec, ValveSource
 from ..units import to_si
+from .mismatch import MapMismatch, mismatched_truth
 from .residuals import replay_log
 
 #: a magnitude an engineer could meet on a real valve, per library effect (display units). The
@@ -163,7 +168,7 @@ class HiddenEffectCase:
     hidden : str
         The effect switched on (or changed) in the truth, or "" for the control case.
     truth : ValveModel
-        The model that made the log.
+        The model that made the log (with a mismatch: the virtual valve).
     start : ValveModel
         The reference without the hidden effect; its free parameters start from the presets'
         values, not from the truth.
@@ -180,7 +185,9 @@ class HiddenEffectCase:
 def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = None, *,
                        sequence: BenchLog, seed: int = 0, reference: ModelSpec | None = None,
                        library: EffectLibrary = LIBRARY,
-                       noise: SensorNoise | None = None) -> HiddenEffectCase:
+                       noise: SensorNoise | None = None, mismatch: MapMismatch | None = None,
+                       samples: CfdSamples | None = None,
+                       maps_under_test: MapsSpec | None = None) -> HiddenEffectCase:
     """Make a synthetic log with effect ``hidden`` (from ``library``) at ``values`` (display
     units; default its :data:`REALISTIC_MAGNITUDES`), or with nothing hidden when ``hidden`` is
     None.
@@ -188,6 +195,11 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
     ``reference`` is the valve without the effect (default :func:`reference_spec`); an effect
     the reference already has (the flow-force scale, say) is set to ``values`` in the truth and
     removed from the starting model.
+
+    With ``mismatch`` the truth is the virtual valve of :func:`.mismatch.mismatched_truth`: the
+    reference's valve and effects on maps of ``samples`` (default: the shipped CFD samples)
+    perturbed with the case's ``seed``. ``maps_under_test`` puts the starting model on other maps
+    (default: the reference's).
     """
     reference = reference or reference_spec()
     truth = reference.named(f"reference + {hidden}" if hidden else "reference")
@@ -200,12 +212,18 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
         truth = truth.with_effects([*(e for e in truth.effects if e.name != hidden),
                                     EffectSpec.of(effect)])
         start_effects = [e for e in start_effects if e.name != hidden]
-    log = simulate(truth.build(library), sequence, noise=noise, seed=seed)
+    truth_model = truth.build(library)
+    if mismatch is not None:
+        samples = samples if samples is not None else load_cfd_samples(SHIPPED_CFD_SAMPLES)
+        truth_model = mismatched_truth(truth_model, samples, seed, mismatch)
+    log = simulate(truth_model, sequence, noise=noise, seed=seed)
     # the fit starts from the presets' values, not from the truth
     starting = {effect.name: effect for effect in cfda_effects()}
     start = reference.with_effects([starting.get(e.name, e) for e in start_effects],
                                    name="start")
-    return HiddenEffectCase(hidden or "", truth.build(library), start.build(library), log)
+    if maps_under_test is not None:
+        start = start.with_maps(maps_under_test)
+    return HiddenEffectCase(hidden or "", truth_model, start.build(library), log)
 
 
 def _hidden_effect(cls: type[Effect], truth: ModelSpec, sequence: BenchLog,

@@ -1,0 +1,111 @@
+"""The maps' own error, as the diagnosis allows for it: a few smooth discrepancy terms.
+
+A real valve's CFD maps are never exact, and in the force balance a 1 N flow-force error moves Δp
+by about 1 bar, as much as the effects a diagnosis looks for. A diagnosis that knows only the
+sensor noise "discovers" whatever term best soaks up the maps' error. So every refit carries
+nuisance terms for that error (Kennedy & O'Hagan's model discrepancy, in a practical low-rank
+form):
+
+    δΔp(x) = Σ_m Σ_b φ_b(u)·(a_mb + a'_mb·z_ν(x))·e_m(x) / √2,     a, a' ~ N(0, 1),
+
+where e_m(x) is how far the computed Δp moves for a one-σ error of map m (the flow map, the force
+map: :func:`surrogate.solver.uncertainty.map_error_effects`, with the maps' calibrated σ),
+φ_b are hat functions in ln u normalised so that Σ_b φ_b² = 1 (knots at the sampled openings, in
+the unsampled gaps and below the smallest opening: a map's error is shared by nearby openings and
+is not shared far away), and z_ν ∈ [−1, 1] the viscosity's place in the log's range (a map's
+error may change with temperature). At each point the prior variance of δΔp is then about the
+maps' σ_Δp². The coefficients enter every fit as penalised unknowns: what the maps' uncertainty
+can explain, they explain; a candidate effect must explain more.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model import ValveModel
+from .residuals import LogReplay
+
+#: knots added inside every unsampled gap (fractions of the gap in ln u) and below the smallest
+#: opening (fraction of it)
+GAP_KNOTS = (1.0 / 3.0, 2.0 / 3.0)
+SEAT_KNOT = 0.3
+
+
+@dataclass(frozen=True)
+class Discrepancy:
+    """The nuisance columns of a log's replay.
+
+    Attributes
+    ----------
+    columns : numpy.ndarray
+        (n, k): the Δp change [Pa] at each solved sample per unit of each coefficient, whose prior
+        is N(0, 1).
+    names : list of str
+        What each column stands for (``"force map near 0.13 mm"``, ``"... × viscosity"``).
+    """
+
+    columns: np.ndarray
+    names: list[str]
+
+    @property
+    def size(self) -> int:
+        return self.columns.shape[1]
+
+    def rows(self, index) -> "Discrepancy":
+        return Discrepancy(self.columns[index], self.names)
+
+
+def knots(model: ValveModel) -> np.ndarray:
+    """Knots in u [m]: the force map's sampled openings, points inside its unsampled gaps and one
+    below its smallest opening (none for maps without samples)."""
+    coverage = model.force_map.coverage or model.flow_map.coverage
+    if coverage is None:
+        return np.zeros(0)
+    points = list(coverage.openings)
+    for low, high in coverage.gaps():
+        points += [low * (high / low) ** t for t in GAP_KNOTS]
+    points.append(coverage.openings[0] * SEAT_KNOT)
+    return np.sort(np.asarray(points, float))
+
+
+def hat_weights(u: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """(n, len(at)) hat functions in ln u through the knots ``at``, held at the end knots, each
+    row scaled to unit norm (so a row's weights square-sum to one)."""
+    x = np.log(np.clip(u, at[0], at[-1]))
+    grid = np.log(at)
+    weights = np.zeros((len(u), len(at)))
+    index = np.clip(np.searchsorted(grid, x) - 1, 0, len(at) - 2)
+    t = (x - grid[index]) / (grid[index + 1] - grid[index])
+    rows = np.arange(len(u))
+    weights[rows, index] = 1.0 - t
+    weights[rows, index + 1] = t
+    return weights / np.linalg.norm(weights, axis=1, keepdims=True)
+
+
+def map_discrepancy(model: ValveModel, base: LogReplay, ok: np.ndarray) -> Discrepancy | None:
+    """The nuisance columns at the solved samples ``ok`` of ``base`` (a replay with
+    diagnostics), or None for maps that report no uncertainty."""
+    effects = base.replay.map_error
+    at = knots(model)
+    if effects is None or at.size < 2 or not ok.any():
+        return None
+    u = base.replay.u[ok]
+    weights = hat_weights(np.where(np.isfinite(u), u, at[0]), at)
+    nu = np.log(model.fluid(base.replay.points).nu[ok])
+    low, high = np.min(nu), np.max(nu)
+    z = (2.0 * (nu - low) / (high - low) - 1.0) if high > low else np.zeros(len(nu))
+    columns, names = [], []
+    for row, which in ((0, "flow map"), (1, "force map")):
+        effect = np.nan_to_num(effects[row, ok])
+        if not np.any(effect):
+            continue
+        for b, knot in enumerate(at):
+            where = f"{which} near {knot * 1e3:.3g} mm"
+            columns += [weights[:, b] * effect / np.sqrt(2.0),
+                        weights[:, b] * effect * z / np.sqrt(2.0)]
+            names += [where, f"{where} × viscosity"]
+    if not columns:
+        return None
+    return Discrepancy(np.column_stack(columns), names)
