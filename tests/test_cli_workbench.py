@@ -90,9 +90,16 @@ def test_workflow_json_contract(capsys, small_log, tmp_path):
                                "--maps", "grid", "--kinds", "--max-additions", "1", "--json"])
     steps = result["steps"]
     assert [s["model"] for s in steps[:4]] == ["bmbe", "bmbebf", "cfd-maps", "cfda"]
-    assert all({"model", "added", "rms_bar"} <= set(s) for s in steps)
-    assert steps[-1]["added"] == ["friction_viscous"]
+    assert all({"model", "added", "category", "rms_bar", "heldout_rms_bar"} <= set(s)
+               for s in steps)
+    assert [s["category"] for s in steps[:4]] == ["", "map correction", "map correction",
+                                                  "physics"]
+    assert steps[-1]["added"] == ["friction_viscous"] and steps[-1]["category"] == "physics"
     assert steps[-1]["rms_bar"] < steps[3]["rms_bar"] < steps[0]["rms_bar"]
+    # the added effect predicts runs its fit did not see better; the held-out RMS is never
+    # below the in-sample one
+    assert steps[-1]["heldout_rms_bar"] < steps[3]["heldout_rms_bar"]
+    assert all(s["heldout_rms_bar"] >= s["rms_bar"] - 1e-3 for s in steps)
     for name in ("report.html", "staircase.png", "staircase.csv", "final_model.toml",
                  "workflow.json"):
         assert (out / name).is_file()

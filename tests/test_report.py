@@ -88,7 +88,8 @@ def test_every_figure_has_a_caption(page):
 def test_the_staircase_shows_step_added_and_rms_at_a_glance(page):
     head = page.split("<table>", 1)[1].split("</thead>", 1)[0].split("<tr>", 1)[1]
     columns = [part.split(">", 1)[1].split("<", 1)[0] for part in head.split("<th")[1:]]
-    assert columns == ["step", "added", "rms [bar]", "× noise floor"]
+    assert columns == ["step", "added", "category", "rms [bar]", "held out [bar]",
+                       "× noise floor"]
     assert "<details>" in page  # the parameters, one folded table per step
 
 

@@ -121,7 +121,7 @@ class Diagnosis:
     heldout_before: float = float("nan")  # [Pa] the model's RMS on held-out runs (pooled)
     expected_rms: float = float("nan")  # [Pa] what noise and the maps' σ_Δp allow together
     map_limits: list[str] = field(default_factory=list)  # where the maps' error is largest
-    sensor_checks: list[str] = field(default_factory=list)  # per-run readings that look off
+    sensor_checks: list["SensorCheck"] = field(default_factory=list)  # per-run readings off
 
     @property
     def best(self) -> Candidate | None:
@@ -135,7 +135,8 @@ class Diagnosis:
                 "effective_samples": round(self.effective_samples, 1),
                 "heldout_rms_bar": round(float(from_si(self.heldout_before, "bar")), 4),
                 "expected_rms_bar": round(float(from_si(self.expected_rms, "bar")), 4),
-                "map_limits": self.map_limits, "sensor_checks": self.sensor_checks,
+                "map_limits": self.map_limits,
+                "sensor_checks": [check.to_json() for check in self.sensor_checks],
                 "summary": self.summary,
                 "candidates": [c.to_json() for c in self.candidates],
                 "residual_correlations": {k: round(v, 3) for k, v in self.correlations.items()}}
@@ -290,18 +291,43 @@ class _Judge:
                 for i in order]
 
 
-def _sensor_checks(candidates: list[Candidate]) -> list[str]:
-    """Plain sentences for per-run parameters well outside their standard errors."""
-    lines = []
+@dataclass(frozen=True)
+class SensorCheck:
+    """A run whose per-run parameter lies well outside its standard error (display units)."""
+
+    effect: str
+    title: str
+    run: str
+    value: float
+    stderr: float
+    unit: str
+
+    def __str__(self) -> str:
+        return (f"run {self.run}: {self.title} looks {self.value:+.2f} {self.unit} off "
+                f"(± {self.stderr:.2f})")
+
+    def to_json(self) -> dict:
+        return {"effect": self.effect, "run": self.run, "value": round(self.value, 4),
+                "stderr": round(self.stderr, 4), "unit": self.unit, "text": str(self)}
+
+
+#: a run's parameter is flagged when it exceeds this many standard errors
+SENSOR_CHECK_SIGMAS = 3.0
+
+
+def _sensor_checks(candidates: list[Candidate]) -> list[SensorCheck]:
+    """Per-run parameters well outside their standard errors, largest first."""
+    checks = []
     for candidate in candidates:
         if not candidate.per_run:
             continue
         for parameter in candidate.params:
-            if parameter.stderr and abs(parameter.value) > 3.0 * parameter.stderr:
-                lines.append(f"run {parameter.scope}: {candidate.title} looks "
-                             f"{parameter.display_value:+.2f} {parameter.unit} off "
-                             f"(± {from_si(parameter.stderr, parameter.unit):.2f})")
-    return lines
+            if parameter.stderr and abs(parameter.value) > SENSOR_CHECK_SIGMAS * parameter.stderr:
+                checks.append(SensorCheck(candidate.name, candidate.title, str(parameter.scope),
+                                          parameter.display_value,
+                                          float(from_si(parameter.stderr, parameter.unit)),
+                                          parameter.unit))
+    return sorted(checks, key=lambda check: -abs(check.value))
 
 
 def _refit_candidates(model: ValveModel, classes: list[type[Effect]],
@@ -503,5 +529,5 @@ def summarise(diagnosis: Diagnosis) -> str:
                      + ": `suggest-cfd` lists the CFD runs that would settle it.")
     if diagnosis.sensor_checks:
         sentence += (" Sensor check (never part of the model): "
-                     + "; ".join(diagnosis.sensor_checks[:3]) + ".")
+                     + "; ".join(map(str, diagnosis.sensor_checks[:3])) + ".")
     return sentence

@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from ..outputs import atomic_file
 from ..units import from_si, label
 from .compare import Comparison
-from .diagnose import BIC_THRESHOLD, GAIN_FRACTION, NOISE_MARGIN, Diagnosis
+from .diagnose import BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, NOISE_MARGIN, Diagnosis
 from .figures import DPI, all_figures, caption
 
 _STYLE = """
@@ -163,9 +163,12 @@ def diagnosis_table(diagnosis: Diagnosis) -> pd.DataFrame:
     """One row per candidate, best first (display units)."""
     rows = []
     for c in diagnosis.candidates:
-        rows.append({"effect": c.name, "what": c.title,
-                     "rms after [bar]": from_si(c.rms_after, "bar"), "ΔBIC": c.delta_bic,
-                     "significant": "yes" if c.significant else "no",
+        rows.append({"effect": c.name, "what": c.title, "category": c.category,
+                     "rms after [bar]": from_si(c.rms_after, "bar"),
+                     "held out [bar]": from_si(c.heldout_rms, "bar"), "ΔBIC": c.delta_bic,
+                     "chosen in [%]": 100.0 * c.inclusion,
+                     "significant": ("sensor check" if c.per_run
+                                     else "yes" if c.significant else "no"),
                      "parameters": parameter_summary(c.params),
                      "same as": ", ".join(n for n in c.group if n != c.name)})
     return pd.DataFrame(rows)
@@ -210,10 +213,17 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
 
 
 def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
-    rule = (f"A candidate is significant when ΔBIC &lt; {BIC_THRESHOLD:g} (counted with the "
-            f"{diagnosis.effective_samples:.0f} effectively independent samples), the residual "
-            f"before exceeds {NOISE_MARGIN:g}× the noise floor, and it removes more than "
-            f"{GAIN_FRACTION:g}× the noise floor of RMS.")
+    rule = (f"A candidate is significant when it explains more than the maps' own error could "
+            f"(ΔBIC &lt; {BIC_THRESHOLD:g} once smooth map-discrepancy terms of the maps' "
+            f"calibrated size have explained what they can, counted with the "
+            f"{diagnosis.effective_samples:.0f} effectively independent samples), lowers the "
+            f"RMS on held-out runs (now {from_si(diagnosis.heldout_before, 'bar'):.3f} bar; "
+            f"leave one run, one temperature, one pilot pressure out) by more than "
+            f"{100 * HELDOUT_GAIN:g} %, the residual before exceeds {NOISE_MARGIN:g}× the noise "
+            f"floor, and it removes more than {GAIN_FRACTION:g}× the noise floor of RMS. "
+            "<i>chosen in</i>: the share of bootstrap resamples over runs in which it would be "
+            "the one added. A parameter per run cannot predict another run: such candidates are "
+            "sensor checks, never part of the model.")
     correlations = pd.DataFrame(
         [{"variable": k.split("~")[1], "what": k.split("~")[0], "correlation": v}
          for k, v in diagnosis.correlations.items()])
@@ -222,8 +232,10 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         f'<p class="summary">{html.escape(diagnosis.summary)}</p>',
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
-        _table(diagnosis_table(diagnosis), ("effect", "what", "significant", "parameters",
-                                            "same as"), {"rms after [bar]": ".3f", "ΔBIC": ".1f"}),
+        _table(diagnosis_table(diagnosis), ("effect", "what", "category", "significant",
+                                            "parameters", "same as"),
+               {"rms after [bar]": ".3f", "held out [bar]": ".3f", "ΔBIC": ".1f",
+                "chosen in [%]": ".0f"}),
         _figure(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
                 f"Diagnosis of {readable(diagnosis.model.name)}: each candidate's line runs from "
                 "the current RMS to the RMS after refitting with it."),
@@ -241,7 +253,10 @@ def staircase_table(steps) -> pd.DataFrame:
     for number, step in enumerate(steps, start=1):
         parameters = "; ".join(str(p) for p in step.model.parameters().values() if p.vary)
         rows.append({"step": number, "added": ", ".join(step.added) or step.model.name,
-                     "rms [bar]": from_si(step.rms, "bar"), "parameters": parameters})
+                     "category": step.category or "—",
+                     "rms [bar]": from_si(step.rms, "bar"),
+                     "held out [bar]": from_si(step.heldout_rms, "bar"),
+                     "parameters": parameters})
     return pd.DataFrame(rows)
 
 
@@ -295,10 +310,15 @@ def staircase_section(workflow) -> str:
         f"{html.escape(workflow.final_diagnosis.summary)}</p>",
         "<p>Steps 1–4 are the paper's models (BMBE, BMBEBF, CFD maps, CFDA); later steps add the "
         "effect the diagnosis found most likely. Every step refits all free parameters on every "
-        "sample.</p>",
+        "sample. <i>held out</i> is the RMS on runs the step's fit did not see (leave one run, "
+        "one temperature, one pilot pressure out): an added effect must lower it. "
+        "<i>category</i> says what the step added: valve physics, a correction of the CFD maps, "
+        "or a sensor error.</p>",
+        _category_story(workflow),
         _table(staircase_table(workflow.steps).drop(columns="parameters").assign(
             **{"× noise floor": [step.rms / workflow.noise_floor for step in workflow.steps]}),
-            ("added",), {"rms [bar]": ".3f", "× noise floor": ".2f"}),
+            ("added", "category"), {"rms [bar]": ".3f", "held out [bar]": ".3f",
+                                    "× noise floor": ".2f"}),
         "<p>The parameters fitted at each step (all of them are in <i>staircase.csv</i> and the "
         "final model file):</p>",
         *(_step_parameters(number, step) for number, step in enumerate(workflow.steps, 1)),
@@ -306,6 +326,29 @@ def staircase_section(workflow) -> str:
                 f"Residual RMS after each step on {workflow.log.source}; the final model is "
                 f"{readable(workflow.final.model.name)}."),
     ])
+
+
+def _category_story(workflow) -> str:
+    """The added effects grouped by category, in plain words."""
+    found: dict[str, list[str]] = {}
+    for step in workflow.steps[4:] if workflow.maps else workflow.steps[1:]:
+        found.setdefault(step.category, []).extend(step.added)
+    lines = []
+    if found.get("physics"):
+        lines.append(f"<b>Valve physics the data contain</b>: {', '.join(found['physics'])}.")
+    if found.get("map correction"):
+        lines.append(f"<b>Corrections of the CFD maps</b>: {', '.join(found['map correction'])}"
+                     ": they patch where the maps are wrong (new CFD runs there would replace "
+                     "them; see the diagnosis' map limits and <code>suggest-cfd</code>).")
+    if found.get("sensor"):
+        lines.append(f"<b>Sensor errors</b>: {', '.join(found['sensor'])}: check the bench.")
+    checks = workflow.final_diagnosis.sensor_checks
+    if checks:
+        lines.append("<b>Sensor checks</b> (per-run readings, never part of the model): "
+                     + html.escape("; ".join(map(str, checks))) + ".")
+    if not lines:
+        lines.append("The diagnosis added nothing beyond the paper's steps.")
+    return "<p>" + "<br>".join(lines) + "</p>"
 
 
 def staircases_figure(workflows: dict) -> Figure:

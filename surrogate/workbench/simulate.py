@@ -284,8 +284,52 @@ def random_settings(count: int, seed: int) -> list[tuple[str, float, dict[str, f
     return settings
 
 
-def identified(diagnosis, hidden: str) -> bool:
+def identified(diagnosis, hidden: str, library: EffectLibrary = LIBRARY) -> bool:
     """Whether a diagnosis found the hidden effect: its best candidate is significant, ranked
-    first, and is the effect or a candidate the data cannot tell from it."""
+    first, and is the effect or a candidate the data cannot tell from it. A per-run effect never
+    joins a model (it cannot predict another run): it is found when no candidate is significant
+    and the diagnosis' sensor checks flag at least a third of the runs for it."""
     best = diagnosis.best
+    if _per_run(hidden, library):
+        runs = {check.run for check in diagnosis.sensor_checks if check.effect == hidden}
+        return best is None and 3 * len(runs) >= len(diagnosis.base.log.run_ids)
     return best is not None and diagnosis.candidates[0] is best and hidden in best.group
+
+
+def unexplained_additions(workflow, hidden: str | None,
+                          library: EffectLibrary = LIBRARY) -> list[str]:
+    """The physics and sensor effects a workflow added beyond the paper's steps that are neither
+    the hidden effect nor one the data cannot tell from it (map corrections may patch the maps
+    anywhere: they are labelled as such, not counted)."""
+    extra = []
+    for step in workflow.steps[1:]:
+        if step.diagnosis is None:  # a paper step
+            continue
+        group = step.diagnosis.best.group if step.diagnosis.best else step.added
+        for name in step.added:
+            if name in library and library[name].category == "map correction":
+                continue
+            if hidden and hidden in group:
+                continue
+            extra.append(name)
+    return extra
+
+
+def cleanly_identified(workflow, hidden: str | None, library: EffectLibrary = LIBRARY) -> bool:
+    """Whether a workflow found the hidden effect and invented nothing: it added the effect (or
+    one the data cannot tell from it; a per-run effect: flagged it in the final diagnosis'
+    sensor checks, :func:`identified`) and no other physics or sensor effect. With nothing
+    hidden: no physics or sensor effect added."""
+    if unexplained_additions(workflow, hidden, library):
+        return False
+    if not hidden:
+        return True
+    if _per_run(hidden, library):
+        return identified(workflow.final_diagnosis, hidden, library)
+    return any(step.diagnosis is not None and step.diagnosis.best is not None
+               and hidden in step.diagnosis.best.group for step in workflow.steps[1:])
+
+
+def _per_run(name: str, library: EffectLibrary) -> bool:
+    """Whether ``name`` is a per-run effect of ``library`` (a name it lacks is not)."""
+    return name in library and issubclass(library[name], PerRunEffect)

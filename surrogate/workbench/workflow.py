@@ -11,7 +11,10 @@ Steps
    candidate, refit every free parameter together.
 
 Every step refits all free parameters against every sample of the log (:func:`.fit.fit_to_log`);
-the RMS after each step is the *error staircase*.
+the RMS after each step is the *error staircase*. Next to it stands each step's RMS on runs its
+fit did not see (leave one run, one temperature, one pilot pressure out; :mod:`.heldout`): a step
+the diagnosis adds must lower it, so the loop stops when the held-out RMS stops falling. Each
+step carries the category of what it added (valve physics, map correction, sensor).
 """
 
 from __future__ import annotations
@@ -20,14 +23,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..data.loaders import BenchLog
 from ..effects import LIBRARY, DischargeScale, EffectLibrary, FlowForceScale
+from ..leastsquares import FitResult
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
 from .diagnose import Diagnosis, diagnose
+from .heldout import Linearised, RunBlocks, run_groups
 from .logfit import fit_to_log
 from .residuals import LogReplay, noise_floor, replay_log
 
@@ -52,6 +59,10 @@ class Step:
         Residual RMS [Pa].
     diagnosis : Diagnosis or None
         The diagnosis that chose the step's effect.
+    category : str
+        What the step added: "physics", "map correction", "sensor" ("" for the first step).
+    heldout_rms : float
+        RMS on held-out runs [Pa] (:func:`heldout_rms`).
     """
 
     model: ValveModel
@@ -60,12 +71,15 @@ class Step:
     played: LogReplay
     rms: float
     diagnosis: Diagnosis | None = None
+    category: str = ""
+    heldout_rms: float = float("nan")
 
     def to_json(self) -> dict:
         parameters = self.model.parameters().to_records(free_only=True)
-        return {"model": self.model.name, "added": self.added,
-                "rms_bar": round(float(from_si(self.rms, "bar")), 4), "reason": self.reason,
-                "parameters": parameters}
+        return {"model": self.model.name, "added": self.added, "category": self.category,
+                "rms_bar": round(float(from_si(self.rms, "bar")), 4),
+                "heldout_rms_bar": round(float(from_si(self.heldout_rms, "bar")), 4),
+                "reason": self.reason, "parameters": parameters}
 
 
 @dataclass
@@ -93,18 +107,32 @@ class Workflow:
 
 
 def paper_steps(valve: ValveSource, maps_spec: MapsSpec
-                ) -> list[tuple[Callable[[ModelSpec], ModelSpec], list[str], str]]:
-    """The paper's steps after BMBE as (next spec from the previous one, added, reason)."""
+                ) -> list[tuple[Callable[[ModelSpec], ModelSpec], list[str], str, str]]:
+    """The paper's steps after BMBE as (next spec from the previous one, added, category,
+    reason)."""
     return [
-        (bmbebf_step, [DischargeScale.name],
+        (bmbebf_step, [DischargeScale.name], DischargeScale.category,
          "the paper's BMBEBF: the orifice equation's discharge coefficient fitted"),
         (lambda previous: cfd_maps_step(previous, maps_spec),
-         [f"{maps_spec.flow.kind} maps", FlowForceScale.name],
+         [f"{maps_spec.flow.kind} maps", FlowForceScale.name], FlowForceScale.category,
          "CFD maps of flow and force replace the orifice equation (the paper's CFDA without "
          "friction), with a fitted flow-force scale"),
-        (cfda_step, ["friction_constant", "friction_load_pressure"],
+        (cfda_step, ["friction_constant", "friction_load_pressure"], "physics",
          "the paper's CFDA: Coulomb friction K1 + K2·p_L, one pair for all temperatures"),
     ]
+
+
+def heldout_rms(fitted: FitResult | None, played: LogReplay,
+                schemes: dict[str, dict[str, list[str]]]) -> float:
+    """A fitted model's RMS on held-out runs [Pa], pooled over the schemes of
+    :func:`.heldout.run_groups`, by linearised refits (:mod:`.heldout`); without free parameters
+    it is the RMS itself."""
+    ok = played.ok
+    if fitted is None or fitted.jacobian is None or not fitted.jacobian.size:
+        return played.rms()
+    jacobian = np.asarray(fitted.jacobian)[ok]
+    blocks = RunBlocks(Linearised(played.residual[ok], jacobian), None, played.runs[ok], 0.0)
+    return blocks.heldout_rms(schemes)["pooled"]
 
 
 class _Staircase:
@@ -113,23 +141,29 @@ class _Staircase:
     def __init__(self, log: BenchLog, say: Callable[[str], None]):
         self.log, self.say = log, say
         self.steps: list[Step] = []
+        self.schemes = run_groups(log)
 
     @property
     def last(self) -> Step:
         return self.steps[-1]
 
-    def record(self, model: ValveModel, added: list[str], reason: str,
+    def record(self, model: ValveModel, added: list[str], category: str, reason: str,
                diagnosis: Diagnosis | None = None, near: LogReplay | None = None) -> Step:
         """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step."""
         if near is None and self.steps and self.last.model.flow_map is model.flow_map:
             near = self.last.played
+        fitted = None
         if model.parameters().free():
-            model = fit_to_log(model, self.log, start=near).model
+            fitted = fit_to_log(model, self.log, start=near)
+            model = fitted.model
         played = replay_log(model, self.log, guess=near)
-        step = Step(model, added, reason, played, played.rms(), diagnosis)
+        step = Step(model, added, reason, played, played.rms(), diagnosis, category,
+                    heldout_rms(fitted, played, self.schemes))
         self.steps.append(step)
         self.say(f"step {len(self.steps)}: {model.name:<28} rms "
-                 f"{from_si(step.rms, 'bar'):6.3f} bar   (+ {', '.join(added) or 'nothing'})")
+                 f"{from_si(step.rms, 'bar'):6.3f} bar, held out "
+                 f"{from_si(step.heldout_rms, 'bar'):6.3f} bar   (+ "
+                 f"{', '.join(added) or 'nothing'})")
         return step
 
     def add_diagnosed(self, library: EffectLibrary, candidates: list[str] | None,
@@ -148,7 +182,7 @@ class _Staircase:
                 return diagnosis
             # the diagnosis already refitted every parameter with the effect added: polish that
             self.record(best.model.copy(name=f"{current.model.name}+{best.name}"), [best.name],
-                        diagnosis.summary, diagnosis, near=best.replay)
+                        best.category, diagnosis.summary, diagnosis, near=best.replay)
             additions += 1
 
 
@@ -182,14 +216,14 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     maps_spec = maps_spec or maps("grid")
     if start is None:
         spec = bmbe(valve)
-        staircase.record(spec.build(library), [], "the paper's basic model BMBE: orifice "
-                                                  "equation with C_d = 0.4 and a uniform "
-                                                  "pressure on the piston")
-        for make, added, reason in paper_steps(spec.valve, maps_spec):
+        staircase.record(spec.build(library), [], "", "the paper's basic model BMBE: orifice "
+                                                      "equation with C_d = 0.4 and a uniform "
+                                                      "pressure on the piston")
+        for make, added, category, reason in paper_steps(spec.valve, maps_spec):
             spec = make(staircase.last.model.to_spec())  # from the fitted previous step
-            staircase.record(spec.build(library), added, reason)
+            staircase.record(spec.build(library), added, category, reason)
     else:
-        staircase.record(start, [], f"the starting model {start.name!r}")
+        staircase.record(start, [], "", f"the starting model {start.name!r}")
     diagnosis = staircase.add_diagnosed(library, candidates, max_additions)
     steps = staircase.steps
     floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs)

@@ -1,0 +1,89 @@
+"""The workbench tells missing physics from map error on a valve that differs from its CFD.
+
+Each log comes from a virtual valve (:mod:`surrogate.workbench.mismatch`): the shipped CFD
+samples perturbed per opening (Δp 1.5 %, flow force 2.5 %, one draw per opening and case), its
+own curve across the unsampled gap and below the smallest opening, and a cavitation-driven
+back-pressure dependence of the flow force, plus one hidden effect (or none) and the shipped
+bench's sensor noise. The model under test runs on the shipped grid maps and never sees the
+virtual valve. The workflow must add the hidden effect (or one the data cannot tell from it) and
+no other physics or sensor effect; corrections of the maps are allowed and labelled as such.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from surrogate.data import load_cfd_samples
+from surrogate import load_valve
+from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.presets import maps
+from surrogate.workbench.mismatch import MapMismatch, mismatched_samples
+from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case,
+                                          noise_free_sequence, random_settings,
+                                          unexplained_additions)
+from surrogate.workbench.workflow import run_workflow
+
+EVERY = 8
+CASES = 20
+CONTROLS = 5
+#: share of the randomised cases that must be found cleanly. The aim is 0.9; this version
+#: reaches 0.8 (16 of 20: `python eval/workbench.py --only-mismatch`; the misses are weak
+#: effects, 0.6–0.9× their realistic size, that the maps' allowed error can mimic), so the test
+#: guards that, and the aim stays open. The version before the map-aware diagnosis invented
+#: effects in every log, the control included.
+CLEAN_SHARE = 0.8
+#: at most this many effects added per case: a clean run adds one or two (the hidden effect
+#: and perhaps a map correction); more would only cost time
+ADDITIONS = 3
+
+
+@pytest.fixture(scope="module")
+def sequence(bench_log):
+    return noise_free_sequence(bench_log, every=EVERY)
+
+
+def run_case(hidden, values, sequence, seed):
+    case = hidden_effect_case(hidden, values, sequence=sequence, seed=seed,
+                              mismatch=MapMismatch(), maps_under_test=maps("grid"))
+    return run_workflow(case.log, start=case.start, max_additions=ADDITIONS)
+
+
+def test_the_virtual_valve_differs_from_its_cfd_like_a_real_one():
+    """Per-opening errors of the set size, extra sweeps where the CFD has none, a fresh draw per
+    seed and none with a zero mismatch."""
+    samples, valve = load_cfd_samples(SHIPPED_CFD_SAMPLES), load_valve()
+    perturbed, draw = mismatched_samples(samples, valve, seed=3)
+    original = samples.frame
+    same = perturbed.frame.iloc[:len(original)]
+    dp_ratio = ((same["p_L"] - same["p_B"]) / (original["p_L"] - original["p_B"])).to_numpy()
+    assert 0.002 < np.std(np.unique(np.round(dp_ratio, 9))) < 0.04
+    assert len(perturbed) > len(original)
+    new_openings = set(perturbed.frame["u"]) - set(original["u"])
+    assert any(u < original["u"].min() for u in new_openings)
+    assert any(0.2e-3 < u < 0.63e-3 for u in new_openings)
+    assert mismatched_samples(samples, valve, seed=4)[1].dp_error != draw.dp_error
+    still, _ = mismatched_samples(samples, valve, seed=3, mismatch=MapMismatch().scaled(0.0))
+    assert np.allclose(still.frame["p_L"].iloc[:len(original)], original["p_L"])
+
+
+@pytest.mark.slow
+def test_nothing_hidden_adds_no_physics_or_sensor_effect(sequence):
+    invented = {}
+    for seed in range(CONTROLS):
+        workflow = run_case(None, None, sequence, seed=100 + seed)
+        extra = unexplained_additions(workflow, None)
+        if extra:
+            invented[seed] = extra
+    assert not invented, invented
+
+
+@pytest.mark.slow
+def test_hidden_effects_are_found_cleanly_under_map_mismatch(sequence):
+    outcomes = []
+    for number, (hidden, _, values) in enumerate(random_settings(CASES, seed=2026)):
+        workflow = run_case(hidden, values, sequence, seed=200 + number)
+        added = [name for step in workflow.steps[1:] for name in step.added]
+        outcomes.append((hidden, added, cleanly_identified(workflow, hidden)))
+    clean = sum(ok for *_, ok in outcomes)
+    assert clean >= CLEAN_SHARE * CASES, [o for o in outcomes if not o[2]]
