@@ -65,6 +65,7 @@ def test_nothing_is_discovered_when_nothing_is_hidden(sequence):
         assert diagnosis.best is None, diagnosis.summary
         assert not any(c.significant for c in diagnosis.candidates)
         assert diagnosis.summary.startswith("Nothing beyond noise is left")
+        assert not diagnosis.sensor_checks, diagnosis.sensor_checks  # no run's sensor flagged
 
 
 CUSTOM = '''

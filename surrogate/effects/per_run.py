@@ -26,6 +26,9 @@ class PerRunEffect(Effect):
     :meth:`per_point` in their hook."""
 
     template: ClassVar[Parameter]
+    #: a run's value (display units) below which a diagnosis does not flag the run: what the
+    #: sensor's own noise or spec allows
+    check_threshold: ClassVar[float] = 0.0
 
     def __init__(self, runs: tuple[str, ...] = (), **values: float):
         """One parameter per run in ``runs`` (default value: the template's, the effect off);

@@ -41,6 +41,7 @@ class PilotZeroDrift(PerRunEffect):
     title = "pilot-pressure transducer zero, different in each run"
     template = Parameter("delta", 0.0, "bar", min=-2.0 * BAR, max=2.0 * BAR,
                          description="reading minus true pilot pressure in this run")
+    check_threshold = 0.3  # [bar] a pilot transducer's 1σ noise on the shipped bench
     validity = ("One offset per run of the log it was fitted to; other runs get none. A run whose "
                 "piston sits on its stop does not feel the pilot pressure and leaves its offset "
                 "undetermined. Within a run, indistinguishable from any constant force.")

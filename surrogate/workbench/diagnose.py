@@ -17,18 +17,28 @@ Procedure
    final Jacobian, inflated by √(n/n_eff) because the samples are not independent. The
    candidates are independent of each other and are refitted side by side on threads
    (:mod:`..parallel`).
-4. Judge each candidate by ΔBIC = n_eff·ln(RSS_after/RSS_before) + k·ln(n_eff), with k its
-   number of parameters the data inform, and rank them by it, best (most negative) first: among
-   candidates with as many parameters this is the order of their RMS.
+4. Judge each candidate against the maps' own error (:mod:`.discrepancy`): its residual and
+   the model's, each with smooth map-discrepancy terms of the maps' calibrated size fitted as
+   penalised nuisances (:mod:`.heldout`), give
+   ΔBIC = n_eff·ln(S_after/S_before) + k·ln(n_eff), with S the sum of squares left once the
+   discrepancy has explained what it can, plus its prior's penalty, and k the candidate's
+   parameters the data inform. Rank the candidates by it, best (most negative) first.
+5. Refit each candidate without one run, one temperature, one pilot pressure at a time
+   (linearised at its optimum, :mod:`.heldout`): its RMS on the runs left out. A bootstrap over
+   runs gives its inclusion frequency: the share of resamples in which it would be added.
 
 Significance rule
 -----------------
-A candidate is **significant** when all three hold:
+A candidate is **significant** (a discovery the workflow adds) when all of these hold:
 
-* ΔBIC < −10 (very strong evidence, Kass & Raftery), counted with n_eff so that residuals
-  correlated in time do not pass as thousands of independent samples;
+* ΔBIC < −10 against the maps' discrepancy (very strong evidence, Kass & Raftery), counted with
+  n_eff so that residuals correlated in time do not pass as thousands of independent samples;
+* it lowers the RMS on held-out runs by more than :data:`HELDOUT_GAIN` of it: an effect that
+  describes the valve helps on runs it was not fitted to, one that patches this log does not;
 * the residual before is not already noise: RMS_before > 1.1·σ;
-* the gain is more than a sliver of noise: RMS_before − RMS_after > 0.05·σ.
+* the gain is more than a sliver of noise: RMS_before − RMS_after > 0.05·σ;
+* it has no parameter per run: such a parameter cannot predict another run, so per-run
+  candidates are reported as sensor checks (:class:`SensorCheck`), never added.
 
 Candidates that change the model's prediction the same way (cosine of their prediction changes
 above 0.98) while the data prefer neither (|ΔBIC between them| < 10) cannot be told apart on
@@ -86,6 +96,7 @@ class Candidate:
     heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme
     inclusion: float = 0.0  # share of bootstrap resamples over runs that select it
     per_run: bool = False  # a parameter per run: a sensor check, never part of the model
+    check_threshold: float = 0.0  # a per-run value below this (display units) is not flagged
     change: np.ndarray | None = field(default=None, repr=False)  # prediction change [Pa]
     model: ValveModel | None = field(default=None, repr=False)  # the current model + this effect
     replay: LogReplay | None = field(default=None, repr=False)  # its replay of the log
@@ -316,13 +327,15 @@ SENSOR_CHECK_SIGMAS = 3.0
 
 
 def _sensor_checks(candidates: list[Candidate]) -> list[SensorCheck]:
-    """Per-run parameters well outside their standard errors, largest first."""
+    """Per-run parameters well outside their standard errors and beyond what the sensor's own
+    noise allows (the effect's ``check_threshold``), largest first."""
     checks = []
     for candidate in candidates:
         if not candidate.per_run:
             continue
         for parameter in candidate.params:
-            if parameter.stderr and abs(parameter.value) > SENSOR_CHECK_SIGMAS * parameter.stderr:
+            if (parameter.stderr and abs(parameter.value) > SENSOR_CHECK_SIGMAS * parameter.stderr
+                    and abs(parameter.display_value) > candidate.check_threshold):
                 checks.append(SensorCheck(candidate.name, candidate.title, str(parameter.scope),
                                           parameter.display_value,
                                           float(from_si(parameter.stderr, parameter.unit)),
@@ -377,6 +390,7 @@ def _candidate(cls: type[Effect], minimizer: Minimizer, extra: int,
                      params=list(trial.effect(cls.name).params.values()), change=change,
                      model=trial, replay=evaluation.payload,
                      per_run=issubclass(cls, PerRunEffect), extra=extra,
+                     check_threshold=getattr(cls, "check_threshold", 0.0),
                      linearised=linearised)
 
 
