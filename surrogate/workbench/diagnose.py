@@ -228,7 +228,7 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, results,
                           residual_correlations(base), "", judge.heldout_before,
                           judge.expected_rms(base), judge.map_limits(),
-                          _sensor_checks(results))
+                          _sensor_checks(results, judge.schemes))
     diagnosis.summary = summarise(diagnosis)
     return diagnosis
 
@@ -326,19 +326,36 @@ class SensorCheck:
 SENSOR_CHECK_SIGMAS = 3.0
 
 
-def _sensor_checks(candidates: list[Candidate]) -> list[SensorCheck]:
-    """Per-run parameters well outside their standard errors and beyond what the sensor's own
-    noise allows (the effect's ``check_threshold``), largest first."""
+def _sensor_checks(candidates: list[Candidate],
+                   schemes: dict[str, dict[str, list[str]]]) -> list[SensorCheck]:
+    """Per-run parameters that look like a sensor fault, largest first.
+
+    A sensor's zero drifts at random from run to run; an offset that the runs at the same pilot
+    set point, or at the same temperature, share follows the operating point, and is map error
+    or physics. So a run is flagged when its value departs from the mean of the other runs at its
+    set point, and from that of the other runs at its temperature (from zero where it has no
+    such peers), by more than :data:`SENSOR_CHECK_SIGMAS` standard errors and more than the
+    sensor's own noise allows (the effect's ``check_threshold``)."""
+    peers: dict[str, list[list[str]]] = {}
+    for scheme in ("pilot pressure", "temperature"):
+        for runs in schemes.get(scheme, {}).values():
+            for run in runs:
+                peers.setdefault(run, []).append([other for other in runs if other != run])
     checks = []
     for candidate in candidates:
         if not candidate.per_run:
             continue
+        values = {str(p.scope): p.display_value for p in candidate.params}
         for parameter in candidate.params:
-            if (parameter.stderr and abs(parameter.value) > SENSOR_CHECK_SIGMAS * parameter.stderr
-                    and abs(parameter.display_value) > candidate.check_threshold):
+            groups = [[values[run] for run in group if run in values]
+                      for group in peers.get(str(parameter.scope), [])]
+            departure = min((parameter.display_value - (float(np.mean(g)) if g else 0.0)
+                             for g in groups), key=abs, default=parameter.display_value)
+            stderr = from_si(parameter.stderr, parameter.unit) if parameter.stderr else 0.0
+            if (stderr and abs(departure) > SENSOR_CHECK_SIGMAS * stderr
+                    and abs(departure) > candidate.check_threshold):
                 checks.append(SensorCheck(candidate.name, candidate.title, str(parameter.scope),
-                                          parameter.display_value,
-                                          float(from_si(parameter.stderr, parameter.unit)),
+                                          parameter.display_value, float(stderr),
                                           parameter.unit))
     return sorted(checks, key=lambda check: -abs(check.value))
 
