@@ -73,8 +73,10 @@ NOISE_LEVEL = 1.3
 SAME_DIRECTION = 0.98  # cosine of two prediction changes above which they act alike
 REFINE_STEPS = 4  # Gauss–Newton steps per front-running candidate after the linear solution
 REFINED = 4  # candidates refined by those steps (with any as good as the last of them)
-#: a discovery must lower the RMS on held-out runs by at least this share of it
-HELDOUT_GAIN = 0.01
+#: a discovery must lower the RMS on held-out runs by at least this share of it. Real effects on
+#: the shipped log lower it by 20–33 %; on virtual valves (tests/test_mismatch.py) a leakage term
+#: added after the hidden friction, patching the maps, lowered it by 2.8 %
+HELDOUT_GAIN = 0.03
 RESAMPLES = 200  # bootstrap resamples over runs for the inclusion frequencies
 
 
