@@ -273,9 +273,11 @@ class _Judge:
 
     def inclusion(self, candidates: list[Candidate]) -> None:
         """Each candidate's share of bootstrap resamples over runs in which it would be added:
-        the best by ΔBIC against the discrepancy, and below the threshold."""
+        the best by ΔBIC against the discrepancy, and below the threshold, among those that
+        predict held-out runs better (a candidate that fails that test is never added)."""
         weights = bootstrap_weights(len(self.base.labels), RESAMPLES)
-        chosen = [c for c in candidates if not c.per_run]
+        chosen = [c for c in candidates if not c.per_run
+                  and c.heldout_rms < (1.0 - HELDOUT_GAIN) * self.heldout_before]
         counts = dict.fromkeys((c.name for c in chosen), 0)
         for w in weights:
             n_eff = self.problem.n_eff * w.sum() / len(w)
