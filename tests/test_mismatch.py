@@ -18,7 +18,8 @@ from surrogate.data import load_cfd_samples
 from surrogate import load_valve
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 from surrogate.presets import maps
-from surrogate.workbench.mismatch import MapMismatch, mismatched_samples
+from surrogate.testing import check_effect
+from surrogate.workbench.mismatch import CavitationFlowForce, MapMismatch, mismatched_samples
 from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case,
                                           noise_free_sequence, random_settings,
                                           unexplained_additions)
@@ -65,6 +66,10 @@ def test_the_virtual_valve_differs_from_its_cfd_like_a_real_one():
     assert mismatched_samples(samples, valve, seed=4)[1].dp_error != draw.dp_error
     still, _ = mismatched_samples(samples, valve, seed=3, mismatch=MapMismatch().scaled(0.0))
     assert np.allclose(still.frame["p_L"].iloc[:len(original)], original["p_L"])
+
+
+def test_the_cavitation_term_keeps_the_effect_contract():
+    check_effect(CavitationFlowForce)
 
 
 @pytest.mark.slow

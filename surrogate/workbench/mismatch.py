@@ -30,15 +30,13 @@ import numpy as np
 import pandas as pd
 
 from ..data.loaders import CfdSamples
-from ..effects import BalanceState, Effect, EffectLibrary, Parameter
+from ..effects import BalanceState, Effect, Parameter
 from ..fluid import FluidState
 from ..maps.coverage import Coverage
 from ..maps.grid import GridFlowMap, GridForceMap
 from ..model import ValveModel
-from ..units import BAR, to_si
+from ..units import BAR, P_ATM
 from ..valve import ValveParameters
-
-P_ATM = to_si(1.013, "bar")  # [Pa] the cavitation term's absolute pressure
 
 
 @dataclass(frozen=True)
@@ -97,10 +95,6 @@ class CavitationFlowForce(Effect):
     def force(self, state: BalanceState) -> np.ndarray:
         ratio = (np.maximum(state.p_B, 0.0) + P_ATM) / (self["p_ref"] + P_ATM)
         return self["c"] * np.log(ratio) * state.flow_force
-
-
-#: the effects the virtual valve may have besides the library's
-MISMATCH_LIBRARY = EffectLibrary([CavitationFlowForce])
 
 
 @dataclass(frozen=True)
