@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from ..maps.network import BridgedArchitecture, hat_weights
-from .monotone_nn import _hold
+from .monotone_nn import _hold, minimise
 
 #: weight decay on the hidden weights (keeps the small networks smooth)
 DECAY = 1e-4
@@ -69,22 +69,5 @@ def train_bridged(architecture: BridgedArchitecture, z: np.ndarray, target: np.n
     def objective():
         return torch.mean((network(weights, local, shared) - goal) ** 2) + DECAY * network.penalty()
 
-    adam = torch.optim.Adam(network.parameters(), lr=learning_rate)
-    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(adam, epochs)
-    for _ in range(epochs):
-        adam.zero_grad()
-        loss = objective()
-        loss.backward()
-        adam.step()
-        schedule.step()
-    lbfgs = torch.optim.LBFGS(network.parameters(), max_iter=polish, history_size=50,
-                              line_search_fn="strong_wolfe")
-
-    def closure():
-        lbfgs.zero_grad()
-        loss = objective()
-        loss.backward()
-        return loss
-
-    lbfgs.step(closure)
+    minimise(network, objective, epochs=epochs, learning_rate=learning_rate, polish=polish)
     return {key: value.detach().numpy().copy() for key, value in network.state_dict().items()}

@@ -143,6 +143,17 @@ def train(network: SignConstrainedNet, z: np.ndarray, loss_of_output, *, offset:
         return (loss_of_output(network(inputs)) + weight_decay * penalty
                 + output_decay * amplitude)
 
+    minimise(network, objective, epochs=epochs, learning_rate=learning_rate, polish=polish,
+             progress=progress, tolerance_grad=1e-12, tolerance_change=1e-16)
+    with torch.no_grad():
+        return float(objective())
+
+
+def minimise(network: nn.Module, objective, *, epochs: int, learning_rate: float, polish: int,
+             progress=None, **lbfgs_options) -> None:
+    """Adam with a cosine learning-rate schedule for ``epochs`` steps, then ``polish`` L-BFGS
+    iterations (strong-Wolfe line search; ``lbfgs_options`` its tolerances): every network of the
+    package is trained this way. ``objective()`` returns the loss to minimise."""
     adam = torch.optim.Adam(network.parameters(), lr=learning_rate)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(adam, epochs)
     for epoch in range(epochs):
@@ -154,8 +165,7 @@ def train(network: SignConstrainedNet, z: np.ndarray, loss_of_output, *, offset:
         if progress is not None and (epoch + 1) % max(epochs // 4, 1) == 0:
             progress(f"epoch {epoch + 1}/{epochs}: loss {loss.item():.3e}")
     lbfgs = torch.optim.LBFGS(network.parameters(), max_iter=polish, history_size=50,
-                              line_search_fn="strong_wolfe", tolerance_grad=1e-12,
-                              tolerance_change=1e-16)
+                              line_search_fn="strong_wolfe", **lbfgs_options)
 
     def closure():
         lbfgs.zero_grad()
@@ -164,8 +174,6 @@ def train(network: SignConstrainedNet, z: np.ndarray, loss_of_output, *, offset:
         return loss
 
     lbfgs.step(closure)
-    with torch.no_grad():
-        return float(objective())
 
 
 def widen(narrow: SignConstrainedNet, wide: Architecture, seed: int) -> SignConstrainedNet:
