@@ -279,20 +279,8 @@ def staircase_figure(steps, noise_floor: float) -> Figure:
     """The error staircase: RMS after each step, with the noise floor."""
     figure = Figure(figsize=(9, 4.2), layout="constrained")
     axes = figure.subplots()
-    rms = [from_si(step.rms, "bar") for step in steps]
-    labels = [", ".join(step.added) or step.model.name for step in steps]
-    positions = np.arange(len(steps))
-    axes.step(positions, rms, where="mid", color="tab:blue")
-    axes.plot(positions, rms, "o", color="tab:blue")
-    for x, y in zip(positions, rms):
-        axes.annotate(f"{y:.2f}", (x, y), textcoords="offset points", xytext=(0, 6),
-                      ha="center", fontsize=8)
-    floor = from_si(noise_floor, "bar")
-    axes.axhline(floor, color="tab:red", linestyle="--", label=f"noise floor {floor:.2f} bar")
+    floor = _plot_staircase(axes, steps, noise_floor, fontsize=8, rotation=30)
     axes.axhline(1.3 * floor, color="tab:red", linestyle=":", label="1.3 × noise floor")
-    axes.set_xticks(positions, [f"{i + 1}. {text}" for i, text in enumerate(labels)],
-                    rotation=30, ha="right", fontsize=8)
-    axes.set_yscale("log")
     axes.set_ylabel("residual RMS [bar]")
     axes.set_title("Error staircase: RMS after each step")  # short: the steps are the ticks
     axes.legend()
@@ -356,23 +344,34 @@ def staircases_figure(workflows: dict) -> Figure:
     figure = Figure(figsize=(4.6 * len(workflows) + 0.6, 4.6), layout="constrained")
     axes = figure.subplots(1, len(workflows), sharey=True, squeeze=False)[0]
     for ax, (kind, workflow) in zip(axes, workflows.items()):
-        rms = [from_si(step.rms, "bar") for step in workflow.steps]
-        positions = np.arange(len(rms))
-        ax.step(positions, rms, where="mid", color="tab:blue")
-        ax.plot(positions, rms, "o", color="tab:blue")
-        for x, y in zip(positions, rms):
-            ax.annotate(f"{y:.2f}", (x, y), textcoords="offset points", xytext=(0, 6),
-                        ha="center", fontsize=7)
-        floor = from_si(workflow.noise_floor, "bar")
-        ax.axhline(floor, color="tab:red", linestyle="--", label=f"noise floor {floor:.2f} bar")
-        labels = [", ".join(step.added) or step.model.name for step in workflow.steps]
-        ax.set_xticks(positions, [f"{i + 1}. {_short(text)}" for i, text in enumerate(labels)],
-                      rotation=40, ha="right", fontsize=7)
-        ax.set_yscale("log")
-        ax.set_title(f"{kind} maps: {rms[-1]:.2f} bar after {len(rms)} steps", fontsize=10)
+        _plot_staircase(ax, workflow.steps, workflow.noise_floor, fontsize=7, rotation=40,
+                        shorten=_short)
+        final = from_si(workflow.final.rms, "bar")
+        ax.set_title(f"{kind} maps: {final:.2f} bar after {len(workflow.steps)} steps",
+                     fontsize=10)
         ax.legend(fontsize=7, loc="upper right")
     axes[0].set_ylabel("residual RMS [bar]")
     return figure
+
+
+def _plot_staircase(axes, steps, noise_floor: float, *, fontsize: float, rotation: float,
+                    shorten=lambda text: text) -> float:
+    """RMS after each step on ``axes`` (log scale), each labelled, with the noise floor [Pa];
+    the ticks name what each step added (``shorten``-ed). Returns the floor [bar]."""
+    rms = [from_si(step.rms, "bar") for step in steps]
+    positions = np.arange(len(steps))
+    axes.step(positions, rms, where="mid", color="tab:blue")
+    axes.plot(positions, rms, "o", color="tab:blue")
+    for x, y in zip(positions, rms):
+        axes.annotate(f"{y:.2f}", (x, y), textcoords="offset points", xytext=(0, 6),
+                      ha="center", fontsize=fontsize)
+    floor = from_si(noise_floor, "bar")
+    axes.axhline(floor, color="tab:red", linestyle="--", label=f"noise floor {floor:.2f} bar")
+    labels = [", ".join(step.added) or step.model.name for step in steps]
+    axes.set_xticks(positions, [f"{i + 1}. {shorten(text)}" for i, text in enumerate(labels)],
+                    rotation=rotation, ha="right", fontsize=fontsize)
+    axes.set_yscale("log")
+    return floor
 
 
 def _short(text: str, length: int = 28) -> str:
