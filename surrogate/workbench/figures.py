@@ -54,24 +54,15 @@ def all_figures(comparison: Comparison) -> dict[str, Figure]:
 
 
 def _samples(comparison: Comparison) -> pd.DataFrame:
-    """Per-sample data for plotting, in display units."""
-    frame = comparison.played.frame()
+    """Per-sample data for plotting, in display units: the comparison's sample table, with each
+    run's nominal temperature and set point, the measured p_L and the ramp up as a flag."""
+    table = comparison.sample_table()
+    log = comparison.played.log.frame
     nominal = dict(zip(comparison.runs["run"], comparison.runs["temperature_nominal_C"]))
-    return pd.DataFrame({
-        "run": frame["run"].to_numpy(),
-        "temperature_nominal_C": frame["run"].map(nominal).to_numpy(),
-        "temperature_C": from_si(frame["temperature"].to_numpy(), "degC"),
-        "p_Pe_bar": from_si(frame["p_Pe_nominal"].to_numpy(), "bar"),
-        "q_lpm": from_si(frame["q"].to_numpy(), "L/min"),
-        "p_L_bar": from_si(frame["p_L"].to_numpy(), "bar"),
-        "p_P_bar": from_si(frame["p_P"].to_numpy(), "bar"),
-        "p_B_bar": from_si(frame["p_B"].to_numpy(), "bar"),
-        "up": (frame["direction"] == "up").to_numpy(),
-        "dp_measured_bar": from_si(frame["dp_measured"].to_numpy(), "bar"),
-        "dp_model_bar": from_si(frame["dp_predicted"].to_numpy(), "bar"),
-        "dp_std_bar": from_si(frame["dp_std"].to_numpy(), "bar"),
-        "residual_bar": from_si(frame["residual"].to_numpy(), "bar"),
-    })
+    return table.assign(temperature_nominal_C=table["run"].map(nominal).to_numpy(),
+                        p_Pe_bar=from_si(log["p_Pe_nominal"].to_numpy(), "bar"),
+                        p_L_bar=from_si(log["p_L"].to_numpy(), "bar"),
+                        up=(table["direction"] == "up").to_numpy())
 
 
 def _temperature_colours(comparison: Comparison) -> dict[float, str]:
