@@ -108,9 +108,10 @@ class Candidate:
     def to_json(self) -> dict:
         return {
             "name": self.name, "description": self.description, "title": self.title,
-            "kind": self.kind, "category": self.category, "rms_after_bar": round(float(from_si(self.rms_after, "bar")), 4),
+            "kind": self.kind, "category": self.category,
+            "rms_after_bar": _rounded_bar(self.rms_after),
             "heldout_rms_bar": _rounded_bar(self.heldout_rms),
-            "heldout_rms_by_scheme_bar": {k: round(float(from_si(v, "bar")), 4)
+            "heldout_rms_by_scheme_bar": {k: _rounded_bar(v)
                                           for k, v in self.heldout.items() if k != "pooled"},
             "inclusion": round(float(self.inclusion), 3),
             "delta_bic": round(float(self.delta_bic), 2), "significant": bool(self.significant),
@@ -143,11 +144,11 @@ class Diagnosis:
 
     def to_json(self) -> dict:
         return {"model": self.model.name,
-                "rms_before_bar": round(float(from_si(self.rms_before, "bar")), 4),
-                "noise_floor_bar": round(float(from_si(self.noise_floor, "bar")), 4),
+                "rms_before_bar": _rounded_bar(self.rms_before),
+                "noise_floor_bar": _rounded_bar(self.noise_floor),
                 "effective_samples": round(self.effective_samples, 1),
-                "heldout_rms_bar": round(float(from_si(self.heldout_before, "bar")), 4),
-                "expected_rms_bar": round(float(from_si(self.expected_rms, "bar")), 4),
+                "heldout_rms_bar": _rounded_bar(self.heldout_before),
+                "expected_rms_bar": _rounded_bar(self.expected_rms),
                 "map_limits": self.map_limits,
                 "sensor_checks": [check.to_json() for check in self.sensor_checks],
                 "summary": self.summary,
