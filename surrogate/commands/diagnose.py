@@ -8,7 +8,8 @@ from ..errors import InputError
 from ..outputs import Output, atomic_directory
 from ..units import from_si
 from ..workbench.compare import compare
-from ..workbench.diagnose import candidate_effects, diagnose
+from ..workbench.diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, NOISE_MARGIN,
+                                  candidate_effects, diagnose)
 from ..workbench.logfit import fit_to_log
 from ..workbench.report import (comparison_section, diagnosis_figure, diagnosis_section,
                                 diagnosis_table, figure_png, write_html)
@@ -21,11 +22,19 @@ def register(subparsers) -> None:
         subparsers, "diagnose", help="rank candidate effects by how much of the residual they "
                                      "explain",
         description="Fit the model's free parameters to the bench log, then refit it with each "
-                    "candidate effect (the library and any --effects-file) and report the RMS "
-                    "after, ΔBIC, the fitted parameters with standard errors and whether the "
-                    "improvement is significant (ΔBIC < -10 with the effective sample count, "
-                    "residual above 1.1x the noise floor, gain above 0.05x the noise floor). "
-                    "Candidates the data cannot tell apart are reported as a group.")
+                    "candidate effect (the library and any --effects-file) and report, for "
+                    "each, its category (physics, map correction, sensor), the RMS after, the "
+                    "RMS on held-out runs (leave one run, temperature, pilot pressure out), "
+                    "ΔBIC against the maps' own error, its inclusion frequency over bootstrap "
+                    "resamples of runs, the residual's median line and hysteresis half-width "
+                    "after it, and the fitted parameters with standard errors. A candidate is "
+                    f"significant when ΔBIC < {BIC_THRESHOLD:g} once smooth map-discrepancy "
+                    "terms of the maps' calibrated size have explained what they can, it lowers "
+                    f"the held-out RMS by more than {100 * HELDOUT_GAIN:g} %, the residual is "
+                    f"above {NOISE_MARGIN:g}x the noise floor and the gain above "
+                    f"{GAIN_FRACTION:g}x of it. Per-run candidates are sensor checks, "
+                    "never added. Candidates the data cannot tell apart are reported as a "
+                    "group.")
     add_data_options(parser, out_help="write diagnosis.json, candidates.csv, a figure and "
                                       "report.html into this folder")
     parser.add_argument("--candidates", nargs="+", metavar="NAME",

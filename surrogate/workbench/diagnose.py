@@ -26,6 +26,11 @@ Procedure
 5. Refit each candidate without one run, one temperature, one pilot pressure at a time
    (linearised at its optimum, :mod:`.heldout`): its RMS on the runs left out. A bootstrap over
    runs gives its inclusion frequency: the share of resamples in which it would be added.
+6. Split each run's residual, before and after each candidate, into its median line and its
+   half-width (:mod:`.hysteresis`): a map error moves both ramps alike, friction changes their
+   split. The summary says in which of the two views the best candidate's gain lies, and warns
+   when a friction term gains on the median line only, or another term on the half-width only
+   (the maps' error reaches the median line too, so such a gain may be the maps').
 
 Significance rule
 -----------------
@@ -60,6 +65,7 @@ from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
 from .discrepancy import Discrepancy, map_discrepancy
+from .hysteresis import hysteresis_split
 from .heldout import Linearised, RunBlocks, bootstrap_weights, run_groups
 from .logfit import felt, probe_change
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
@@ -94,6 +100,8 @@ class Candidate:
     significant: bool = False
     group: list[str] = field(default_factory=list)
     params: list = field(default_factory=list)  # fitted Parameters of the candidate
+    median_rms: float = float("nan")  # [Pa] of the median line of the runs' residual after
+    half_width_rms: float = float("nan")  # [Pa] of the half-width (:mod:`.hysteresis`)
     heldout_rms: float = float("nan")  # [Pa] on held-out runs (pooled over the schemes)
     heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme
     inclusion: float = 0.0  # share of bootstrap resamples over runs that select it
@@ -111,6 +119,8 @@ class Candidate:
             "kind": self.kind, "category": self.category,
             "rms_after_bar": _rounded_bar(self.rms_after),
             "heldout_rms_bar": _rounded_bar(self.heldout_rms),
+            "median_line_rms_bar": _rounded_bar(self.median_rms),
+            "half_width_rms_bar": _rounded_bar(self.half_width_rms),
             "heldout_rms_by_scheme_bar": {k: _rounded_bar(v)
                                           for k, v in self.heldout.items() if k != "pooled"},
             "inclusion": round(float(self.inclusion), 3),
@@ -136,6 +146,8 @@ class Diagnosis:
     expected_rms: float = float("nan")  # [Pa] what noise and the maps' σ_Δp allow together
     map_limits: list[str] = field(default_factory=list)  # where the maps' error is largest
     sensor_checks: list["SensorCheck"] = field(default_factory=list)  # per-run readings off
+    median_before: float = float("nan")  # [Pa] RMS of the residual's median line
+    half_width_before: float = float("nan")  # [Pa] RMS of its half-width
 
     @property
     def best(self) -> Candidate | None:
@@ -149,6 +161,8 @@ class Diagnosis:
                 "effective_samples": round(self.effective_samples, 1),
                 "heldout_rms_bar": _rounded_bar(self.heldout_before),
                 "expected_rms_bar": _rounded_bar(self.expected_rms),
+                "median_line_rms_bar": _rounded_bar(self.median_before),
+                "half_width_rms_bar": _rounded_bar(self.half_width_before),
                 "map_limits": self.map_limits,
                 "sensor_checks": [check.to_json() for check in self.sensor_checks],
                 "summary": self.summary,
@@ -210,6 +224,10 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     results, refined = _refit_candidates(model, classes, problem, own_columns, steps, workers)
     judge = _Judge(model, problem, own_columns, floor)
     judge.judge(results)
+    split = hysteresis_split(log.frame.loc[problem.ok])
+    median_before, half_before = split.rms(problem.base_evaluation.residual)
+    for candidate in results:
+        candidate.median_rms, candidate.half_width_rms = split.rms(candidate.linearised[0])
     for number, candidate in enumerate(results, start=1):
         say(f"  [{number}/{len(classes)}] {candidate.name}: rms "
             f"{from_si(candidate.rms_after, 'bar'):.3f} bar, held out "
@@ -231,7 +249,7 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, results,
                           residual_correlations(base), "", judge.heldout_before,
                           judge.expected_rms(base), judge.map_limits(),
-                          _sensor_checks(results, judge.schemes))
+                          _sensor_checks(results, judge.schemes), median_before, half_before)
     diagnosis.summary = summarise(diagnosis)
     return diagnosis
 
@@ -519,6 +537,42 @@ def residual_correlations(base: LogReplay) -> dict[str, float]:
     return result
 
 
+#: share of a candidate's gain (in sum of squares) that must lie in the view its physics acts on
+#: before the summary stops warning: friction on the half-width, the rest on the median line
+OWN_VIEW_SHARE = 0.25
+
+
+def hysteresis_share(diagnosis: Diagnosis, candidate: Candidate) -> float:
+    """The share of ``candidate``'s gain, in the sum of squares of the two views, that lies in
+    the half-width (NaN when it gains in neither)."""
+    median = diagnosis.median_before**2 - candidate.median_rms**2
+    half = diagnosis.half_width_before**2 - candidate.half_width_rms**2
+    gain = max(median, 0.0) + max(half, 0.0)
+    return max(half, 0.0) / gain if gain > 0 else float("nan")
+
+
+def hysteresis_sentence(diagnosis: Diagnosis, candidate: Candidate) -> str:
+    """Where the candidate's gain lies: the runs' median line or their half-width."""
+    share = hysteresis_share(diagnosis, candidate)
+    if not np.isfinite(share):
+        return ""
+    views = (f"Of its gain, {100 * share:.0f} % lies in the runs' hysteresis half-width "
+             f"({from_si(diagnosis.half_width_before, 'bar'):.2f} → "
+             f"{from_si(candidate.half_width_rms, 'bar'):.2f} bar RMS) and "
+             f"{100 * (1 - share):.0f} % in their median line "
+             f"({from_si(diagnosis.median_before, 'bar'):.2f} → "
+             f"{from_si(candidate.median_rms, 'bar'):.2f} bar).")
+    friction = candidate.kind == "friction"
+    own = share if friction else 1.0 - share
+    if own < OWN_VIEW_SHARE:
+        views += (" Friction splits the ramps, so a friction term that gains mostly on the "
+                  "median line, where the maps' error acts too, is provisional: refit it to the "
+                  "hysteresis alone before trusting it." if friction else
+                  " A term that moves both ramps alike but gains mostly on the half-width acts "
+                  "like friction here: a friction candidate may be the better explanation.")
+    return views
+
+
 def summarise(diagnosis: Diagnosis) -> str:
     """Plain sentences: the most likely missing effect (with its category, held-out gain and
     inclusion frequency), or why none is named, where the maps limit the diagnosis, and what
@@ -552,6 +606,7 @@ def summarise(diagnosis: Diagnosis) -> str:
                     f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor {floor:.2f} bar, "
                     f"ΔBIC {best.delta_bic:.0f} against the maps' own error, chosen in "
                     f"{100 * best.inclusion:.0f} % of resamples over runs) with {params}.")
+        sentence += " " + hysteresis_sentence(diagnosis, best)
         if best.category == "map correction":
             sentence += (" It patches the CFD maps rather than adding valve physics: "
                          "more CFD where the bench operates would replace it.")

@@ -165,7 +165,9 @@ def diagnosis_table(diagnosis: Diagnosis) -> pd.DataFrame:
     for c in diagnosis.candidates:
         rows.append({"effect": c.name, "what": c.title, "category": c.category,
                      "rms after [bar]": from_si(c.rms_after, "bar"),
-                     "held out [bar]": from_si(c.heldout_rms, "bar"), "ΔBIC": c.delta_bic,
+                     "held out [bar]": from_si(c.heldout_rms, "bar"),
+                     "median line [bar]": from_si(c.median_rms, "bar"),
+                     "half-width [bar]": from_si(c.half_width_rms, "bar"), "ΔBIC": c.delta_bic,
                      "chosen in [%]": 100.0 * c.inclusion,
                      "significant": ("sensor check" if c.per_run
                                      else "yes" if c.significant else "no"),
@@ -223,7 +225,11 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
             f"floor, and it removes more than {GAIN_FRACTION:g}× the noise floor of RMS. "
             "<i>chosen in</i>: the share of bootstrap resamples over runs in which it would be "
             "the one added. A parameter per run cannot predict another run: such candidates are "
-            "sensor checks, never part of the model.")
+            "sensor checks, never part of the model. <i>median line</i> and <i>half-width</i>: "
+            "the RMS of the runs' residual split into the mean of the up and down ramps at "
+            f"equal flow (now {from_si(diagnosis.median_before, 'bar'):.3f} bar) and half "
+            f"their difference (now {from_si(diagnosis.half_width_before, 'bar'):.3f} bar); "
+            "map error moves the first, friction the second.")
     correlations = pd.DataFrame(
         [{"variable": k.split("~")[1], "what": k.split("~")[0], "correlation": v}
          for k, v in diagnosis.correlations.items()])
@@ -234,7 +240,8 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         f"{rule}</p>",
         _table(diagnosis_table(diagnosis), ("effect", "what", "category", "significant",
                                             "parameters", "same as"),
-               {"rms after [bar]": ".3f", "held out [bar]": ".3f", "ΔBIC": ".1f",
+               {"rms after [bar]": ".3f", "held out [bar]": ".3f", "median line [bar]": ".3f",
+                "half-width [bar]": ".3f", "ΔBIC": ".1f",
                 "chosen in [%]": ".0f"}),
         _figure(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
                 f"Diagnosis of {readable(diagnosis.model.name)}: each candidate's line runs from "
