@@ -11,7 +11,9 @@ Measures, in one run on this machine:
 * under map mismatch (a virtual valve that differs from its CFD, :mod:`surrogate.workbench.
   mismatch`; the model under test on the shipped maps): the share of randomised hidden-effect
   cases the workflow finds cleanly (the hidden effect or its group, no other physics or sensor
-  effect) and the physics or sensor effects it adds where nothing is hidden.
+  effect) and the physics or sensor effects it adds where nothing is hidden, over the stress
+  suite of :func:`surrogate.workbench.simulate.stress_suite` (``--mismatch-cases`` cases and
+  ``--controls`` controls for each of its two settings seeds).
 
 Writes results/workbench/benchmark.json and prints a summary. Run:
 ``python eval/workbench.py [--cases 20] [--every 4] [--mismatch-cases 20] [--controls 5]
@@ -39,7 +41,7 @@ from surrogate.workbench.residuals import (measured_dp, noise_floor, replay_log,
 from surrogate.presets import cfda, maps
 from surrogate.workbench.mismatch import MapMismatch
 from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case, identified,
-                                          noise_free_sequence, random_settings,
+                                          noise_free_sequence, random_settings, stress_suite,
                                           unexplained_additions)
 from surrogate.workbench.workflow import run_workflow
 
@@ -82,26 +84,26 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int) -> di
                                   mismatch=MapMismatch(), maps_under_test=maps(kind))
         return timed(run_workflow, case.log, start=case.start, max_additions=3)
 
-    for number, (hidden, factor, values) in enumerate(random_settings(cases, seed=2026)):
-        workflow, seconds = workflow_of(hidden, values, 200 + number)
+    for case in stress_suite(cases, controls):
+        workflow, seconds = workflow_of(case.hidden, case.values, case.seed)
         added = [name for step in workflow.steps[1:] for name in step.added]
-        ok = cleanly_identified(workflow, hidden)
-        record["cases"].append({"hidden": hidden, "factor": round(factor, 2), "added": added,
-                                "clean": ok, "seconds": round(seconds, 1)})
-        print(f"  mismatch case {number + 1:2d}: {hidden:<28} x{factor:.2f} -> "
+        if case.hidden is None:
+            extra = unexplained_additions(workflow, None)
+            record["controls"].append({"seed": case.seed, "added": added, "invented": extra,
+                                       "seconds": round(seconds, 1)})
+            print(f"  nothing hidden, seed {case.seed}: added {', '.join(added) or 'nothing'}")
+            continue
+        ok = cleanly_identified(workflow, case.hidden)
+        record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
+                                "seed": case.seed, "added": added, "clean": ok,
+                                "seconds": round(seconds, 1)})
+        print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
               f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'}")
-    for seed in range(controls):
-        workflow, seconds = workflow_of(None, None, 100 + seed)
-        extra = unexplained_additions(workflow, None)
-        added = [name for step in workflow.steps[1:] for name in step.added]
-        record["controls"].append({"seed": 100 + seed, "added": added, "invented": extra,
-                                   "seconds": round(seconds, 1)})
-        print(f"  nothing hidden, seed {100 + seed}: added {', '.join(added) or 'nothing'}")
     record["clean_rate"] = float(np.mean([c["clean"] for c in record["cases"]])) if cases else None
     record["false_additions"] = sum(len(c["invented"]) for c in record["controls"])
-    print(f"under map mismatch ({kind} maps): {record['clean_rate']:.0%} of {cases} cases found "
-          f"cleanly; {record['false_additions']} physics or sensor effects added over "
-          f"{controls} nothing-hidden logs")
+    print(f"under map mismatch ({kind} maps): {record['clean_rate']:.0%} of "
+          f"{len(record['cases'])} cases found cleanly; {record['false_additions']} physics or "
+          f"sensor effects added over {len(record['controls'])} nothing-hidden logs")
     return record
 
 

@@ -21,19 +21,20 @@ from surrogate.presets import maps
 from surrogate.testing import check_effect
 from surrogate.workbench.mismatch import CavitationFlowForce, MapMismatch, mismatched_samples
 from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case,
-                                          noise_free_sequence, random_settings,
+                                          noise_free_sequence, stress_suite,
                                           unexplained_additions)
 from surrogate.workbench.workflow import run_workflow
 
 EVERY = 8
+#: 40 randomised cases, two settings seeds of 20 (:func:`.simulate.stress_suite`); the controls
+#: are the first setting's five nothing-hidden logs
 CASES = 20
 CONTROLS = 5
-#: share of the randomised cases that must be found cleanly. The aim is 0.9; this version
-#: reaches 0.8 (16 of 20: `python eval/workbench.py --only-mismatch`; the misses are weak
-#: effects, 0.6–0.9× their realistic size, that the maps' allowed error can mimic), so the test
-#: guards that, and the aim stays open. The version before the map-aware diagnosis invented
-#: effects in every log, the control included.
-CLEAN_SHARE = 0.8
+#: share of the randomised cases that must be found cleanly (the issue's target). This version
+#: finds 36 of 40 (`python eval/workbench.py --only-mismatch`); the misses are weak effects,
+#: 0.8–1.1× their realistic size, that the maps' error can mimic. The version before the
+#: map-aware diagnosis invented effects in every log, the control included.
+CLEAN_SHARE = 0.9
 #: at most this many effects added per case: a clean run adds one or two (the hidden effect
 #: and perhaps a map correction); more would only cost time
 ADDITIONS = 3
@@ -75,21 +76,25 @@ def test_the_cavitation_term_keeps_the_effect_contract():
 @pytest.mark.slow
 def test_nothing_hidden_adds_no_physics_or_sensor_effect(sequence):
     invented = {}
-    for seed in range(CONTROLS):
-        workflow = run_case(None, None, sequence, seed=100 + seed)
+    controls = [case for case in stress_suite(CASES, CONTROLS, settings=(2026,))
+                if case.hidden is None]
+    for case in controls:
+        workflow = run_case(None, None, sequence, seed=case.seed)
         extra = unexplained_additions(workflow, None)
         flagged = [str(check) for check in workflow.final_diagnosis.sensor_checks]
         if extra or flagged:
-            invented[seed] = extra + flagged
+            invented[case.seed] = extra + flagged
     assert not invented, invented
 
 
 @pytest.mark.slow
 def test_hidden_effects_are_found_cleanly_under_map_mismatch(sequence):
     outcomes = []
-    for number, (hidden, _, values) in enumerate(random_settings(CASES, seed=2026)):
-        workflow = run_case(hidden, values, sequence, seed=200 + number)
+    cases = [case for case in stress_suite(CASES, CONTROLS) if case.hidden is not None]
+    for case in cases:
+        workflow = run_case(case.hidden, case.values, sequence, seed=case.seed)
         added = [name for step in workflow.steps[1:] for name in step.added]
-        outcomes.append((hidden, added, cleanly_identified(workflow, hidden)))
+        outcomes.append((case.hidden, added, cleanly_identified(workflow, case.hidden)))
     clean = sum(ok for *_, ok in outcomes)
-    assert clean >= CLEAN_SHARE * CASES, [o for o in outcomes if not o[2]]
+    assert len(cases) >= 20
+    assert clean >= CLEAN_SHARE * len(cases), [o for o in outcomes if not o[2]]

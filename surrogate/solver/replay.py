@@ -38,7 +38,7 @@ from scipy.signal import savgol_filter
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
 from .steady import Status, solve_steady
-from .uncertainty import map_error_effects
+from .uncertainty import map_error_gains
 
 
 @dataclass(frozen=True)
@@ -67,6 +67,10 @@ class Replay:
         (2, n): how far ``dp`` [Pa] moves for a one-σ error of the flow map (row 0) and of the
         force map (row 1) (:func:`.uncertainty.map_error_effects`); None for maps without an
         uncertainty, or when not asked for.
+    map_gain : numpy.ndarray or None
+        (2, n): how far ``dp`` [Pa] moves per unit ln C_d error of the flow map and per unit
+        relative flow-force error of the force map (:func:`.uncertainty.map_error_gains`), so
+        that an error of another size (the CFD's own, say) can be carried too.
     """
 
     points: OperatingPoints
@@ -77,6 +81,7 @@ class Replay:
     reasons_outside: np.ndarray
     band: np.ndarray
     map_error: np.ndarray | None = None
+    map_gain: np.ndarray | None = None
 
     @property
     def dp_std(self) -> np.ndarray | None:
@@ -101,7 +106,8 @@ class Replay:
         """The replay of some samples only (whole runs, for the friction state to make sense)."""
         return Replay(self.points[index], self.u[index], self.dp[index], self.status[index],
                       self.moving[index], self.reasons_outside[index], self.band[:, index],
-                      None if self.map_error is None else self.map_error[:, index])
+                      None if self.map_error is None else self.map_error[:, index],
+                      None if self.map_gain is None else self.map_gain[:, index])
 
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
@@ -157,15 +163,17 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
                                                           fluid[solved])
     at_stop = (status == Status.OK) & (u >= model.valve.U_max)
     status[at_stop] = Status.AT_STOP
-    map_error = None
+    map_error = map_gain = None
     if diagnostics:
         # a sliding piston sits on the band's edge of its direction; a stuck one stays put
         floats = moving if model.has_friction else np.ones(count, dtype=bool)
         side = np.where(~model.has_friction | ~moving, STEADY,
                         np.where(u <= np.fmin(u_edges[0], u_edges[1]), OPENING, CLOSING))
-        map_error = map_error_effects(model, points, u, dp, side,
-                                      ~floats | (status == Status.AT_STOP))
-    return Replay(points, u, dp, status, moving, reasons, u_edges, map_error)
+        found = map_error_gains(model, points, u, dp, side, ~floats | (status == Status.AT_STOP))
+        if found is not None:
+            map_gain, std = found
+            map_error = map_gain * std
+    return Replay(points, u, dp, status, moving, reasons, u_edges, map_error, map_gain)
 
 
 def _segment_starts(segments, count: int) -> np.ndarray:

@@ -130,18 +130,30 @@ def map_error_effects(model: ValveModel, points: OperatingPoints, u: np.ndarray,
         (2, n) [Pa]: 0 without flow (no map involved), NaN where there is no solution; None
         when neither map has an uncertainty (the orifice equation).
     """
+    found = map_error_gains(model, points, u, dp, side, held)
+    return None if found is None else found[0] * found[1]
+
+
+def map_error_gains(model: ValveModel, points: OperatingPoints, u: np.ndarray,
+                    dp: np.ndarray, side: np.ndarray, held: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The two factors of :func:`map_error_effects` (same arguments): the gains, (2, n) [Pa]
+    per unit ln C_d error of the flow map and per unit relative flow-force error of the force
+    map, and the maps' calibrated standard deviations (2, n) [1] of those errors; None when
+    neither map has an uncertainty."""
     flow_map, force_map = model.flow_map, model.force_map
     if flow_map.calibration is None and force_map.calibration is None:
         return None
     solved = np.isfinite(np.asarray(dp, float)) & np.isfinite(np.asarray(u, float))
-    parts = np.where(solved, 0.0, np.nan) * np.ones((2, 1))
+    gain = np.where(solved, 0.0, np.nan) * np.ones((2, 1))
+    std = np.zeros(gain.shape)
     gains = sensitivity(model, points, u, dp, side, held)
     if gains.index.size:
         log_cd_std = flow_map.log_discharge_std(*gains.flow_query)
-        parts[0, gains.index] = gains.flow_gain * (0.0 if log_cd_std is None else log_cd_std)
-        parts[1, gains.index] = gains.force_gain * _relative_force_std(force_map,
-                                                                        gains.force_query)
-    return parts
+        gain[0, gains.index], gain[1, gains.index] = gains.flow_gain, gains.force_gain
+        std[0, gains.index] = 0.0 if log_cd_std is None else log_cd_std
+        std[1, gains.index] = _relative_force_std(force_map, gains.force_query)
+    return gain, std
 
 
 def _relative_force_std(force_map, query) -> np.ndarray:

@@ -72,7 +72,12 @@ from .residuals import LogReplay, effective_samples, noise_floor, replay_log, ru
 
 BIC_THRESHOLD = -10.0
 NOISE_MARGIN = 1.1  # the residual must exceed the noise floor by 10 %
-GAIN_FRACTION = 0.05  # and a candidate must remove at least 5 % of the noise floor
+#: and a candidate must remove at least this share of the noise floor of in-sample RMS: a guard
+#: against slivers that a huge effective sample count would call significant. Small, as the
+#: held-out gain is the real test: a pilot-transducer offset of 0.6 bar, hidden in a log whose
+#: maps err like a real valve's (tests/test_mismatch.py), lowers the in-sample RMS by 0.02–0.03
+#: noise floors once the model's own free parameters have taken their share
+GAIN_FRACTION = 0.02
 # a residual within 1.3x the noise floor counts as noise in the summary: the floor estimate runs
 # ~10 % low when friction holds the piston (input noise then reaches Δp in bursts, not white)
 NOISE_LEVEL = 1.3

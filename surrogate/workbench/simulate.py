@@ -284,6 +284,36 @@ def random_settings(count: int, seed: int) -> list[tuple[str, float, dict[str, f
     return settings
 
 
+@dataclass(frozen=True)
+class StressCase:
+    """One log of a stress test: what is hidden (None: nothing), how strongly (the factor on its
+    realistic magnitude, and the values), and the seed of its noise and map mismatch."""
+
+    hidden: str | None
+    factor: float
+    values: dict[str, float] | None
+    seed: int
+
+
+#: the randomised settings (seeds of :func:`random_settings`) of the stress suite
+STRESS_SETTINGS = (2026, 2027)
+
+
+def stress_suite(cases: int = 20, controls: int = 5,
+                 settings: tuple[int, ...] = STRESS_SETTINGS) -> list[StressCase]:
+    """The cases of the workbench's stress test (tests/test_mismatch.py, eval/workbench.py):
+    for each settings seed, ``cases`` randomised hidden effects and ``controls`` logs with
+    nothing hidden, every one with its own seed."""
+    suite = []
+    for k, setting in enumerate(settings):
+        suite += [StressCase(hidden, factor, values, 200 + number + 1000 * k)
+                  for number, (hidden, factor, values)
+                  in enumerate(random_settings(cases, seed=setting))]
+        suite += [StressCase(None, 0.0, None, 100 + number + 1000 * k)
+                  for number in range(controls)]
+    return suite
+
+
 def identified(diagnosis, hidden: str, library: EffectLibrary = LIBRARY) -> bool:
     """Whether a diagnosis found the hidden effect: its best candidate is significant, ranked
     first, and is the effect or a candidate the data cannot tell from it. A per-run effect never
