@@ -17,7 +17,8 @@ Measures, in one run on this machine:
 
 Writes results/workbench/benchmark.json and prints a summary. Run:
 ``python eval/workbench.py [--cases 20] [--every 4] [--mismatch-cases 20] [--controls 5]
-[--maps gp] [--mismatch-maps grid] [--only-mismatch]`` (about 15 minutes on 2 cores).
+[--maps gp] [--mismatch-maps grid] [--mismatch-settings 2026 2027] [--only-mismatch]``
+(about 20 minutes on 2 cores).
 """
 
 from __future__ import annotations
@@ -40,9 +41,9 @@ from surrogate.workbench.residuals import (measured_dp, noise_floor, replay_log,
                                            state_smoothing_samples)
 from surrogate.presets import cfda, maps
 from surrogate.workbench.mismatch import MapMismatch
-from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case, identified,
-                                          noise_free_sequence, random_settings, stress_suite,
-                                          unexplained_additions)
+from surrogate.workbench.simulate import (STRESS_SETTINGS, cleanly_identified,
+                                          hidden_effect_case, identified, noise_free_sequence,
+                                          random_settings, stress_suite, unexplained_additions)
 from surrogate.workbench.workflow import run_workflow
 
 
@@ -72,19 +73,21 @@ def replay_noise_control(log, seed: int = 1) -> dict:
     return result
 
 
-def mismatch_record(log, cases: int, controls: int, kind: str, every: int) -> dict:
+def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
+                    settings: tuple[int, ...] = STRESS_SETTINGS) -> dict:
     """The workflow on virtual-valve logs (the same settings and seeds as tests/test_mismatch.py
     with its defaults): clean identifications over randomised cases, and the physics or sensor
     effects added where nothing is hidden."""
     sequence = noise_free_sequence(log, every=every)
-    record = {"maps": kind, "every": every, "cases": [], "controls": []}
+    record = {"maps": kind, "every": every, "settings": list(settings), "cases": [],
+              "controls": []}
 
     def workflow_of(hidden, values, seed):
         case = hidden_effect_case(hidden, values, sequence=sequence, seed=seed,
                                   mismatch=MapMismatch(), maps_under_test=maps(kind))
         return timed(run_workflow, case.log, start=case.start, max_additions=3)
 
-    for case in stress_suite(cases, controls):
+    for case in stress_suite(cases, controls, settings):
         workflow, seconds = workflow_of(case.hidden, case.values, case.seed)
         added = [name for step in workflow.steps[1:] for name in step.added]
         if case.hidden is None:
@@ -120,6 +123,8 @@ def main() -> None:
     parser.add_argument("--mismatch-maps", default="grid",
                         help="maps of the model under test on the virtual valve")
     parser.add_argument("--mismatch-every", type=int, default=8)
+    parser.add_argument("--mismatch-settings", type=int, nargs="+", default=list(STRESS_SETTINGS),
+                        help="settings seeds of the stress suite (default: both)")
     parser.add_argument("--only-mismatch", action="store_true",
                         help="only the map-mismatch record (written to mismatch.json)")
     args = parser.parse_args()
@@ -127,7 +132,7 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     mismatch = mismatch_record(log, args.mismatch_cases, args.controls, args.mismatch_maps,
-                               args.mismatch_every)
+                               args.mismatch_every, tuple(args.mismatch_settings))
     if args.only_mismatch:
         path = out / f"mismatch_{args.mismatch_maps}.json"
         path.write_text(json.dumps(mismatch, indent=2) + "\n")

@@ -64,7 +64,7 @@ from ..leastsquares import Evaluation, FitProblem, Minimizer, free_parameters, s
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
-from .discrepancy import Discrepancy, map_discrepancy
+from .discrepancy import Discrepancy, map_discrepancy, map_error_with_cfd
 from .hysteresis import hysteresis_split
 from .heldout import Linearised, RunBlocks, bootstrap_weights, run_groups
 from .logfit import felt, probe_change
@@ -314,9 +314,11 @@ class _Judge:
             candidate.inclusion = counts.get(candidate.name, 0) / len(weights)
 
     def expected_rms(self, base: LogReplay) -> float:
-        """The RMS that noise and the maps' uncertainty allow together [Pa]."""
-        std = base.replay.dp_std
-        spread = 0.0 if std is None else float(np.nanmean(std[self.problem.ok] ** 2))
+        """The RMS that noise and the maps' uncertainty (with the CFD's own error) allow
+        together [Pa]."""
+        effects = map_error_with_cfd(base.replay)
+        spread = 0.0 if effects is None else float(
+            np.nanmean(np.sum(effects[:, self.problem.ok] ** 2, axis=0)))
         return float(np.sqrt(self.problem.noise_floor**2 + spread))
 
     def map_limits(self, count: int = 3) -> list[str]:

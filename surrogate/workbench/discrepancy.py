@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import ValveModel
+from ..solver.replay import Replay
 from .residuals import LogReplay
 
 #: the CFD's own relative error, one standard deviation, in the flow map's Δp and in the flow
@@ -92,16 +93,24 @@ def hat_weights(u: np.ndarray, at: np.ndarray) -> np.ndarray:
     return weights / np.linalg.norm(weights, axis=1, keepdims=True)
 
 
+def map_error_with_cfd(replay: Replay) -> np.ndarray | None:
+    """(2, n) [Pa]: how far each sample's Δp moves for a one-σ error of the flow map (row 0)
+    and the force map (row 1), σ being the calibrated one and :data:`CFD_ERROR` in quadrature,
+    signed as the replay's own :attr:`~surrogate.solver.replay.Replay.map_error`; None for maps
+    without an uncertainty."""
+    if replay.map_gain is None:
+        return None
+    own = np.array([[CFD_ERROR["dp"] / 2.0], [CFD_ERROR["flow force"]]])  # ln C_d = −ln Δp / 2
+    return np.sign(replay.map_gain) * np.hypot(replay.map_error, replay.map_gain * own)
+
+
 def map_discrepancy(model: ValveModel, base: LogReplay, ok: np.ndarray) -> Discrepancy | None:
     """The nuisance columns at the solved samples ``ok`` of ``base`` (a replay with
     diagnostics), or None for maps that report no uncertainty."""
-    gains, calibrated = base.replay.map_gain, base.replay.map_error
+    effects = map_error_with_cfd(base.replay)
     at = knots(model)
-    if gains is None or at.size < 2 or not ok.any():
+    if effects is None or at.size < 2 or not ok.any():
         return None
-    # the calibrated σ and the CFD's own error together, in quadrature, signed by the gain
-    own = np.array([[CFD_ERROR["dp"] / 2.0], [CFD_ERROR["flow force"]]])  # ln C_d = −ln Δp / 2
-    effects = np.sign(gains) * np.hypot(calibrated, gains * own)
     u = base.replay.u[ok]
     weights = hat_weights(np.where(np.isfinite(u), u, at[0]), at)
     nu = np.log(model.fluid(base.replay.points).nu[ok])
