@@ -19,7 +19,9 @@ from surrogate import load_valve
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 from surrogate.presets import maps
 from surrogate.testing import check_effect
-from surrogate.workbench.mismatch import CavitationFlowForce, MapMismatch, mismatched_samples
+from surrogate.fluid import FluidState
+from surrogate.workbench.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
+                                          PerturbedForceMap, mismatched_samples)
 from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case,
                                           noise_free_sequence, stress_suite,
                                           unexplained_additions)
@@ -67,6 +69,29 @@ def test_the_virtual_valve_differs_from_its_cfd_like_a_real_one():
     assert mismatched_samples(samples, valve, seed=4)[1].dp_error != draw.dp_error
     still, _ = mismatched_samples(samples, valve, seed=3, mismatch=MapMismatch().scaled(0.0))
     assert np.allclose(still.frame["p_L"].iloc[:len(original)], original["p_L"])
+
+
+def test_a_learned_map_under_test_meets_its_own_maps_wrapped_with_the_draws(bench_log):
+    """For maps other than the reference's grid the virtual valve is those maps, wrong by the
+    draws: Δp scaled at a given flow (and flow consistent with it), the flow force scaled, each
+    sampled opening by its own draw."""
+    case = hidden_effect_case(None, None, sequence=noise_free_sequence(bench_log, every=64),
+                              seed=3, mismatch=MapMismatch(), maps_under_test=maps("gp"))
+    flow, force = case.truth.flow_map, case.truth.force_map
+    assert isinstance(flow, PerturbedFlowMap) and isinstance(force, PerturbedForceMap)
+    samples = load_cfd_samples(SHIPPED_CFD_SAMPLES)
+    _, draw = mismatched_samples(samples, load_valve(), seed=3)
+    u = np.array(sorted(draw.dp_error))
+    assert np.allclose(flow.factor(u), 1.0 + np.array([draw.dp_error[x] for x in u]))
+    assert np.allclose(force.factor(u), 1.0 + np.array([draw.force_error[x] for x in u]))
+    fluid = FluidState(np.full(3, 4.6e-5), np.full(3, 870.0))
+    q, p_B, at = np.full(3, 10 / 6e4), np.full(3, 5e5), u[[2, 5, -1]]
+    dp = flow.pressure_drop(q, p_B, at, fluid)
+    assert np.allclose(dp, flow.base.pressure_drop(q, p_B, at, fluid) * flow.factor(at))
+    assert np.allclose(flow.flow(p_B + dp, p_B, at, fluid), q, rtol=1e-4)
+    p_L = p_B + dp
+    assert np.allclose(force.force(p_L, p_B, at, fluid) - force.base.force(p_L, p_B, at, fluid),
+                       (force.factor(at) - 1) * force.base.flow_force(p_L, p_B, at, fluid))
 
 
 def test_the_cavitation_term_keeps_the_effect_contract():

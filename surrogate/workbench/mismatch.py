@@ -20,6 +20,12 @@ The valve's maps are grid maps built from the perturbed samples (plus the extra 
 errors are those of a CFD that was run once more with other meshes. :func:`mismatched_samples`
 returns those samples, which a user can write out and train any map kind on;
 :func:`mismatched_truth` turns a model spec into the virtual valve.
+
+A grid valve bridges openings and gaps the grid's way, which is not a learned map's: between
+them a GP and the grid differ by more than a real valve differs from either. So for a model under
+test on other maps, :func:`mismatched_truth` can instead wrap that model's own maps with the same
+draws (:class:`PerturbedFlowMap`, :class:`PerturbedForceMap`): the virtual valve is then "these
+maps, wrong by a CFD's error", whatever their kind.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ import pandas as pd
 from ..data.loaders import CfdSamples
 from ..effects import BalanceState, Effect, Parameter
 from ..fluid import FluidState
+from ..maps.base import FlowMap, ForceMap
 from ..maps.coverage import Coverage
 from ..maps.grid import GridFlowMap, GridForceMap
 from ..model import ValveModel
@@ -204,16 +211,87 @@ def _bridged_sweeps(frame: pd.DataFrame, flow: GridFlowMap, force: GridForceMap,
     return pd.concat(rows, ignore_index=True)
 
 
+class MismatchFactor:
+    """The factor a case's draws put on Δp (or on the flow force) at opening u [m]: the draw of
+    each sampled opening, interpolated in ln u between neighbours, plus the bump across every
+    unsampled gap, (u/u₀)^k below the smallest opening u₀ and held above the largest — what the
+    grid of :func:`mismatched_samples` does to its samples, as a function."""
+
+    def __init__(self, errors: dict[float, float], gaps: list[tuple[float, float]],
+                 bumps: list[float], seat: float):
+        self.openings = np.array(sorted(errors))
+        self.errors = np.array([errors[u] for u in self.openings])
+        self.gaps, self.bumps, self.seat = gaps, bumps, seat
+
+    def __call__(self, u) -> np.ndarray:
+        u = np.asarray(u, float)
+        x = np.log(np.clip(u, self.openings[0], self.openings[-1]))
+        factor = 1.0 + np.interp(x, np.log(self.openings), self.errors)
+        for (low, high), bump in zip(self.gaps, self.bumps):
+            t = (x - np.log(low)) / np.log(high / low)
+            inside = (t > 0.0) & (t < 1.0)
+            factor = factor * np.where(inside, 1.0 + bump * np.sin(np.pi * np.clip(t, 0, 1)),
+                                       1.0)
+        below = np.clip(u, 1e-12, None) / self.openings[0]
+        return factor * np.where(below < 1.0, below ** self.seat, 1.0)
+
+
+class PerturbedFlowMap(FlowMap):
+    """A flow map whose Δp at a given flow is ``factor(u)`` times another's."""
+
+    kind = "perturbed flow map"
+
+    def __init__(self, base: FlowMap, factor: MismatchFactor):
+        self.base, self.factor = base, factor
+
+    def pressure_drop(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
+        return self.base.pressure_drop(q, p_B, u, fluid) * self.factor(u)
+
+    def flow(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        p_B = np.asarray(p_B, float)
+        dp = (np.asarray(p_L, float) - p_B) / self.factor(u)
+        return self.base.flow(p_B + dp, p_B, u, fluid)
+
+
+class PerturbedForceMap(ForceMap):
+    """A force map whose flow force is ``factor(u)`` times another's."""
+
+    kind = "perturbed force map"
+
+    def __init__(self, base: ForceMap, factor: MismatchFactor):
+        self.base, self.factor = base, factor
+
+    def flow_force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        return self.base.flow_force(p_L, p_B, u, fluid) * self.factor(u)
+
+    def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        return (self.base.force(p_L, p_B, u, fluid)
+                + (self.factor(u) - 1.0) * self.base.flow_force(p_L, p_B, u, fluid))
+
+
 def mismatched_truth(model: ValveModel, samples: CfdSamples, seed: int,
-                     mismatch: MapMismatch = MapMismatch()) -> ValveModel:
+                     mismatch: MapMismatch = MapMismatch(), *,
+                     own_maps: bool = False) -> ValveModel:
     """``model`` (its valve and effects) on grid maps of :func:`mismatched_samples`, with the
-    case's :class:`CavitationFlowForce`: the virtual valve."""
+    case's :class:`CavitationFlowForce`: the virtual valve. With ``own_maps`` the valve keeps
+    ``model``'s maps instead, wrapped with the same draws (:class:`PerturbedFlowMap`,
+    :class:`PerturbedForceMap`)."""
     perturbed, draw = mismatched_samples(samples, model.valve, seed, mismatch)
-    flow = GridFlowMap.from_samples(perturbed)
-    force = GridForceMap.from_samples(perturbed, model.valve)
+    if own_maps:
+        coverage = Coverage.of_samples(samples.frame)
+        gaps = coverage.gaps()
+        flow = PerturbedFlowMap(model.flow_map, MismatchFactor(
+            draw.dp_error, gaps, draw.gap_dp, draw.seat_dp))
+        force = PerturbedForceMap(model.force_map, MismatchFactor(
+            draw.force_error, gaps, draw.gap_force, draw.seat_force))
+        reference = GridFlowMap.from_samples(samples).fixed_back_pressure
+    else:
+        flow = GridFlowMap.from_samples(perturbed)
+        force = GridForceMap.from_samples(perturbed, model.valve)
+        reference = flow.fixed_back_pressure
     cavitation = CavitationFlowForce()
     cavitation.params["c"].value = draw.cavitation
-    cavitation.params["p_ref"].value = flow.fixed_back_pressure
+    cavitation.params["p_ref"].value = reference
     effects = [e.copy() for e in model.effects if e.name != CavitationFlowForce.name]
     return ValveModel(model.valve, flow, force, [*effects, cavitation],
                       f"{model.name} (virtual valve, mismatch seed {seed})")

@@ -199,7 +199,8 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
     With ``mismatch`` the truth is the virtual valve of :func:`.mismatch.mismatched_truth`: the
     reference's valve and effects on maps of ``samples`` (default: the shipped CFD samples)
     perturbed with the case's ``seed``. ``maps_under_test`` puts the starting model on other maps
-    (default: the reference's).
+    (default: the reference's); with ``mismatch`` the virtual valve is then those maps wrapped
+    with the case's draws (``own_maps`` of :func:`.mismatch.mismatched_truth`).
     """
     reference = reference or reference_spec()
     truth = reference.named(f"reference + {hidden}" if hidden else "reference")
@@ -212,10 +213,12 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
         truth = truth.with_effects([*(e for e in truth.effects if e.name != hidden),
                                     EffectSpec.of(effect)])
         start_effects = [e for e in start_effects if e.name != hidden]
-    truth_model = truth.build(library)
+    # a model under test on other maps meets a valve built around those maps (mismatch.py)
+    own_maps = mismatch is not None and maps_under_test not in (None, reference.maps)
+    truth_model = (truth.with_maps(maps_under_test) if own_maps else truth).build(library)
     if mismatch is not None:
         samples = samples if samples is not None else load_cfd_samples(SHIPPED_CFD_SAMPLES)
-        truth_model = mismatched_truth(truth_model, samples, seed, mismatch)
+        truth_model = mismatched_truth(truth_model, samples, seed, mismatch, own_maps=own_maps)
     log = simulate(truth_model, sequence, noise=noise, seed=seed)
     # the fit starts from the presets' values, not from the truth
     starting = {effect.name: effect for effect in cfda_effects()}
