@@ -232,8 +232,9 @@ class MismatchFactor:
             inside = (t > 0.0) & (t < 1.0)
             factor = factor * np.where(inside, 1.0 + bump * np.sin(np.pi * np.clip(t, 0, 1)),
                                        1.0)
-        below = np.clip(u, 1e-12, None) / self.openings[0]
-        return factor * np.where(below < 1.0, below ** self.seat, 1.0)
+        # below the smallest opening down to the lowest extra sweep, then held, as the grid does
+        below = np.clip(u / self.openings[0], min(SEAT_FRACTIONS), 1.0)
+        return factor * below ** self.seat
 
 
 class PerturbedFlowMap(FlowMap):
