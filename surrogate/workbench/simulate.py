@@ -308,11 +308,13 @@ def stress_suite(cases: int = 20, controls: int = 5,
     for each settings seed, ``cases`` randomised hidden effects and ``controls`` logs with
     nothing hidden, every one with its own seed."""
     suite = []
-    for k, setting in enumerate(settings):
-        suite += [StressCase(hidden, factor, values, 200 + number + 1000 * k)
+    for setting in settings:
+        # a setting's seeds depend on it alone, not on the settings run with it
+        offset = 1000 * (setting - STRESS_SETTINGS[0])
+        suite += [StressCase(hidden, factor, values, 200 + number + offset)
                   for number, (hidden, factor, values)
                   in enumerate(random_settings(cases, seed=setting))]
-        suite += [StressCase(None, 0.0, None, 100 + number + 1000 * k)
+        suite += [StressCase(None, 0.0, None, 100 + number + offset)
                   for number in range(controls)]
     return suite
 
