@@ -63,14 +63,15 @@ class Replay:
     band : numpy.ndarray
         (2, n): the friction band's edges u_open and u_close at each sample [m], kept so that a
         replay with nearby parameters can start from them (``replay(..., guess=...)``).
-    map_error : numpy.ndarray or None
-        (2, n): how far ``dp`` [Pa] moves for a one-σ error of the flow map (row 0) and of the
-        force map (row 1) (:func:`.uncertainty.map_error_effects`); None for maps without an
-        uncertainty, or when not asked for.
     map_gain : numpy.ndarray or None
-        (2, n): how far ``dp`` [Pa] moves per unit ln C_d error of the flow map and per unit
-        relative flow-force error of the force map (:func:`.uncertainty.map_error_gains`), so
-        that an error of another size (the CFD's own, say) can be carried too.
+        (2, n): how far ``dp`` [Pa] moves per unit ln C_d error of the flow map (row 0) and per
+        unit relative flow-force error of the force map (row 1)
+        (:func:`.uncertainty.map_error_gains`); None for maps without an uncertainty, or when
+        not asked for.
+    map_std : numpy.ndarray or None
+        (2, n): the maps' calibrated standard deviations of those two errors [1], so that
+        ``map_gain * map_std`` is the one-σ effect (:attr:`map_error`) and an error of another
+        size (the CFD's own, say) can be carried too.
     """
 
     points: OperatingPoints
@@ -80,8 +81,14 @@ class Replay:
     moving: np.ndarray
     reasons_outside: np.ndarray
     band: np.ndarray
-    map_error: np.ndarray | None = None
     map_gain: np.ndarray | None = None
+    map_std: np.ndarray | None = None
+
+    @property
+    def map_error(self) -> np.ndarray | None:
+        """(2, n) [Pa]: how far ``dp`` moves for a one-σ error of the flow map (row 0) and of
+        the force map (row 1) (:func:`.uncertainty.map_error_effects`); None without."""
+        return None if self.map_gain is None else self.map_gain * self.map_std
 
     @property
     def dp_std(self) -> np.ndarray | None:
@@ -106,8 +113,8 @@ class Replay:
         """The replay of some samples only (whole runs, for the friction state to make sense)."""
         return Replay(self.points[index], self.u[index], self.dp[index], self.status[index],
                       self.moving[index], self.reasons_outside[index], self.band[:, index],
-                      None if self.map_error is None else self.map_error[:, index],
-                      None if self.map_gain is None else self.map_gain[:, index])
+                      None if self.map_gain is None else self.map_gain[:, index],
+                      None if self.map_std is None else self.map_std[:, index])
 
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
@@ -163,7 +170,7 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
                                                           fluid[solved])
     at_stop = (status == Status.OK) & (u >= model.valve.U_max)
     status[at_stop] = Status.AT_STOP
-    map_error = map_gain = None
+    map_gain = map_std = None
     if diagnostics:
         # a sliding piston sits on the band's edge of its direction; a stuck one stays put
         floats = moving if model.has_friction else np.ones(count, dtype=bool)
@@ -171,9 +178,8 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
                         np.where(u <= np.fmin(u_edges[0], u_edges[1]), OPENING, CLOSING))
         found = map_error_gains(model, points, u, dp, side, ~floats | (status == Status.AT_STOP))
         if found is not None:
-            map_gain, std = found
-            map_error = map_gain * std
-    return Replay(points, u, dp, status, moving, reasons, u_edges, map_error, map_gain)
+            map_gain, map_std = found
+    return Replay(points, u, dp, status, moving, reasons, u_edges, map_gain, map_std)
 
 
 def _segment_starts(segments, count: int) -> np.ndarray:

@@ -563,7 +563,7 @@ def hysteresis_sentence(diagnosis: Diagnosis, candidate: Candidate) -> str:
     share = hysteresis_share(diagnosis, candidate)
     if not np.isfinite(share):
         return ""
-    views = (f"Of its gain, {100 * share:.0f} % lies in the runs' hysteresis half-width "
+    views = (f" Of its gain, {100 * share:.0f} % lies in the runs' hysteresis half-width "
              f"({from_si(diagnosis.half_width_before, 'bar'):.2f} → "
              f"{from_si(candidate.half_width_rms, 'bar'):.2f} bar RMS) and "
              f"{100 * (1 - share):.0f} % in their median line "
@@ -613,7 +613,7 @@ def summarise(diagnosis: Diagnosis) -> str:
                     f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor {floor:.2f} bar, "
                     f"ΔBIC {best.delta_bic:.0f} against the maps' own error, chosen in "
                     f"{100 * best.inclusion:.0f} % of resamples over runs) with {params}.")
-        sentence += " " + hysteresis_sentence(diagnosis, best)
+        sentence += hysteresis_sentence(diagnosis, best)
         if best.category == "map correction":
             sentence += (" It patches the CFD maps rather than adding valve physics: "
                          "more CFD where the bench operates would replace it.")

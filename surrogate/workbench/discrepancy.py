@@ -101,7 +101,8 @@ def map_error_with_cfd(replay: Replay) -> np.ndarray | None:
     if replay.map_gain is None:
         return None
     own = np.array([[CFD_ERROR["dp"] / 2.0], [CFD_ERROR["flow force"]]])  # ln C_d = −ln Δp / 2
-    return np.sign(replay.map_gain) * np.hypot(replay.map_error, replay.map_gain * own)
+    gain = replay.map_gain
+    return np.sign(gain) * np.hypot(gain * replay.map_std, gain * own)
 
 
 def map_discrepancy(model: ValveModel, base: LogReplay, ok: np.ndarray) -> Discrepancy | None:

@@ -145,10 +145,7 @@ def mismatched_samples(samples: CfdSamples, valve: ValveParameters, seed: int,
     """
     frame = samples.frame.copy()
     back_area = valve.A_s3 - valve.A_B
-    openings = np.unique(frame["u"].to_numpy())
-    coverage = Coverage.of_samples(frame)
-    gaps = coverage.gaps()
-    draw = MismatchDraw.draw(openings, len(gaps), mismatch, seed)
+    draw, gaps = _draw(samples, mismatch, seed)
     # 1. each sampled opening's own systematic error, in Δp and in the flow-force fraction
     dp = (frame["p_L"] - frame["p_B"]).to_numpy()
     fraction = ((frame["f_sim"] - frame["p_L"] * valve.A_L - frame["p_B"] * back_area)
@@ -169,13 +166,21 @@ def mismatched_samples(samples: CfdSamples, valve: ValveParameters, seed: int,
             extra.append(_bridged_sweeps(frame, flow, force, valve, low * (high / low) ** t,
                                          low, high, 1.0 + bump_dp * bend,
                                          1.0 + bump_force * bend))
-    smallest = openings[0]
+    smallest = min(draw.dp_error)
     for share in SEAT_FRACTIONS:
         extra.append(_bridged_sweeps(frame, flow, force, valve, smallest * share, smallest,
                                      smallest, share ** draw.seat_dp, share ** draw.seat_force))
     frame = pd.concat([frame, *extra], ignore_index=True)
     frame["line"] = np.arange(2, len(frame) + 2)
     return CfdSamples(frame, f"{samples.source}, perturbed (mismatch seed {seed})"), draw
+
+
+def _draw(samples: CfdSamples, mismatch: MapMismatch,
+          seed: int) -> tuple[MismatchDraw, list[tuple[float, float]]]:
+    """The case's draws for the openings and unsampled gaps of ``samples``, and those gaps."""
+    gaps = Coverage.of_samples(samples.frame).gaps()
+    openings = np.unique(samples.frame["u"].to_numpy())
+    return MismatchDraw.draw(openings, len(gaps), mismatch, seed), gaps
 
 
 def _set_dp_and_fraction(frame: pd.DataFrame, dp: np.ndarray, fraction: np.ndarray, A_L: float,
@@ -277,16 +282,15 @@ def mismatched_truth(model: ValveModel, samples: CfdSamples, seed: int,
     case's :class:`CavitationFlowForce`: the virtual valve. With ``own_maps`` the valve keeps
     ``model``'s maps instead, wrapped with the same draws (:class:`PerturbedFlowMap`,
     :class:`PerturbedForceMap`)."""
-    perturbed, draw = mismatched_samples(samples, model.valve, seed, mismatch)
-    if own_maps:
-        coverage = Coverage.of_samples(samples.frame)
-        gaps = coverage.gaps()
+    if own_maps:  # the draws alone: no perturbed samples to build grids from
+        draw, gaps = _draw(samples, mismatch, seed)
         flow = PerturbedFlowMap(model.flow_map, MismatchFactor(
             draw.dp_error, gaps, draw.gap_dp, draw.seat_dp))
         force = PerturbedForceMap(model.force_map, MismatchFactor(
             draw.force_error, gaps, draw.gap_force, draw.seat_force))
         reference = GridFlowMap.from_samples(samples).fixed_back_pressure
     else:
+        perturbed, draw = mismatched_samples(samples, model.valve, seed, mismatch)
         flow = GridFlowMap.from_samples(perturbed)
         force = GridForceMap.from_samples(perturbed, model.valve)
         reference = flow.fixed_back_pressure
