@@ -64,6 +64,7 @@ def test_diagnose_json_contract_names_the_hidden_effect(capsys, small_log):
     assert best["category"] == "physics"
     assert best["heldout_rms_bar"] < result["heldout_rms_bar"]  # it predicts unseen runs better
     assert best["inclusion"] > 0.5
+    assert best["gains_in_own_view"]  # a friction narrowing the runs' hysteresis half-width
     assert "friction_viscous" in result["summary"]
     # ranked by ΔBIC against the maps' own error, best first
     ranked = [c["delta_bic"] for c in result["candidates"]]

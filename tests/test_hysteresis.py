@@ -7,7 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from surrogate.workbench.diagnose import diagnose, hysteresis_share
+from surrogate.workbench.diagnose import (Candidate, diagnose, gains_in_own_view,
+                                          hysteresis_share)
 from surrogate.workbench.hysteresis import hysteresis_split
 from surrogate.workbench.logfit import fit_to_log
 from surrogate.workbench.simulate import hidden_effect_case, noise_free_sequence
@@ -50,6 +51,27 @@ def test_runs_that_go_one_way_only_have_no_views():
     assert np.isnan(split.rms(np.ones(len(frame)))).all()
 
 
+def candidate(kind: str, median: float, half: float) -> Candidate:
+    return Candidate("trial", "a trial", "", kind, "physics", rms_after=1.0, delta_bic=-50.0,
+                     median_rms=median, half_width_rms=half)
+
+
+@pytest.mark.parametrize("kind, median, half, passes", [
+    ("friction", 1.0, 0.4, True),    # narrows the split it acts on
+    ("friction", 0.5, 0.6, False),   # only moves the median line, and widens the split
+    ("force", 0.8, 0.6, True),       # moves the median line closer
+    ("force", 1.0, 0.4, False),      # only narrows the split: acts like friction, not a force
+    ("leakage", 0.9, 0.5, True),
+    ("sensor", 1.1, 0.5, False),
+])
+def test_a_candidate_must_narrow_the_view_its_physics_acts_on(kind, median, half, passes):
+    assert gains_in_own_view(candidate(kind, median, half), 1.0, 0.5) is passes
+
+
+def test_a_log_without_both_ramps_does_not_judge_by_views():
+    assert gains_in_own_view(candidate("friction", np.nan, np.nan), np.nan, np.nan)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("hidden, friction", [("friction_constant", True),
                                               ("flow_force_scale", False)])
@@ -58,6 +80,6 @@ def test_friction_gains_on_the_half_width_and_a_force_on_the_median_line(bench_l
     case = hidden_effect_case(hidden, sequence=noise_free_sequence(bench_log, every=8), seed=5)
     diagnosis = diagnose(fit_to_log(case.start, case.log).model, case.log)
     share = hysteresis_share(diagnosis, diagnosis.best)
-    assert diagnosis.best.name == hidden
+    assert diagnosis.best.name == hidden and diagnosis.best.own_view
     assert (share > 0.5) if friction else (share < 0.5), share
     assert "half-width" in diagnosis.summary

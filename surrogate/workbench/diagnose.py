@@ -28,8 +28,9 @@ Procedure
    runs gives its inclusion frequency: the share of resamples in which it would be added.
 6. Split each run's residual, before and after each candidate, into its median line and its
    half-width (:mod:`.hysteresis`): a map error moves both ramps alike, friction changes their
-   split. The summary says in which of the two views the best candidate's gain lies, and warns
-   when a friction term gains on the median line only, or another term on the half-width only
+   split. A friction term must narrow the half-width, any other term the median line. The
+   summary says in which of the two views the best candidate's gain lies, and warns when a
+   friction term gains mostly on the median line, or another term mostly on the half-width
    (the maps' error reaches the median line too, so such a gain may be the maps').
 
 Significance rule
@@ -43,7 +44,9 @@ A candidate is **significant** (a discovery the workflow adds) when all of these
 * the residual before is not already noise: RMS_before > 1.1·σ;
 * the gain is more than a sliver of noise: RMS_before − RMS_after > 0.05·σ;
 * it has no parameter per run: such a parameter cannot predict another run, so per-run
-  candidates are reported as sensor checks (:class:`SensorCheck`), never added.
+  candidates are reported as sensor checks (:class:`SensorCheck`), never added;
+* it narrows the view of the hysteresis its physics acts on (:func:`gains_in_own_view`): a
+  friction term the runs' half-width, any other term their median line.
 
 Candidates that change the model's prediction the same way (cosine of their prediction changes
 above 0.98) while the data prefer neither (|ΔBIC between them| < 10) cannot be told apart on
@@ -110,6 +113,7 @@ class Candidate:
     heldout_rms: float = float("nan")  # [Pa] on held-out runs (pooled over the schemes)
     heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme
     inclusion: float = 0.0  # share of bootstrap resamples over runs that select it
+    own_view: bool = True  # narrows the hysteresis view its physics acts on (gains_in_own_view)
     per_run: bool = False  # a parameter per run: a sensor check, never part of the model
     check_threshold: float = 0.0  # a per-run value below this (display units) is not flagged
     change: np.ndarray | None = field(default=None, repr=False)  # prediction change [Pa]
@@ -129,6 +133,7 @@ class Candidate:
             "heldout_rms_by_scheme_bar": {k: _rounded_bar(v)
                                           for k, v in self.heldout.items() if k != "pooled"},
             "inclusion": round(float(self.inclusion), 3),
+            "gains_in_own_view": bool(self.own_view),
             "delta_bic": round(float(self.delta_bic), 2), "significant": bool(self.significant),
             "per_run": bool(self.per_run), "group": self.group,
             "params": {p.name: p.to_record() for p in self.params},
@@ -242,13 +247,15 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     # run always fits a little better than one offset; it must fit better by enough)
     results.sort(key=lambda c: (c.delta_bic, c.rms_after))
     for candidate in results:
+        candidate.own_view = gains_in_own_view(candidate, median_before, half_before)
         candidate.significant = (not candidate.per_run
                                  and candidate.delta_bic < BIC_THRESHOLD
                                  and problem.rms_before > NOISE_MARGIN * floor
                                  and problem.rms_before - candidate.rms_after
                                  > GAIN_FRACTION * floor
                                  and candidate.heldout_rms
-                                 < (1.0 - HELDOUT_GAIN) * judge.heldout_before)
+                                 < (1.0 - HELDOUT_GAIN) * judge.heldout_before
+                                 and candidate.own_view)
     _group(results, problem.n_eff)
     judge.inclusion(results)
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, results,
@@ -298,9 +305,10 @@ class _Judge:
     def inclusion(self, candidates: list[Candidate]) -> None:
         """Each candidate's share of bootstrap resamples over runs in which it would be added:
         the best by ΔBIC against the discrepancy, and below the threshold, among those that
-        predict held-out runs better (a candidate that fails that test is never added)."""
+        predict held-out runs better and narrow their own view of the hysteresis (a candidate
+        that fails either test is never added)."""
         weights = bootstrap_weights(len(self.base.labels), RESAMPLES)
-        chosen = [c for c in candidates if not c.per_run
+        chosen = [c for c in candidates if not c.per_run and c.own_view
                   and c.heldout_rms < (1.0 - HELDOUT_GAIN) * self.heldout_before]
         counts = dict.fromkeys((c.name for c in chosen), 0)
         for w in weights:
@@ -547,6 +555,24 @@ def residual_correlations(base: LogReplay) -> dict[str, float]:
 #: share of a candidate's gain (in sum of squares) that must lie in the view its physics acts on
 #: before the summary stops warning: friction on the half-width, the rest on the median line
 OWN_VIEW_SHARE = 0.25
+
+
+def gains_in_own_view(candidate: Candidate, median_before: float, half_before: float) -> bool:
+    """Whether ``candidate`` narrows the view its physics acts on (RMS [Pa] before it given):
+    a friction term the half-width of the runs' hysteresis, any other term their median line.
+
+    Friction splits the up and down ramps; a friction term that leaves that split no closer to
+    the data is soaking up something else (the maps' error moves both ramps alike). A term
+    that moves both ramps alike must bring their median line closer. A necessary condition,
+    not a sufficient one: how much of the gain lies in each view is only reported
+    (:func:`hysteresis_sentence`), since a weak friction can gain more on the median line than
+    on the half-width where the piston sticks at the ramps' ends.
+    """
+    after, before = ((candidate.half_width_rms, half_before) if candidate.kind == "friction"
+                     else (candidate.median_rms, median_before))
+    if not (np.isfinite(after) and np.isfinite(before)):
+        return True  # a log without both ramps at equal flow has no such view to judge by
+    return after < before
 
 
 def hysteresis_share(diagnosis: Diagnosis, candidate: Candidate) -> float:
