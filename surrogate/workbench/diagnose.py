@@ -32,6 +32,9 @@ Procedure
    summary says in which of the two views the best candidate's gain lies, and warns when a
    friction term gains mostly on the median line, or another term mostly on the half-width
    (the maps' error reaches the median line too, so such a gain may be the maps').
+7. When the best candidate has a look-alike, replay both over the runs the bench could make
+   next and name the one where they differ most, or say that none within reach decides
+   (:mod:`.separate`).
 
 Significance rule
 -----------------
@@ -72,6 +75,7 @@ from .hysteresis import hysteresis_split
 from .heldout import Linearised, RunBlocks, bootstrap_weights, run_groups
 from .logfit import felt, probe_change
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
+from .separate import Separation, search_range, separating_run
 
 BIC_THRESHOLD = -10.0
 NOISE_MARGIN = 1.1  # the residual must exceed the noise floor by 10 %
@@ -158,6 +162,8 @@ class Diagnosis:
     sensor_checks: list["SensorCheck"] = field(default_factory=list)  # per-run readings off
     median_before: float = float("nan")  # [Pa] RMS of the residual's median line
     half_width_before: float = float("nan")  # [Pa] RMS of its half-width
+    #: the bench run that would tell the best candidate from its first look-alike, if any
+    separation: Separation | None = None
 
     @property
     def best(self) -> Candidate | None:
@@ -175,6 +181,8 @@ class Diagnosis:
                 "half_width_rms_bar": _rounded_bar(self.half_width_before),
                 "map_limits": self.map_limits,
                 "sensor_checks": [check.to_json() for check in self.sensor_checks],
+                "separating_run": (self.separation.to_json()
+                                   if self.separation is not None else None),
                 "summary": self.summary,
                 "candidates": [c.to_json() for c in self.candidates],
                 "residual_correlations": {k: round(v, 3) for k, v in self.correlations.items()}}
@@ -262,6 +270,7 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
                           residual_correlations(base), "", judge.heldout_before,
                           judge.expected_rms(base), judge.map_limits(),
                           _sensor_checks(results, judge.schemes), median_before, half_before)
+    diagnosis.separation = _look_alike_separation(diagnosis, log)
     diagnosis.summary = summarise(diagnosis)
     return diagnosis
 
@@ -533,6 +542,17 @@ def _group(candidates: list[Candidate], n_eff: float) -> None:
                 b.group.append(a.name)
 
 
+def _look_alike_separation(diagnosis: Diagnosis, log: BenchLog) -> Separation | None:
+    """The bench run that would tell the best candidate from its first look-alike
+    (:mod:`.separate`), or None without a best candidate or a look-alike."""
+    best = diagnosis.best
+    if best is None or len(best.group) < 2:
+        return None
+    other = next(c for c in diagnosis.candidates if c.name in best.group and c is not best)
+    return separating_run(best.model, other.model, log, diagnosis.noise_floor, (best.name,
+                                                                                other.name))
+
+
 def residual_correlations(base: LogReplay) -> dict[str, float]:
     """Pearson correlation of the residual with candidate variables, and of the residual signed
     by the ramp direction (a hysteresis misfit) with the same variables."""
@@ -606,6 +626,18 @@ def hysteresis_sentence(diagnosis: Diagnosis, candidate: Candidate) -> str:
     return views
 
 
+def _separation_advice(separation: Separation | None) -> str:
+    """What would decide between the best candidate and its look-alike."""
+    if separation is None:
+        return "pick by physical knowledge or a dedicated test."
+    if separation.decides:
+        return f"{separation} would tell them apart: their Δp differ there by {separation.gap()}."
+    return (f"no bench run {search_range()} separates them by the noise floor (at best by "
+            f"{separation.gap()}, {str(separation).removeprefix('a bench run ')}): pick by "
+            "physical knowledge or a dedicated test (a transducer calibration, a spring measured "
+            "on its own).")
+
+
 def summarise(diagnosis: Diagnosis) -> str:
     """Plain sentences: the most likely missing effect (with its category, held-out gain and
     inclusion frequency), or why none is named, where the maps limit the diagnosis, and what
@@ -646,8 +678,8 @@ def summarise(diagnosis: Diagnosis) -> str:
         if len(best.group) > 1:
             others = [name for name in best.group if name != best.name]
             sentence += (f" These data cannot tell it apart from {', '.join(others)}, which "
-                         "changes the prediction the same way; pick by physical knowledge or a "
-                         "dedicated test.")
+                         "changes the prediction the same way; "
+                         + _separation_advice(diagnosis.separation))
     if diagnosis.map_limits:
         sentence += (" The maps' error shows most " + "; ".join(diagnosis.map_limits)
                      + ": `suggest-cfd` lists the CFD runs that would settle it.")
