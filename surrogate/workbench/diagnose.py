@@ -633,7 +633,7 @@ def _separation_advice(separation: Separation | None) -> str:
     if separation.decides:
         return f"{separation} would tell them apart: their Δp differ there by {separation.gap()}."
     return (f"no bench run {search_range()} separates them by the noise floor (at best by "
-            f"{separation.gap()}, {str(separation).removeprefix('a bench run ')}): pick by "
+            f"{separation.gap()}, {separation.where()}): pick by "
             "physical knowledge or a dedicated test (a transducer calibration, a spring measured "
             "on its own).")
 

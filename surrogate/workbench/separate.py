@@ -81,11 +81,15 @@ class Separation:
                 "difference_bar": round(float(from_si(self.difference, "bar")), 4),
                 "decides": bool(self.decides)}
 
-    def __str__(self) -> str:
-        return (f"a bench run at {from_si(self.temperature, 'degC'):.0f} °C and p_Pe = "
+    def where(self) -> str:
+        """The run's settings, in words ("at 10 °C and p_Pe = 35 bar ...")."""
+        return (f"at {from_si(self.temperature, 'degC'):.0f} °C and p_Pe = "
                 f"{from_si(self.set_point, 'bar'):.0f} bar"
                 + (f" with {from_si(self.back_pressure_rise, 'bar'):.0f} bar more back pressure"
                    if self.back_pressure_rise else ""))
+
+    def __str__(self) -> str:
+        return f"a bench run {self.where()}"
 
     def gap(self) -> str:
         """How far apart the two predictions are on that run, in words."""
@@ -111,15 +115,16 @@ def candidate_runs(log: BenchLog) -> tuple[BenchLog, pd.DataFrame]:
     measured = {(round(from_si(t, "degC")), s)
                 for t, s in zip(by_run["temperature"], by_run["set_point"])}
     # the template for a set point: the log's run nearest to it (its ramp suits that opening)
-    templates = {s: by_run.index[int(np.argmin(np.abs(by_run["set_point"].to_numpy() - s)))]
-                 for s in set_points}
+    nearest = {s: by_run.index[int(np.argmin(np.abs(by_run["set_point"].to_numpy() - s)))]
+               for s in set_points}
+    templates = {s: frame[frame["run"] == run].iloc[::EVERY] for s, run in nearest.items()}
     pieces, settings = [], []
     for temperature in temperatures:
         for set_point in set_points:
             for rise in (0.0, BACK_PRESSURE_STEP):
                 if rise == 0.0 and (round(from_si(temperature, "degC")), set_point) in measured:
                     continue
-                template = frame[frame["run"] == templates[set_point]].iloc[::EVERY].copy()
+                template = templates[set_point].copy()
                 name = f"next{len(settings) + 1:03d}"
                 shift = set_point - template["p_Pe_nominal"].iloc[0]
                 template["run"] = name
