@@ -45,7 +45,8 @@ A candidate is **significant** (a discovery the workflow adds) when all of these
 * it lowers the RMS on held-out runs by more than :data:`HELDOUT_GAIN` of it: an effect that
   describes the valve helps on runs it was not fitted to, one that patches this log does not;
 * the residual before is not already noise: RMS_before > 1.1·σ;
-* the gain is more than a sliver of noise: RMS_before − RMS_after > 0.02·σ (:data:`GAIN_FRACTION`);
+* the gain is more than a sliver of noise: RMS_before − RMS_after > 0.02·σ
+  (:data:`GAIN_FRACTION`);
 * it has no parameter per run: such a parameter cannot predict another run, so per-run
   candidates are reported as sensor checks (:class:`SensorCheck`), never added;
 * it narrows the view of the hysteresis its physics acts on (:func:`gains_in_own_view`): a

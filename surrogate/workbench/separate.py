@@ -36,8 +36,8 @@ EVERY = 4  # every how many samples of a template run to replay (a ramp needs no
 
 def search_range() -> str:
     """The runs :func:`candidate_runs` tries, in words."""
-    return (f"within {TEMPERATURE_STEP:.0f} K, {from_si(SET_POINT_BELOW, 'bar'):.0f} bar below and "
-            f"{from_si(SET_POINT_ABOVE, 'bar'):.0f} bar above the log's settings, or with "
+    return (f"within {TEMPERATURE_STEP:.0f} K, {from_si(SET_POINT_BELOW, 'bar'):.0f} bar below "
+            f"and {from_si(SET_POINT_ABOVE, 'bar'):.0f} bar above the log's settings, or with "
             f"{from_si(BACK_PRESSURE_STEP, 'bar'):.0f} bar more back pressure")
 
 
