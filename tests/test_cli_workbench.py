@@ -158,3 +158,25 @@ def test_unknown_preset_and_effect_exit_2(capsys, small_log, tmp_path):
                  "--out", str(tmp_path / "x.toml")]) == 2
     assert "unknown effect" in capsys.readouterr().err
     assert not (tmp_path / "x.toml").exists()
+
+
+def test_simulate_a_valve_that_differs_from_its_cfd(tmp_path):
+    """--mismatch makes the valve differ from the maps it is built around by about the CFD's own
+    error (the shipped bench's noise and inputs unchanged, the same seed's); --mismatch 0 is the
+    maps themselves."""
+    def log(name, *options):
+        path = tmp_path / f"{name}.csv"
+        assert main(["simulate", "--every", "64", "--seed", "3", "--quiet", *options,
+                     "--out", str(path)]) == 0
+        return pd.read_csv(path)
+
+    for kind in ("grid", "gp"):
+        perfect = log(f"{kind}_perfect", "--maps", kind)
+        virtual = log(f"{kind}_virtual", "--maps", kind, "--mismatch", "1")
+        for column in ("q_lpm", "p_P_bar", "p_B_bar", "temperature_C"):
+            assert (virtual[column] == perfect[column]).all(), column
+        moved = ((virtual["p_L_bar"] - perfect["p_L_bar"]) ** 2).mean() ** 0.5
+        assert 0.2 < moved < 3.0, (kind, moved)  # bar: the size of the effects sought
+    still = log("gp_still", "--maps", "gp", "--mismatch", "0")
+    assert (still["p_L_bar"] - log("gp_perfect_again", "--maps", "gp")["p_L_bar"]).abs().max() \
+        < 1e-9

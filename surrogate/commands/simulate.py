@@ -9,19 +9,26 @@ from ..data.writer import write_bench_log
 from ..errors import InputError
 from ..outputs import Output
 from ..paths import SHIPPED_BENCH_LOG, shipped
+from ..workbench.mismatch import MapMismatch
 from ..workbench.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
                                   noise_free_sequence, reference_spec)
-from .common import (add_command, effect_library, guard_outputs, non_negative_int, positive_int,
-                     print_json, progress_for, required)
+from .common import (add_command, effect_library, guard_outputs, maps_from_args,
+                     non_negative_int, positive_int, print_json, progress_for, required)
+
+#: largest --mismatch: ten times the CFD's own error is already far beyond any real valve's
+MISMATCH_MAX = 10.0
 
 
 def register(subparsers) -> None:
     parser = add_command(
         subparsers, "simulate", help="write a synthetic bench log with a hidden effect switched "
                                      "on",
-        description="Replay a reference valve (CFDA on grid maps with the shipped bench's fitted "
-                    "values) with one effect switched on over the shipped test sequence, add "
-                    "sensor noise like the shipped bench's, and write the log as CSV. "
+        description="Replay a reference valve (CFDA with the shipped bench's fitted values, on "
+                    "grid maps unless --maps says otherwise) with one effect switched on over "
+                    "the shipped test sequence, add sensor noise like the shipped bench's, and "
+                    "write the log as CSV. With --mismatch the valve differs from its CFD as a "
+                    "real valve does, so that diagnosing the log on the same maps tests what "
+                    "a diagnosis can tell from the maps' own error. "
                     "Built-in effects default to a realistic magnitude: "
                     + ", ".join(f"{name} {values}" for name, values in
                                 REALISTIC_MAGNITUDES.items()))
@@ -38,6 +45,16 @@ def register(subparsers) -> None:
                         help="keep every n-th sample of the sequence (default 1: all)")
     parser.add_argument("--sequence", help="bench log whose test sequence to use "
                                            "(default: the shipped one)")
+    parser.add_argument("--maps", metavar="KIND",
+                        help="maps the valve runs on: a map kind or the folder of a trained "
+                             "surrogate (default: grid maps of the shipped CFD samples); use the "
+                             "kind you will diagnose with")
+    parser.add_argument("--mismatch", type=float, metavar="SCALE",
+                        help="make the valve differ from its CFD as a real one does, SCALE times "
+                             "the CFD's own error (1: per-opening errors of 1.5 %% in Δp and "
+                             "2.5 %% in the flow force, its own curve where the CFD has no "
+                             "opening, a cavitation-driven back-pressure dependence; 0 to "
+                             f"{MISMATCH_MAX:g}; default: none, the valve is its maps)")
     required(parser).add_argument("--out", required=True, help="CSV file to write")
     parser.set_defaults(func=run)
 
@@ -47,6 +64,11 @@ def run(args) -> int:
     if not (math.isfinite(args.noise_scale) and 0 <= args.noise_scale <= 100):
         raise InputError(f"--noise-scale {args.noise_scale:g}: expected 0 to 100 (times the "
                          "shipped bench's sensor noise)")
+    if args.mismatch is not None and not (math.isfinite(args.mismatch)
+                                          and 0 <= args.mismatch <= MISMATCH_MAX):
+        raise InputError(f"--mismatch {args.mismatch:g}: expected 0 to {MISMATCH_MAX:g} (times "
+                         "the CFD's own error)")
+    maps_spec = maps_from_args(args.maps) if args.maps else None
     progress = progress_for(args)
     library = effect_library(args, progress)
     hidden = None if args.hidden in (None, "none") else args.hidden
@@ -66,12 +88,22 @@ def run(args) -> int:
         values[key.strip()] = number
     source = load_bench_log(args.sequence or shipped(SHIPPED_BENCH_LOG))
     sequence = noise_free_sequence(source, every=args.every)
-    case = hidden_effect_case(hidden, values or None, sequence=sequence, seed=args.seed,
-                              reference=reference_spec(), library=library,
-                              noise=SensorNoise().scaled(args.noise_scale))
+    noise = SensorNoise().scaled(args.noise_scale)
+    if args.mismatch is None:  # the valve is its maps: perfect maps for whoever uses the same
+        case = hidden_effect_case(hidden, values or None, sequence=sequence, seed=args.seed,
+                                  reference=reference_spec(maps_spec), library=library,
+                                  noise=noise)
+    else:  # a virtual valve around the maps, wrong by draws of the CFD's error (mismatch.py)
+        progress(f"building a virtual valve {args.mismatch:g}x the CFD's own error away from "
+                 f"its {args.maps or 'grid'} maps (draws of seed {args.seed})")
+        case = hidden_effect_case(hidden, values or None, sequence=sequence, seed=args.seed,
+                                  reference=reference_spec(), library=library, noise=noise,
+                                  mismatch=MapMismatch().scaled(args.mismatch),
+                                  maps_under_test=maps_spec)
     write_bench_log(case.log, args.out)
-    progress(f"wrote {len(case.log)} samples to {args.out} (truth: {case.truth!r})")
+    progress(f"wrote {len(case.log)} samples to {args.out} (truth: {case.truth.name})")
     if args.json:
         print_json({"file": str(args.out), "samples": len(case.log),
-                    "runs": len(case.log.run_ids), "truth": repr(case.truth)})
+                    "runs": len(case.log.run_ids), "truth": case.truth.name,
+                    "maps": args.maps or "grid", "mismatch": args.mismatch})
     return 0
