@@ -35,9 +35,10 @@ EVERY = 8
 CASES = 20
 CONTROLS = 5
 #: share of the randomised cases that must be found cleanly (the issue's target). This version
-#: finds 36 of 40 (`python eval/workbench.py --only-mismatch`); the misses are weak effects,
-#: 0.8–1.1× their realistic size, that the maps' error can mimic. The version before the
-#: map-aware diagnosis invented effects in every log, the control included.
+#: finds 36 of 40 on grid maps and 36 of 40 on GP maps (`python eval/workbench.py
+#: --only-mismatch [--mismatch-maps gp]`); the misses are weak effects, 0.8–1.2× their
+#: realistic size, that the maps' error can mimic. The version before the map-aware diagnosis
+#: invented effects in every log, the control included.
 CLEAN_SHARE = 0.9
 #: at most this many effects added per case: a clean run adds one or two (the hidden effect
 #: and perhaps a map correction); more would only cost time

@@ -24,8 +24,9 @@ Procedure
    discrepancy has explained what it can, plus its prior's penalty, and k the candidate's
    parameters the data inform. Rank the candidates by it, best (most negative) first.
 5. Refit each candidate without one run, one temperature, one pilot pressure at a time
-   (linearised at its optimum, :mod:`.heldout`): its RMS on the runs left out. A bootstrap over
-   runs gives its inclusion frequency: the share of resamples in which it would be added.
+   (linearised at its optimum, :mod:`.heldout`): its RMS on the runs left out, per scheme. A
+   bootstrap over runs gives its inclusion frequency: the share of resamples in which it would
+   be added.
 6. Split each run's residual, before and after each candidate, into its median line and its
    half-width (:mod:`.hysteresis`): a map error moves both ramps alike, friction changes their
    split. A friction term must narrow the half-width, any other term the median line. The
@@ -42,8 +43,10 @@ A candidate is **significant** (a discovery the workflow adds) when all of these
 
 * ΔBIC < −10 against the maps' discrepancy (very strong evidence, Kass & Raftery), counted with
   n_eff so that residuals correlated in time do not pass as thousands of independent samples;
-* it lowers the RMS on held-out runs by more than :data:`HELDOUT_GAIN` of it: an effect that
-  describes the valve helps on runs it was not fitted to, one that patches this log does not;
+* it lowers the RMS on held-out runs by more than :data:`HELDOUT_GAIN` of it, each run left out
+  in turn, and one temperature or one pilot pressure left out (:func:`.heldout.predicts_unseen`):
+  an effect that describes the valve helps on runs it was not fitted to, one that patches this
+  log does not;
 * the residual before is not already noise: RMS_before > 1.1·σ;
 * the gain is more than a sliver of noise: RMS_before − RMS_after > 0.02·σ
   (:data:`GAIN_FRACTION`);
@@ -73,7 +76,8 @@ from ..parallel import map_threads
 from ..units import from_si
 from .discrepancy import Discrepancy, map_discrepancy, map_error_with_cfd
 from .hysteresis import hysteresis_split
-from .heldout import Linearised, RunBlocks, bootstrap_weights, run_groups
+from .heldout import (HEADLINE, Linearised, RunBlocks, bootstrap_weights, predicts_unseen,
+                      run_groups)
 from .logfit import felt, probe_change
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
 from .separate import Separation, search_range, separating_run
@@ -115,8 +119,8 @@ class Candidate:
     params: list = field(default_factory=list)  # fitted Parameters of the candidate
     median_rms: float = float("nan")  # [Pa] of the median line of the runs' residual after
     half_width_rms: float = float("nan")  # [Pa] of the half-width (:mod:`.hysteresis`)
-    heldout_rms: float = float("nan")  # [Pa] on held-out runs (pooled over the schemes)
-    heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme
+    heldout_rms: float = float("nan")  # [Pa] on held-out runs, each left out in turn
+    heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme (and "pooled")
     inclusion: float = 0.0  # share of bootstrap resamples over runs that select it
     own_view: bool = True  # narrows the hysteresis view its physics acts on (gains_in_own_view)
     per_run: bool = False  # a parameter per run: a sensor check, never part of the model
@@ -157,7 +161,7 @@ class Diagnosis:
     candidates: list[Candidate]
     correlations: dict[str, float]
     summary: str
-    heldout_before: float = float("nan")  # [Pa] the model's RMS on held-out runs (pooled)
+    heldout_before: float = float("nan")  # [Pa] the model's RMS on runs left out in turn
     expected_rms: float = float("nan")  # [Pa] what noise and the maps' σ_Δp allow together
     map_limits: list[str] = field(default_factory=list)  # where the maps' error is largest
     sensor_checks: list["SensorCheck"] = field(default_factory=list)  # per-run readings off
@@ -165,6 +169,7 @@ class Diagnosis:
     half_width_before: float = float("nan")  # [Pa] RMS of its half-width
     #: the bench run that would tell the best candidate from its first look-alike, if any
     separation: Separation | None = None
+    heldout_by_scheme: dict = field(default_factory=dict)  # [Pa] per held-out scheme
 
     @property
     def best(self) -> Candidate | None:
@@ -177,6 +182,8 @@ class Diagnosis:
                 "noise_floor_bar": _rounded_bar(self.noise_floor),
                 "effective_samples": round(self.effective_samples, 1),
                 "heldout_rms_bar": _rounded_bar(self.heldout_before),
+                "heldout_rms_by_scheme_bar": {k: _rounded_bar(v) for k, v
+                                              in self.heldout_by_scheme.items() if k != "pooled"},
                 "expected_rms_bar": _rounded_bar(self.expected_rms),
                 "median_line_rms_bar": _rounded_bar(self.median_before),
                 "half_width_rms_bar": _rounded_bar(self.half_width_before),
@@ -262,15 +269,16 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
                                  and problem.rms_before > NOISE_MARGIN * floor
                                  and problem.rms_before - candidate.rms_after
                                  > GAIN_FRACTION * floor
-                                 and candidate.heldout_rms
-                                 < (1.0 - HELDOUT_GAIN) * judge.heldout_before
+                                 and predicts_unseen(candidate.heldout, judge.heldout,
+                                                     HELDOUT_GAIN)
                                  and candidate.own_view)
     _group(results, problem.n_eff)
     judge.inclusion(results)
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, results,
                           residual_correlations(base), "", judge.heldout_before,
                           judge.expected_rms(base), judge.map_limits(),
-                          _sensor_checks(results, judge.schemes), median_before, half_before)
+                          _sensor_checks(results, judge.schemes), median_before, half_before,
+                          heldout_by_scheme=judge.heldout)
     diagnosis.separation = _look_alike_separation(diagnosis, log)
     diagnosis.summary = summarise(diagnosis)
     return diagnosis
@@ -297,7 +305,8 @@ class _Judge:
                               self.discrepancy, self.runs, self.penalty)
         self.ones = np.ones(len(self.base.labels))
         self.objective_before = self.base.objective(self.ones)
-        self.heldout_before = self.base.heldout_rms(self.schemes)["pooled"]
+        self.heldout = self.base.heldout_rms(self.schemes)  # per scheme [Pa]
+        self.heldout_before = self.heldout.get(HEADLINE, float("nan"))
         self.blocks: dict[str, tuple[RunBlocks, int]] = {}
 
     def judge(self, candidates: list[Candidate]) -> None:
@@ -308,7 +317,7 @@ class _Judge:
             self.blocks[candidate.name] = (blocks, candidate.extra)
             if not candidate.per_run:  # a run's own parameter is off for a run it never saw
                 candidate.heldout = blocks.heldout_rms(self.schemes)
-                candidate.heldout_rms = candidate.heldout["pooled"]
+                candidate.heldout_rms = candidate.heldout.get(HEADLINE, float("nan"))
             candidate.delta_bic = _delta_bic(blocks.objective(self.ones), self.objective_before,
                                              self.problem.n_eff, candidate.extra)
 
@@ -319,7 +328,7 @@ class _Judge:
         that fails either test is never added)."""
         weights = bootstrap_weights(len(self.base.labels), RESAMPLES)
         chosen = [c for c in candidates if not c.per_run and c.own_view
-                  and c.heldout_rms < (1.0 - HELDOUT_GAIN) * self.heldout_before]
+                  and predicts_unseen(c.heldout, self.heldout, HELDOUT_GAIN)]
         counts = dict.fromkeys((c.name for c in chosen), 0)
         for w in weights:
             n_eff = self.problem.n_eff * w.sum() / len(w)

@@ -19,8 +19,17 @@ Sums of squares and cross products are kept per run, so every refit costs a smal
 pass over the samples.
 
 Held-out schemes (:func:`run_groups`): leave one run out, leave one temperature out, leave one
-pilot pressure out. A per-run parameter cannot help a run it was not fitted to: its column is zero
-there, and the held-out error shows it.
+pilot pressure out. A parameter the training runs do not determine (one run's own, with that run
+left out) keeps its value in the linear refit, so a per-run parameter would carry what it learnt
+from a run to that run's held-out prediction: per-run candidates are not judged on held-out runs
+at all (:func:`..diagnose.diagnose`), since by construction they cannot predict another run.
+
+The held-out RMS quoted for a model (a workflow step, a candidate) is that of every run predicted
+by a fit to the others (:data:`HEADLINE`). A candidate must also predict a whole condition left
+out better, one temperature or one pilot pressure (:func:`predicts_unseen`), not both: leaving
+out the only runs that reach some part of the valve's range (the largest openings, say, which a
+test sequence reaches at one pilot pressure only) leaves a parameter acting there undetermined,
+so that condition cannot judge an effect that acts there, true or not.
 """
 
 from __future__ import annotations
@@ -33,9 +42,26 @@ from ..data.loaders import BenchLog
 from ..units import from_si
 from .discrepancy import Discrepancy
 
-#: temperature [K] and pilot pressure [Pa] within which two runs count as the same condition
-SAME_TEMPERATURE = 5.0
-SAME_PILOT = 5e5
+#: temperature [°C] and pilot pressure [bar] within which two runs count as the same condition
+SAME_TEMPERATURE_C = 5.0
+SAME_PILOT_BAR = 5.0
+#: the scheme of the held-out RMS quoted for a model: each run predicted by a fit to the others
+HEADLINE = "run"
+#: schemes that leave a whole operating condition out; a candidate must predict one of them better
+CONDITIONS = ("temperature", "pilot pressure")
+
+
+def predicts_unseen(after: dict[str, float], before: dict[str, float], gain: float) -> bool:
+    """Whether a model whose held-out RMS per scheme is ``after`` [Pa] predicts runs it was not
+    fitted to better than one with ``before`` by more than the share ``gain``: every run left
+    out one at a time, and one temperature or one pilot pressure left out (either; a log with
+    neither condition varied is judged on its runs alone)."""
+    def better(scheme: str) -> bool:
+        return (scheme in after and scheme in before
+                and after[scheme] < (1.0 - gain) * before[scheme])
+
+    conditions = [scheme for scheme in CONDITIONS if scheme in before]
+    return better(HEADLINE) and (not conditions or any(map(better, conditions)))
 
 
 def run_groups(log: BenchLog) -> dict[str, dict[str, list[str]]]:
@@ -50,12 +76,13 @@ def run_groups(log: BenchLog) -> dict[str, dict[str, list[str]]]:
                            ).groupby("run", sort=False)[["temperature", "p_Pe"]].median()
     schemes = {"run": {run: [run] for run in runs}}
     for scheme, column, step, unit, shown in (
-            ("temperature", "temperature", SAME_TEMPERATURE, "degC", "°C"),
-            ("pilot pressure", "p_Pe", SAME_PILOT, "bar", "bar")):
-        levels = np.round(per_run[column].to_numpy() / step) * step
+            ("temperature", "temperature", SAME_TEMPERATURE_C, "degC", "°C"),
+            ("pilot pressure", "p_Pe", SAME_PILOT_BAR, "bar", "bar")):
+        # levels rounded in display units, so that the labels read as the set points do
+        levels = np.round(from_si(per_run[column].to_numpy(), unit) / step) * step
         groups: dict[str, list[str]] = {}
         for run, level in zip(per_run.index, levels):
-            groups.setdefault(f"{from_si(level, unit):.0f} {shown}", []).append(run)
+            groups.setdefault(f"{level:.0f} {shown}", []).append(run)
         if len(groups) > 1:
             schemes[scheme] = groups
     return schemes

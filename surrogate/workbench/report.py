@@ -166,6 +166,9 @@ def diagnosis_table(diagnosis: Diagnosis) -> pd.DataFrame:
         rows.append({"effect": c.name, "what": c.title, "category": c.category,
                      "rms after [bar]": from_si(c.rms_after, "bar"),
                      "held out [bar]": from_si(c.heldout_rms, "bar"),
+                     "T left out [bar]": from_si(c.heldout.get("temperature", np.nan), "bar"),
+                     "p_P left out [bar]": from_si(c.heldout.get("pilot pressure", np.nan),
+                                                   "bar"),
                      "median line [bar]": from_si(c.median_rms, "bar"),
                      "half-width [bar]": from_si(c.half_width_rms, "bar"), "ΔBIC": c.delta_bic,
                      "chosen in [%]": 100.0 * c.inclusion,
@@ -219,9 +222,9 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
             f"(ΔBIC &lt; {BIC_THRESHOLD:g} once smooth map-discrepancy terms of the maps' "
             f"calibrated size have explained what they can, counted with the "
             f"{diagnosis.effective_samples:.0f} effectively independent samples), lowers the "
-            f"RMS on held-out runs (now {from_si(diagnosis.heldout_before, 'bar'):.3f} bar; "
-            f"leave one run, one temperature, one pilot pressure out) by more than "
-            f"{100 * HELDOUT_GAIN:g} %, the residual before exceeds {NOISE_MARGIN:g}× the noise "
+            f"RMS on held-out runs (now {from_si(diagnosis.heldout_before, 'bar'):.3f} bar, each "
+            f"run predicted by a refit to the others) by more than {100 * HELDOUT_GAIN:g} %, "
+            "and so the RMS with one temperature or one pilot pressure left out, the residual before exceeds {NOISE_MARGIN:g}× the noise "
             f"floor, it removes more than {GAIN_FRACTION:g}× the noise floor of RMS, and it "
             "narrows the view of the hysteresis its physics acts on (a friction term the "
             "half-width, any other term the median line). "
@@ -242,7 +245,8 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         f"{rule}</p>",
         _table(diagnosis_table(diagnosis), ("effect", "what", "category", "significant",
                                             "parameters", "same as"),
-               {"rms after [bar]": ".3f", "held out [bar]": ".3f", "median line [bar]": ".3f",
+               {"rms after [bar]": ".3f", "held out [bar]": ".3f", "T left out [bar]": ".3f",
+                "p_P left out [bar]": ".3f", "median line [bar]": ".3f",
                 "half-width [bar]": ".3f", "ΔBIC": ".1f",
                 "chosen in [%]": ".0f"}),
         _figure(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
@@ -307,8 +311,9 @@ def staircase_section(workflow) -> str:
         f"{html.escape(workflow.final_diagnosis.summary)}</p>",
         "<p>Steps 1–4 are the paper's models (BMBE, BMBEBF, CFD maps, CFDA); later steps add the "
         "effect the diagnosis found most likely. Every step refits all free parameters on every "
-        "sample. <i>held out</i> is the RMS on runs the step's fit did not see (leave one run, "
-        "one temperature, one pilot pressure out): an added effect must lower it. "
+        "sample. <i>held out</i> is the RMS on runs the step's fit did not see (each run "
+        "predicted by a refit to the others): an added effect must lower it, and the RMS with "
+        "one temperature or one pilot pressure left out too. "
         "<i>category</i> says what the step added: valve physics, a correction of the CFD maps, "
         "or a sensor error.</p>",
         _category_story(workflow),

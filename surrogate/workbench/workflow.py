@@ -12,8 +12,9 @@ Steps
 
 Every step refits all free parameters against every sample of the log (:func:`.fit.fit_to_log`);
 the RMS after each step is the *error staircase*. Next to it stands each step's RMS on runs its
-fit did not see (leave one run, one temperature, one pilot pressure out; :mod:`.heldout`): a step
-the diagnosis adds must lower it, so the loop stops when the held-out RMS stops falling. Each
+fit did not see (each run predicted by a refit to the others; :mod:`.heldout`): a step the
+diagnosis adds must lower it, and the RMS with one temperature or one pilot pressure left out
+too, so the loop stops when the held-out RMS stops falling. Each
 step carries the category of what it added (valve physics, map correction, sensor).
 """
 
@@ -34,7 +35,7 @@ from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
 from .diagnose import Diagnosis, diagnose
-from .heldout import Linearised, RunBlocks, run_groups
+from .heldout import HEADLINE, Linearised, RunBlocks, run_groups
 from .logfit import fit_to_log
 from .residuals import LogReplay, noise_floor, replay_log
 
@@ -124,15 +125,14 @@ def paper_steps(valve: ValveSource, maps_spec: MapsSpec
 
 def heldout_rms(fitted: FitResult | None, played: LogReplay,
                 schemes: dict[str, dict[str, list[str]]]) -> float:
-    """A fitted model's RMS on held-out runs [Pa], pooled over the schemes of
-    :func:`.heldout.run_groups`, by linearised refits (:mod:`.heldout`); without free parameters
-    it is the RMS itself."""
+    """A fitted model's RMS on held-out runs [Pa], each run predicted by a linearised refit to
+    the others (:mod:`.heldout`); without free parameters it is the RMS itself."""
     ok = played.ok
     if fitted is None or fitted.jacobian is None or not fitted.jacobian.size:
         return played.rms()
     jacobian = np.asarray(fitted.jacobian)[ok]
     blocks = RunBlocks(Linearised(played.residual[ok], jacobian), None, played.runs[ok], 0.0)
-    return blocks.heldout_rms(schemes)["pooled"]
+    return blocks.heldout_rms(schemes).get(HEADLINE, float("nan"))
 
 
 class _Staircase:

@@ -1,0 +1,69 @@
+"""Held-out refits (surrogate/workbench/heldout.py): the schemes, the linearised refits against
+explicit ones, and the rule a candidate must pass on runs it was not fitted to."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from surrogate.workbench.heldout import (HEADLINE, Linearised, RunBlocks, predicts_unseen,
+                                         run_groups)
+
+
+def test_the_shipped_logs_schemes(bench_log):
+    schemes = run_groups(bench_log)
+    assert len(schemes["run"]) == 12
+    assert sorted(schemes["temperature"]) == ["20 °C", "40 °C", "60 °C"]
+    assert sorted(schemes["pilot pressure"], key=lambda g: float(g.split()[0])) == [
+        "50 bar", "65 bar", "80 bar", "120 bar"]
+    assert all(len(runs) == 4 for runs in schemes["temperature"].values())
+
+
+def _at_optimum(raw: np.ndarray, jacobian: np.ndarray) -> Linearised:
+    """The residual r + J·θ at the least-squares optimum θ, as a fit hands it over."""
+    theta = np.linalg.lstsq(jacobian, -raw, rcond=None)[0]
+    return Linearised(raw + jacobian @ theta, jacobian)
+
+
+def _linear_problem(seed=0, runs=6, per_run=40, parameters=2):
+    """Run labels, the raw residual (at θ = 0) and the Jacobian of a linear problem whose runs
+    differ by a run-to-run offset."""
+    rng = np.random.default_rng(seed)
+    labels = np.repeat([f"R{i}" for i in range(runs)], per_run)
+    jacobian = rng.standard_normal((len(labels), parameters))
+    raw = (jacobian @ rng.standard_normal(parameters) + 0.3 * rng.standard_normal(len(labels))
+           + np.repeat(0.5 * rng.standard_normal(runs), per_run))
+    return labels, raw, jacobian
+
+
+def test_a_held_out_run_is_predicted_as_an_explicit_refit_without_it_would():
+    """For a linear problem the linearised refit is exact: fit θ without run g by least squares
+    on r + J·θ, predict run g, and the RMS over all runs left out in turn must agree."""
+    labels, raw, jacobian = _linear_problem()
+    schemes = {"run": {run: [run] for run in dict.fromkeys(labels)}}
+    got = RunBlocks(_at_optimum(raw, jacobian), None, labels, 0.0).heldout_rms(schemes)["run"]
+    squares = 0.0
+    for run in dict.fromkeys(labels):
+        train = labels != run
+        theta = np.linalg.lstsq(jacobian[train], -raw[train], rcond=None)[0]
+        held = raw[~train] + jacobian[~train] @ theta
+        squares += float(held @ held)
+    assert got == pytest.approx(np.sqrt(squares / len(labels)), rel=1e-9)
+
+
+@pytest.mark.parametrize("after, expected", [
+    ({"run": 0.90, "temperature": 0.90, "pilot pressure": 0.90}, True),
+    ({"run": 0.90, "temperature": 0.90, "pilot pressure": 1.50}, True),  # one condition is enough
+    ({"run": 0.90, "temperature": 1.20, "pilot pressure": 0.90}, True),
+    ({"run": 0.90, "temperature": 1.00, "pilot pressure": 1.00}, False),  # no condition
+    ({"run": 0.99, "temperature": 0.80, "pilot pressure": 0.80}, False),  # not the runs (3 %)
+    ({"temperature": 0.80, "pilot pressure": 0.80}, False),  # no run scheme: nothing to judge
+])
+def test_a_candidate_must_predict_unseen_runs_and_one_unseen_condition(after, expected):
+    before = {HEADLINE: 1.0, "temperature": 1.0, "pilot pressure": 1.0}
+    assert predicts_unseen(after, before, 0.03) is expected
+
+
+def test_a_log_without_conditions_is_judged_on_its_runs():
+    assert predicts_unseen({"run": 0.9}, {"run": 1.0}, 0.03)
+    assert not predicts_unseen({"run": 0.99}, {"run": 1.0}, 0.03)
