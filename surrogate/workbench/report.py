@@ -95,8 +95,8 @@ def _table(frame: pd.DataFrame, text_columns: tuple[str, ...] = (),
                 text = "yes" if value else "no"
             elif isinstance(value, (float, np.floating)):
                 text = "" if not np.isfinite(value) else format(value, formats.get(column, ".4g"))
-            else:
-                text = html.escape(str(value))
+            else:  # long effect names may wrap after their underscores
+                text = html.escape(str(value)).replace("_", "_<wbr>")
             cells.append(f'<td class="{"text" if column in text_columns else ""}">{text}</td>')
         rows.append("<tr>" + "".join(cells) + "</tr>")
     return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
@@ -157,6 +157,23 @@ def comparison_section(comparison: Comparison, heading: str) -> str:
                      + _figure(figure_png(figure), name,
                                f"{caption(comparison)} {captions.get(name, '')}"))
     return "\n".join(parts)
+
+
+#: the diagnosis table's held-out columns, shown as one in the report (the CSV keeps three)
+_HELDOUT_COLUMNS = ("held out [bar]", "T left out [bar]", "p_P left out [bar]")
+
+
+def _heldout_shown(table: pd.DataFrame) -> pd.DataFrame:
+    """The diagnosis table with its three held-out columns as one, "runs / T / p_P" in bar ("–"
+    where a candidate has none: a per-run one, or a condition the log does not vary), so that
+    the report's table fits a page."""
+    texts = ["\u202f/\u202f".join(  # narrow no-break spaces: one line per cell
+             "–" if not np.isfinite(v) else f"{v:.2f}" for v in row)
+             for row in table[list(_HELDOUT_COLUMNS)].itertuples(index=False)]
+    shown = table.drop(columns=list(_HELDOUT_COLUMNS))
+    shown.insert(table.columns.get_loc(_HELDOUT_COLUMNS[0]), "held out: runs / T / p_P [bar]",
+                 texts)
+    return shown
 
 
 def diagnosis_table(diagnosis: Diagnosis) -> pd.DataFrame:
@@ -224,8 +241,9 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
             f"{diagnosis.effective_samples:.0f} effectively independent samples), lowers the "
             f"RMS on held-out runs (now {from_si(diagnosis.heldout_before, 'bar'):.3f} bar, each "
             f"run predicted by a refit to the others) by more than {100 * HELDOUT_GAIN:g} %, "
-            "and so the RMS with one temperature or one pilot pressure left out, the residual before exceeds {NOISE_MARGIN:g}× the noise "
-            f"floor, it removes more than {GAIN_FRACTION:g}× the noise floor of RMS, and it "
+            "and so the RMS with one temperature or one pilot pressure left out (<i>held out: "
+            "runs / T / p_P</i>), the residual before exceeds "
+            f"{NOISE_MARGIN:g}× the noise floor, it removes more than {GAIN_FRACTION:g}× the noise floor of RMS, and it "
             "narrows the view of the hysteresis its physics acts on (a friction term the "
             "half-width, any other term the median line). "
             "<i>chosen in</i>: the share of bootstrap resamples over runs in which it would be "
@@ -243,10 +261,9 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         f'<p class="summary">{html.escape(diagnosis.summary)}</p>',
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
-        _table(diagnosis_table(diagnosis), ("effect", "what", "category", "significant",
+        _table(_heldout_shown(diagnosis_table(diagnosis)), ("effect", "what", "category", "significant",
                                             "parameters", "same as"),
-               {"rms after [bar]": ".3f", "held out [bar]": ".3f", "T left out [bar]": ".3f",
-                "p_P left out [bar]": ".3f", "median line [bar]": ".3f",
+               {"rms after [bar]": ".3f", "median line [bar]": ".3f",
                 "half-width [bar]": ".3f", "ΔBIC": ".1f",
                 "chosen in [%]": ".0f"}),
         _figure(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
