@@ -306,7 +306,8 @@ def _step_parameters(number: int, step) -> str:
 
 
 def staircase_figure(steps, noise_floor: float) -> Figure:
-    """The error staircase: RMS after each step, with the noise floor."""
+    """The error staircase: RMS after each step, in sample and on held-out runs, with the noise
+    floor."""
     figure = Figure(figsize=(9, 4.2), layout="constrained")
     axes = figure.subplots()
     floor = _plot_staircase(axes, steps, noise_floor, fontsize=8, rotation=30)
@@ -387,12 +388,17 @@ def staircases_figure(workflows: dict) -> Figure:
 
 def _plot_staircase(axes, steps, noise_floor: float, *, fontsize: float, rotation: float,
                     shorten=lambda text: text) -> float:
-    """RMS after each step on ``axes`` (log scale), each labelled, with the noise floor [Pa];
-    the ticks name what each step added (``shorten``-ed). Returns the floor [bar]."""
+    """RMS after each step on ``axes`` (log scale), each labelled, its held-out RMS as a diamond
+    beside it, with the noise floor [Pa]; the ticks name what each step added (``shorten``-ed).
+    Returns the floor [bar]."""
     rms = [from_si(step.rms, "bar") for step in steps]
     positions = np.arange(len(steps))
-    axes.step(positions, rms, where="mid", color="tab:blue")
+    axes.step(positions, rms, where="mid", color="tab:blue", label="in sample")
     axes.plot(positions, rms, "o", color="tab:blue")
+    # the RMS on runs each step's fit did not see: a step that patches the log lifts it
+    heldout = [from_si(step.heldout_rms, "bar") for step in steps]
+    axes.plot(positions + 0.2, heldout, "D", color="tab:orange", markerfacecolor="none",
+              markersize=5, label="held out (each run left out)")
     for x, y in zip(positions, rms):
         axes.annotate(f"{y:.2f}", (x, y), textcoords="offset points", xytext=(0, 6),
                       ha="center", fontsize=fontsize)
