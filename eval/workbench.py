@@ -104,9 +104,10 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
               f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'}")
     record["clean_rate"] = float(np.mean([c["clean"] for c in record["cases"]])) if cases else None
     record["false_additions"] = sum(len(c["invented"]) for c in record["controls"])
-    print(f"under map mismatch ({kind} maps): {record['clean_rate']:.0%} of "
-          f"{len(record['cases'])} cases found cleanly; {record['false_additions']} physics or "
-          f"sensor effects added over {len(record['controls'])} nothing-hidden logs")
+    rate = "" if record["clean_rate"] is None else f"{record['clean_rate']:.0%} of "
+    print(f"under map mismatch ({kind} maps): {rate}{len(record['cases'])} cases found "
+          f"cleanly; {record['false_additions']} physics or sensor effects added over "
+          f"{len(record['controls'])} nothing-hidden logs")
     return record
 
 
