@@ -243,7 +243,8 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
             f"run predicted by a refit to the others) by more than {100 * HELDOUT_GAIN:g} %, "
             "and so the RMS with one temperature or one pilot pressure left out (<i>held out: "
             "runs / T / p_P</i>), the residual before exceeds "
-            f"{NOISE_MARGIN:g}× the noise floor, it removes more than {GAIN_FRACTION:g}× the noise floor of RMS, and it "
+            f"{NOISE_MARGIN:g}× the noise floor, it removes more than {GAIN_FRACTION:g}× the "
+            "noise floor of RMS, and it "
             "narrows the view of the hysteresis its physics acts on (a friction term the "
             "half-width, any other term the median line). "
             "<i>chosen in</i>: the share of bootstrap resamples over runs in which it would be "
@@ -261,8 +262,8 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         f'<p class="summary">{html.escape(diagnosis.summary)}</p>',
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
-        _table(_heldout_shown(diagnosis_table(diagnosis)), ("effect", "what", "category", "significant",
-                                            "parameters", "same as"),
+        _table(_heldout_shown(diagnosis_table(diagnosis)),
+               ("effect", "what", "category", "significant", "parameters", "same as"),
                {"rms after [bar]": ".3f", "median line [bar]": ".3f",
                 "half-width [bar]": ".3f", "ΔBIC": ".1f",
                 "chosen in [%]": ".0f"}),
