@@ -88,18 +88,16 @@ def run(args) -> int:
         values[key.strip()] = number
     source = load_bench_log(args.sequence or shipped(SHIPPED_BENCH_LOG))
     sequence = noise_free_sequence(source, every=args.every)
-    noise = SensorNoise().scaled(args.noise_scale)
-    if args.mismatch is None:  # the valve is its maps: perfect maps for whoever uses the same
-        case = hidden_effect_case(hidden, values or None, sequence=sequence, seed=args.seed,
-                                  reference=reference_spec(maps_spec), library=library,
-                                  noise=noise)
-    else:  # a virtual valve around the maps, wrong by draws of the CFD's error (mismatch.py)
+    mismatch = None if args.mismatch is None else MapMismatch().scaled(args.mismatch)
+    if mismatch is not None:
         progress(f"building a virtual valve {args.mismatch:g}x the CFD's own error away from "
                  f"its {args.maps or 'grid'} maps (draws of seed {args.seed})")
-        case = hidden_effect_case(hidden, values or None, sequence=sequence, seed=args.seed,
-                                  reference=reference_spec(), library=library, noise=noise,
-                                  mismatch=MapMismatch().scaled(args.mismatch),
-                                  maps_under_test=maps_spec)
+    # without a mismatch the valve runs on the maps themselves; with one it is built around them
+    # from the grid reference (mismatch.py: a valve wrapping other maps with the case's draws)
+    case = hidden_effect_case(hidden, values or None, sequence=sequence, seed=args.seed,
+                              reference=reference_spec(None if mismatch else maps_spec),
+                              library=library, noise=SensorNoise().scaled(args.noise_scale),
+                              mismatch=mismatch, maps_under_test=maps_spec)
     write_bench_log(case.log, args.out)
     progress(f"wrote {len(case.log)} samples to {args.out} (truth: {case.truth.name})")
     if args.json:

@@ -275,7 +275,8 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     _group(results, problem.n_eff)
     judge.inclusion(results)
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, results,
-                          residual_correlations(base), "", judge.heldout_before,
+                          residual_correlations(base), "",
+                          judge.heldout.get(HEADLINE, float("nan")),
                           judge.expected_rms(base), judge.map_limits(),
                           _sensor_checks(results, judge.schemes), median_before, half_before,
                           heldout_by_scheme=judge.heldout)
@@ -306,7 +307,6 @@ class _Judge:
         self.ones = np.ones(len(self.base.labels))
         self.objective_before = self.base.objective(self.ones)
         self.heldout = self.base.heldout_rms(self.schemes)  # per scheme [Pa]
-        self.heldout_before = self.heldout.get(HEADLINE, float("nan"))
         self.blocks: dict[str, tuple[RunBlocks, int]] = {}
 
     def judge(self, candidates: list[Candidate]) -> None:

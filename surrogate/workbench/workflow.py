@@ -132,7 +132,8 @@ def heldout_rms(fitted: FitResult | None, played: LogReplay,
         return played.rms()
     jacobian = np.asarray(fitted.jacobian)[ok]
     blocks = RunBlocks(Linearised(played.residual[ok], jacobian), None, played.runs[ok], 0.0)
-    return blocks.heldout_rms(schemes).get(HEADLINE, float("nan"))
+    # the other schemes judge candidates, not steps: refit only for the runs left out
+    return blocks.heldout_rms({HEADLINE: schemes[HEADLINE]})[HEADLINE]
 
 
 class _Staircase:
