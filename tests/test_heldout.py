@@ -1,13 +1,16 @@
 """Held-out refits (surrogate/workbench/heldout.py): the schemes, the linearised refits against
-explicit ones, and the rule a candidate must pass on runs it was not fitted to."""
+explicit ones, the rule a candidate must pass on runs it was not fitted to, and the judgement
+against the maps' discrepancy refitted with the parameters."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from surrogate.workbench.heldout import (HEADLINE, Linearised, RunBlocks, predicts_unseen,
-                                         run_groups)
+from surrogate.parameters import Parameter
+from surrogate.workbench.discrepancy import Discrepancy
+from surrogate.workbench.heldout import (HEADLINE, Linearised, RunBlocks, held_at_bounds,
+                                         predicts_unseen, run_groups)
 
 
 def test_the_shipped_logs_schemes(bench_log):
@@ -67,3 +70,46 @@ def test_a_candidate_must_predict_unseen_runs_and_one_unseen_condition(after, ex
 def test_a_log_without_conditions_is_judged_on_its_runs():
     assert predicts_unseen({"run": 0.9}, {"run": 1.0}, 0.03)
     assert not predicts_unseen({"run": 0.99}, {"run": 1.0}, 0.03)
+
+
+def test_the_discrepancy_is_refitted_with_the_parameters_so_undoing_a_bend_gains_nothing():
+    """A model fitted without the discrepancy bends its parameters to absorb map error. Against
+    the discrepancy refitted together with those parameters, a candidate that only undoes the
+    bend (its column lies in the span of the parameters' and the discrepancy's) gains nothing;
+    a candidate with a shape of its own still does."""
+    rng = np.random.default_rng(4)
+    labels = np.repeat([f"R{i}" for i in range(4)], 50)
+    n = len(labels)
+    x = np.linspace(0.0, 1.0, n)
+    nuisance = np.column_stack([np.sin(np.pi * k * x) for k in (1, 2, 3)])
+    own = (x + 0.3 * rng.standard_normal(n))[:, None]  # a parameter that can bend toward N
+    step = (x > 0.5).astype(float)  # an effect of a shape the discrepancy does not have
+    observed = (nuisance @ np.array([2.0, -1.0, 0.5]) + 0.3 * step
+                + 0.05 * rng.standard_normal(n))
+    discrepancy = Discrepancy(nuisance, ["a", "b", "c"])
+    penalty = 1e-3
+
+    def objective(columns: np.ndarray) -> float:
+        fit = _at_optimum(-observed, columns)  # fitted without the discrepancy
+        return RunBlocks(fit, discrepancy, labels, penalty).objective(np.ones(4))
+
+    before = objective(own)
+    undoing = own + nuisance @ np.array([0.7, 0.2, -0.4])[:, None]
+    # fitted after the parameters instead, the discrepancy would leave the bend, and undoing
+    # it would lower this sum of squares by a fifth
+    assert objective(np.column_stack([own, undoing])) == pytest.approx(before, rel=0.01)
+    shaped = step[:, None] + 0.02 * rng.standard_normal((n, 1))
+    assert objective(np.column_stack([own, shaped])) < 0.5 * before
+
+
+def test_a_parameter_on_its_bound_is_held_there_in_the_linear_refits():
+    """The linear refits know no bounds: a parameter a fit left on its bound (a friction of
+    zero) would turn negative in them, so its column is zeroed; the others are kept."""
+    pinned = Parameter("K_nu", 0.0, min=0.0, max=50.0)
+    free = Parameter("K1", 3.0, min=0.0, max=50.0)
+    top = Parameter("beta", 3.0, min=-0.9, max=3.0)
+    jacobian = np.arange(1.0, 13.0).reshape(4, 3)
+    held = held_at_bounds(jacobian, [pinned, free, top])
+    assert np.all(held[:, [0, 2]] == 0.0)
+    assert np.array_equal(held[:, 1], jacobian[:, 1])
+    assert held_at_bounds(jacobian, [free, free, free]) is jacobian

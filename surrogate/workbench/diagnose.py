@@ -19,9 +19,10 @@ Procedure
    (:mod:`..parallel`).
 4. Judge each candidate against the maps' own error (:mod:`.discrepancy`): its residual and
    the model's, each with smooth map-discrepancy terms of the maps' calibrated size fitted as
-   penalised nuisances (:mod:`.heldout`), give
-   ΔBIC = n_eff·ln(S_after/S_before) + k·ln(n_eff), with S the sum of squares left once the
-   discrepancy has explained what it can, plus its prior's penalty, and k the candidate's
+   penalised nuisances together with the model's (and the candidate's) parameters
+   (:mod:`.heldout`), give ΔBIC = n_eff·ln(S_after/S_before) + k·ln(n_eff), with S the sum of
+   squares left once the discrepancy and the parameters have explained what they can, plus the
+   discrepancy prior's penalty, and k the candidate's
    parameters the data inform. Rank the candidates by it, best (most negative) first.
 5. Refit each candidate without one run, one temperature, one pilot pressure at a time
    (linearised at its optimum, :mod:`.heldout`): its RMS on the runs left out, per scheme. A
@@ -76,8 +77,8 @@ from ..parallel import map_threads
 from ..units import from_si
 from .discrepancy import Discrepancy, map_discrepancy, map_error_with_cfd
 from .hysteresis import hysteresis_split
-from .heldout import (HEADLINE, Linearised, RunBlocks, bootstrap_weights, predicts_unseen,
-                      run_groups)
+from .heldout import (HEADLINE, Linearised, RunBlocks, bootstrap_weights, held_at_bounds,
+                      predicts_unseen, run_groups)
 from .logfit import felt, probe_change
 from .residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
 from .separate import Separation, search_range, separating_run
@@ -300,8 +301,10 @@ class _Judge:
         self.discrepancy: Discrepancy | None = map_discrepancy(model, problem.base, ok)
         self.penalty = floor**2 * ok.sum() / problem.n_eff
         self.schemes = run_groups(problem.log)
-        own = (np.column_stack([c.change for c in own_columns]) if own_columns
-               else np.zeros((int(ok.sum()), 0)))
+        parameters = model.parameters()
+        own = held_at_bounds(
+            np.column_stack([c.change for c in own_columns]) if own_columns
+            else np.zeros((int(ok.sum()), 0)), [parameters[c.key] for c in own_columns])
         self.base = RunBlocks(Linearised(problem.base_evaluation.residual, own),
                               self.discrepancy, self.runs, self.penalty)
         self.ones = np.ones(len(self.base.labels))
@@ -454,7 +457,8 @@ def _candidate(cls: type[Effect], minimizer: Minimizer, extra: int,
     parameters are the candidate's own (the data inform them)."""
     evaluation, rss = minimizer.refined
     minimizer.refinement_errors()
-    linearised = (evaluation.residual, minimizer.refined_jacobian)
+    linearised = (evaluation.residual,
+                  held_at_bounds(minimizer.refined_jacobian, minimizer.parameters))
     change = np.zeros(len(problem.ok))
     change[problem.ok] = evaluation.residual - problem.base_evaluation.residual
     trial = minimizer.model
