@@ -90,18 +90,23 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
     for case in stress_suite(cases, controls, settings):
         workflow, seconds = workflow_of(case.hidden, case.values, case.seed)
         added = [name for step in workflow.steps[1:] for name in step.added]
+        # the share of resamples over runs that chose each added effect or its look-alikes
+        chosen_in = [round(step.diagnosis.group_inclusion(step.diagnosis.best), 2)
+                     for step in workflow.steps[1:] if step.diagnosis is not None]
         if case.hidden is None:
             extra = unexplained_additions(workflow, None)
             record["controls"].append({"seed": case.seed, "added": added, "invented": extra,
-                                       "seconds": round(seconds, 1)})
-            print(f"  nothing hidden, seed {case.seed}: added {', '.join(added) or 'nothing'}")
+                                       "chosen_in": chosen_in, "seconds": round(seconds, 1)})
+            print(f"  nothing hidden, seed {case.seed}: added {', '.join(added) or 'nothing'}"
+                  f" {chosen_in or ''}")
             continue
         ok = cleanly_identified(workflow, case.hidden)
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
-                                "seed": case.seed, "added": added, "clean": ok,
-                                "seconds": round(seconds, 1)})
+                                "seed": case.seed, "added": added, "chosen_in": chosen_in,
+                                "clean": ok, "seconds": round(seconds, 1)})
         print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
-              f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'}")
+              f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'} "
+              f"{chosen_in or ''}")
     record["clean_rate"] = float(np.mean([c["clean"] for c in record["cases"]])) if cases else None
     record["false_additions"] = sum(len(c["invented"]) for c in record["controls"])
     rate = "" if record["clean_rate"] is None else f"{record['clean_rate']:.0%} of "

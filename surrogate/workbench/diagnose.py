@@ -54,7 +54,9 @@ A candidate is **significant** (a discovery the workflow adds) when all of these
 * it has no parameter per run: such a parameter cannot predict another run, so per-run
   candidates are reported as sensor checks (:class:`SensorCheck`), never added;
 * it narrows the view of the hysteresis its physics acts on (:func:`gains_in_own_view`): a
-  friction term the runs' half-width, any other term their median line.
+  friction term the runs' half-width, any other term their median line;
+* it, or the group it cannot be told from, is the one added in the majority of bootstrap
+  resamples over runs (:data:`INCLUSION_MIN`): the inclusion frequency (step 5).
 
 Candidates that change the model's prediction the same way (cosine of their prediction changes
 above 0.98) while the data prefer neither (|ΔBIC between them| < 10) cannot be told apart on
@@ -102,6 +104,12 @@ REFINED = 4  # candidates refined by those steps (with any as good as the last o
 #: added after the hidden friction, patching the maps, lowered it by 2.8 %
 HELDOUT_GAIN = 0.03
 RESAMPLES = 200  # bootstrap resamples over runs for the inclusion frequencies
+#: a discovery (or the group it cannot be told from) must be the one added in at least this
+#: share of those resamples: the majority. A finding that depends on which runs happen to be in
+#: the log is not one. On the stress suite's virtual valves (tests/test_mismatch.py) the hidden
+#: effects were chosen in 62–100 % of resamples, the terms that stood in for map error where
+#: nothing of their kind was hidden in 35–57 %
+INCLUSION_MIN = 0.5
 
 
 @dataclass
@@ -124,6 +132,7 @@ class Candidate:
     heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme (and "pooled")
     inclusion: float = 0.0  # share of bootstrap resamples over runs that select it
     own_view: bool = True  # narrows the hysteresis view its physics acts on (gains_in_own_view)
+    stable: bool = True  # it or its group is chosen in most resamples over runs (INCLUSION_MIN)
     per_run: bool = False  # a parameter per run: a sensor check, never part of the model
     check_threshold: float = 0.0  # a per-run value below this (display units) is not flagged
     change: np.ndarray | None = field(default=None, repr=False)  # prediction change [Pa]
@@ -142,7 +151,7 @@ class Candidate:
             "half_width_rms_bar": _rounded_bar(self.half_width_rms),
             "heldout_rms_by_scheme_bar": {k: _rounded_bar(v)
                                           for k, v in self.heldout.items() if k != "pooled"},
-            "inclusion": round(float(self.inclusion), 3),
+            "inclusion": round(float(self.inclusion), 3), "stable": bool(self.stable),
             "gains_in_own_view": bool(self.own_view),
             "delta_bic": round(float(self.delta_bic), 2), "significant": bool(self.significant),
             "per_run": bool(self.per_run), "group": self.group,
@@ -176,6 +185,11 @@ class Diagnosis:
     def best(self) -> Candidate | None:
         """The best significant candidate, or None."""
         return next((c for c in self.candidates if c.significant), None)
+
+    def group_inclusion(self, candidate: Candidate) -> float:
+        """The share of resamples over runs that add ``candidate`` or a look-alike of its
+        group."""
+        return float(sum(c.inclusion for c in self.candidates if c.name in candidate.group))
 
     def to_json(self) -> dict:
         return {"model": self.model.name,
@@ -265,16 +279,14 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     results.sort(key=lambda c: (c.delta_bic, c.rms_after))
     for candidate in results:
         candidate.own_view = gains_in_own_view(candidate, median_before, half_before)
-        candidate.significant = (not candidate.per_run
-                                 and candidate.delta_bic < BIC_THRESHOLD
-                                 and problem.rms_before > NOISE_MARGIN * floor
-                                 and problem.rms_before - candidate.rms_after
-                                 > GAIN_FRACTION * floor
-                                 and predicts_unseen(candidate.heldout, judge.heldout,
-                                                     HELDOUT_GAIN)
-                                 and candidate.own_view)
+        candidate.significant = passes_tests(candidate, problem.rms_before, floor,
+                                             judge.heldout)
     _group(results, problem.n_eff)
     judge.inclusion(results)
+    shares = {c.name: c.inclusion for c in results}
+    for candidate in results:  # the last test needs every candidate's share
+        candidate.stable = sum(shares[name] for name in candidate.group) >= INCLUSION_MIN
+        candidate.significant = candidate.significant and candidate.stable
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, results,
                           residual_correlations(base), "",
                           judge.heldout.get(HEADLINE, float("nan")),
@@ -284,6 +296,18 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     diagnosis.separation = _look_alike_separation(diagnosis, log)
     diagnosis.summary = summarise(diagnosis)
     return diagnosis
+
+
+def passes_tests(candidate: Candidate, rms_before: float, floor: float,
+                 heldout_before: dict[str, float]) -> bool:
+    """Whether ``candidate`` passes every test of the significance rule (module docstring) but
+    the last, its inclusion frequency; RMS values [Pa], ``heldout_before`` per scheme."""
+    return (not candidate.per_run
+            and candidate.delta_bic < BIC_THRESHOLD
+            and rms_before > NOISE_MARGIN * floor
+            and rms_before - candidate.rms_after > GAIN_FRACTION * floor
+            and predicts_unseen(candidate.heldout, heldout_before, HELDOUT_GAIN)
+            and candidate.own_view)
 
 
 class _Judge:
@@ -661,6 +685,8 @@ def summarise(diagnosis: Diagnosis) -> str:
     expected = from_si(diagnosis.expected_rms, "bar")
     best = diagnosis.best
     if best is None:
+        unstable = next((c for c in diagnosis.candidates if not c.stable and passes_tests(
+            c, diagnosis.rms_before, diagnosis.noise_floor, diagnosis.heldout_by_scheme)), None)
         if diagnosis.rms_before <= NOISE_LEVEL * diagnosis.noise_floor:
             sentence = (f"Nothing beyond noise is left: the residual RMS ({before:.2f} bar) is "
                         f"within {NOISE_LEVEL:.1f}x the noise floor ({floor:.2f} bar) and no "
@@ -676,6 +702,13 @@ def summarise(diagnosis: Diagnosis) -> str:
                         f"{before / floor:.1f}x the noise floor ({floor:.2f} bar): the missing "
                         "physics may lie outside the library, or in the maps; a custom effect "
                         "(--effects-file) can test a hypothesis.")
+        if unstable is not None:
+            share = diagnosis.group_inclusion(unstable)
+            sentence += (f" {unstable.title[0].upper()}{unstable.title[1:]} ({unstable.name}) "
+                         f"would explain part of this log (ΔBIC {unstable.delta_bic:.0f}), but "
+                         f"it is chosen in only {100 * share:.0f} % of resamples "
+                         "over runs: which runs the log holds decides it, so it is not a "
+                         "finding; more runs where it acts would settle it.")
     else:
         params = ", ".join(str(p) for p in best.params if p.vary)
         sentence = (f"The most likely missing effect is {best.title} ({best.name}, "

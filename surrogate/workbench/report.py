@@ -18,7 +18,8 @@ from matplotlib.figure import Figure
 from ..outputs import atomic_file
 from ..units import from_si, label
 from .compare import Comparison
-from .diagnose import BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, NOISE_MARGIN, Diagnosis
+from .diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN, NOISE_MARGIN,
+                       Diagnosis)
 from .figures import DPI, all_figures, caption
 
 _STYLE = """
@@ -248,7 +249,8 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
             "narrows the view of the hysteresis its physics acts on (a friction term the "
             "half-width, any other term the median line). "
             "<i>chosen in</i>: the share of bootstrap resamples over runs in which it would be "
-            "the one added. A parameter per run cannot predict another run: such candidates are "
+            f"the one added; a discovery (with its look-alikes) must be chosen in at least "
+            f"{100 * INCLUSION_MIN:.0f} % of them. A parameter per run cannot predict another run: such candidates are "
             "sensor checks, never part of the model. <i>median line</i> and <i>half-width</i>: "
             "the RMS of the runs' residual split into the mean of the up and down ramps at "
             f"equal flow (now {from_si(diagnosis.median_before, 'bar'):.3f} bar) and half "
