@@ -96,13 +96,16 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
         if case.hidden is None:
             extra = unexplained_additions(workflow, None)
             record["controls"].append({"seed": case.seed, "added": added, "invented": extra,
-                                       "chosen_in": chosen_in, "seconds": round(seconds, 1)})
+                                       "chosen_in": chosen_in,
+                                       "final_summary": workflow.final_diagnosis.summary,
+                                       "seconds": round(seconds, 1)})
             print(f"  nothing hidden, seed {case.seed}: added {', '.join(added) or 'nothing'}"
                   f" {chosen_in or ''}")
             continue
         ok = cleanly_identified(workflow, case.hidden)
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
                                 "seed": case.seed, "added": added, "chosen_in": chosen_in,
+                                "final_summary": workflow.final_diagnosis.summary,
                                 "clean": ok, "seconds": round(seconds, 1)})
         print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
               f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'} "

@@ -8,8 +8,8 @@ from ..errors import InputError
 from ..outputs import Output, atomic_directory
 from ..units import from_si
 from ..workbench.compare import compare
-from ..workbench.diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, NOISE_MARGIN,
-                                  candidate_effects, diagnose)
+from ..workbench.diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
+                                  NOISE_MARGIN, candidate_effects, diagnose)
 from ..workbench.logfit import fit_to_log
 from ..workbench.report import (comparison_section, diagnosis_figure, diagnosis_section,
                                 diagnosis_table, figure_png, write_html)
@@ -29,11 +29,14 @@ def register(subparsers) -> None:
                     "resamples of runs, the residual's median line and hysteresis half-width "
                     "after it, and the fitted parameters with standard errors. A candidate is "
                     f"significant when ΔBIC < {BIC_THRESHOLD:g} once smooth map-discrepancy "
-                    "terms of the maps' calibrated size have explained what they can, it lowers "
+                    "terms of the maps' calibrated size, refitted with the model's "
+                    "parameters, have explained what they can, it lowers "
                     f"the held-out RMS by more than {100 * HELDOUT_GAIN:g} % (and so the RMS "
                     "with one temperature or one pilot pressure left out), the residual is "
                     f"above {NOISE_MARGIN:g}x the noise floor and the gain above "
-                    f"{GAIN_FRACTION:g}x of it. Per-run candidates are sensor checks, "
+                    f"{GAIN_FRACTION:g}x of it, and it (with the candidates it cannot be told "
+                    f"from) is chosen in at least {100 * INCLUSION_MIN:.0f} % of the resamples. "
+                    "Per-run candidates are sensor checks, "
                     "never added. Candidates the data cannot tell apart are reported as a "
                     "group.")
     add_data_options(parser, out_help="write diagnosis.json, candidates.csv, a figure and "
