@@ -3,7 +3,9 @@
 Measures, in one run on this machine:
 
 * one diagnose over the whole library on the full shipped log (12 runs, 11,000 samples),
-  against the cost of one replay of the log measured in the same run;
+  against the cost of one replay of the log measured in the same run, and against the same
+  diagnose with the BLAS left free to start threads of its own beside the replays' threads
+  (:data:`surrogate.parallel.BLAS_THREADS_IN_POOL`);
 * the full workflow (paper's steps, then diagnose → add until nothing significant is left);
 * the identification rate over randomised hidden-effect cases on the shipped test sequence;
 * on a synthetic log with nothing hidden, the true model's RMS over the noise floor with the
@@ -30,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from surrogate import parallel
 from surrogate.data import load_bench_log
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
@@ -51,6 +54,17 @@ def timed(function, *args, **kwargs):
     start = time.perf_counter()
     value = function(*args, **kwargs)
     return value, time.perf_counter() - start
+
+
+def diagnose_with_free_blas(model, log, base) -> float:
+    """Seconds of one diagnose with the BLAS's threads left as they are (the baseline of the
+    pools' one BLAS thread each)."""
+    kept = parallel.BLAS_THREADS_IN_POOL
+    parallel.BLAS_THREADS_IN_POOL = None
+    try:
+        return timed(diagnose, model, log, base=base)[1]
+    finally:
+        parallel.BLAS_THREADS_IN_POOL = kept
 
 
 def replay_noise_control(log, seed: int = 1) -> dict:
@@ -154,6 +168,9 @@ def main() -> None:
     print(f"diagnose of CFDA on {args.maps} maps over {len(diagnosis.candidates)} candidates on "
           f"{len(log)} samples (held-out checks included): {diagnose_seconds:.1f} s = "
           f"{diagnose_seconds / replay_seconds:.0f} replays ({replay_seconds:.2f} s each)")
+    blas_free_seconds = diagnose_with_free_blas(fitted, log, base)
+    print(f"the same diagnose with BLAS threads beside the replays' threads: "
+          f"{blas_free_seconds:.1f} s = {blas_free_seconds / diagnose_seconds:.2f}x")
 
     workflow, workflow_seconds = timed(run_workflow, log, maps_spec=maps(args.maps),
                                        progress=print)
@@ -185,6 +202,8 @@ def main() -> None:
         "samples": len(log), "maps": args.maps, "replay_seconds": round(replay_seconds, 3),
         "diagnose_seconds": round(diagnose_seconds, 1),
         "diagnose_in_replays": round(diagnose_seconds / replay_seconds, 1),
+        "diagnose_free_blas_seconds": round(blas_free_seconds, 1),
+        "free_blas_over_one_thread": round(blas_free_seconds / diagnose_seconds, 2),
         "workflow_seconds": round(workflow_seconds, 1),
         "workflow": workflow.to_json(),
         "control_true_model": control,

@@ -5,17 +5,27 @@ samples, where the interpreter lock is released, so threads overlap most of the 
 cost and fragility of processes (no pickling of maps, no forking a process that holds PyTorch).
 Measured once by hand on a 2-core machine: two replays on two threads took 0.68 of the time they
 take one after the other; eval/workbench.py reports the diagnosis' speed that results.
+
+While a pool runs, the BLAS that NumPy calls keeps to one thread. The replays already fill the
+cores; OpenBLAS's own threads on top of them (it starts one per core for each matrix product of a
+GP map's kernel) only contend with them, and a GP workflow took 1.5 times as long with them
+(``python eval/workbench.py`` measures the diagnosis both ways).
 """
 
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import TypeVar
 
 Item = TypeVar("Item")
 Result = TypeVar("Result")
+
+#: BLAS threads while a pool runs (None: leave the BLAS as it is, the baseline the eval times)
+BLAS_THREADS_IN_POOL: int | None = 1
 
 
 def default_workers() -> int:
@@ -41,5 +51,32 @@ def map_threads(function: Callable[[Item], Result], items: Iterable[Item], *,
     if workers <= 1 or len(items) <= 1:
         yield from map(function, items)
         return
-    with ThreadPoolExecutor(max_workers=min(workers, len(items))) as pool:
+    with _blas_limited(), ThreadPoolExecutor(max_workers=min(workers, len(items))) as pool:
         yield from pool.map(function, items)
+
+
+_limit_lock = threading.Lock()
+_pools_running = 0
+_blas_limit = None
+
+
+@contextmanager
+def _blas_limited():
+    """BLAS kept to :data:`BLAS_THREADS_IN_POOL` threads from the first pool that starts to the
+    last that ends (pools nest: a refit on a worker thread differentiates on a pool of its own),
+    then restored to what it was."""
+    global _pools_running, _blas_limit
+    with _limit_lock:
+        if _pools_running == 0 and BLAS_THREADS_IN_POOL is not None:
+            from threadpoolctl import threadpool_limits  # scikit-learn's own dependency
+
+            _blas_limit = threadpool_limits(BLAS_THREADS_IN_POOL, user_api="blas")
+        _pools_running += 1
+    try:
+        yield
+    finally:
+        with _limit_lock:
+            _pools_running -= 1
+            if _pools_running == 0 and _blas_limit is not None:
+                _blas_limit.restore_original_limits()
+                _blas_limit = None

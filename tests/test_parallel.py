@@ -33,3 +33,33 @@ def test_an_items_exception_reaches_the_caller():
 
     with pytest.raises(ValueError, match="three"):
         list(map_threads(fail_on_three, range(6), workers=2))
+
+
+def _blas_threads() -> set[int]:
+    from threadpoolctl import threadpool_info
+
+    return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+
+
+def test_the_blas_keeps_to_one_thread_while_pools_run_and_is_restored_after():
+    """The replays fill the cores; BLAS threads beside them only contend (the module docstring).
+    Pools nest (a refit on a worker differentiates on a pool of its own): the limit holds until
+    the outermost ends, then the BLAS has the threads it had."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(2, user_api="blas"):  # a BLAS free to use two threads
+        before = _blas_threads()
+        if not before:
+            pytest.skip("NumPy's BLAS is not one threadpoolctl can see")
+
+        def inner(item):
+            return item, _blas_threads()
+
+        def outer(item):
+            nested = list(map_threads(inner, range(2), workers=2))
+            return _blas_threads(), nested
+
+        seen = list(map_threads(outer, range(3), workers=2))
+        assert all(during == {1} and all(threads == {1} for _, threads in nested)
+                   for during, nested in seen), seen
+        assert _blas_threads() == before == {2}
