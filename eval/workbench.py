@@ -38,7 +38,7 @@ from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import replay
 from surrogate.units import from_si
-from surrogate.workbench.diagnose import diagnose
+from surrogate.workbench.diagnose import Diagnosis, diagnose
 from surrogate.workbench.logfit import fit_to_log
 from surrogate.workbench.residuals import (measured_dp, noise_floor, replay_log,
                                            state_smoothing_samples)
@@ -56,15 +56,21 @@ def timed(function, *args, **kwargs):
     return value, time.perf_counter() - start
 
 
-def diagnose_with_free_blas(model, log, base) -> float:
-    """Seconds of one diagnose with the BLAS's threads left as they are (the baseline of the
-    pools' one BLAS thread each)."""
+def diagnose_with_free_blas(model, log, base) -> tuple[Diagnosis, float]:
+    """One diagnose with the BLAS's threads left as they are (the baseline of the pools' one
+    BLAS thread each), and its seconds."""
     kept = parallel.BLAS_THREADS_IN_POOL
     parallel.BLAS_THREADS_IN_POOL = None
     try:
-        return timed(diagnose, model, log, base=base)[1]
+        return timed(diagnose, model, log, base=base)
     finally:
         parallel.BLAS_THREADS_IN_POOL = kept
+
+
+def same_candidates(one: Diagnosis, other: Diagnosis) -> bool:
+    """Whether two diagnoses rank the same candidates with bit-identical ΔBIC and RMS."""
+    return [(c.name, c.delta_bic, c.rms_after) for c in one.candidates] == [
+        (c.name, c.delta_bic, c.rms_after) for c in other.candidates]
 
 
 def replay_noise_control(log, seed: int = 1) -> dict:
@@ -168,9 +174,11 @@ def main() -> None:
     print(f"diagnose of CFDA on {args.maps} maps over {len(diagnosis.candidates)} candidates on "
           f"{len(log)} samples (held-out checks included): {diagnose_seconds:.1f} s = "
           f"{diagnose_seconds / replay_seconds:.0f} replays ({replay_seconds:.2f} s each)")
-    blas_free_seconds = diagnose_with_free_blas(fitted, log, base)
+    blas_free, blas_free_seconds = diagnose_with_free_blas(fitted, log, base)
+    same = same_candidates(diagnosis, blas_free)
     print(f"the same diagnose with BLAS threads beside the replays' threads: "
-          f"{blas_free_seconds:.1f} s = {blas_free_seconds / diagnose_seconds:.2f}x")
+          f"{blas_free_seconds:.1f} s = {blas_free_seconds / diagnose_seconds:.2f}x, "
+          f"{'the same' if same else 'DIFFERENT'} results bit for bit")
 
     workflow, workflow_seconds = timed(run_workflow, log, maps_spec=maps(args.maps),
                                        progress=print)
@@ -204,6 +212,7 @@ def main() -> None:
         "diagnose_in_replays": round(diagnose_seconds / replay_seconds, 1),
         "diagnose_free_blas_seconds": round(blas_free_seconds, 1),
         "free_blas_over_one_thread": round(blas_free_seconds / diagnose_seconds, 2),
+        "free_blas_same_results": same,
         "workflow_seconds": round(workflow_seconds, 1),
         "workflow": workflow.to_json(),
         "control_true_model": control,
