@@ -8,7 +8,7 @@ take one after the other; eval/workbench.py reports the diagnosis' speed that re
 
 While a pool runs, the BLAS that NumPy calls keeps to one thread. The replays already fill the
 cores; OpenBLAS's own threads on top of them (it starts one per core for each matrix product of a
-GP map's kernel) only contend with them, and a GP workflow took 1.5 times as long with them
+GP map's kernel) only contend with them: a diagnose on GP maps took 1.79 times as long with them
 (``python eval/workbench.py`` measures the diagnosis both ways).
 """
 
