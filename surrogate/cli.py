@@ -8,7 +8,9 @@ Whatever goes wrong, the user sees one message, never a traceback:
 
 * exit 2, bad input or a misused command: the message names the file, line, column, key or option
   and what was expected;
-* exit 1, an internal error (a bug): one line says so and names the file holding the details.
+* exit 1, an internal error (a bug): one line says so and names the file holding the details;
+* exit 130 on Ctrl-C (SIGINT) and 143 on SIGTERM, after removing whatever was half-written
+  (:mod:`surrogate.interrupts`).
 
 With ``--json`` the error is also a JSON document on stdout, like the results.
 """
@@ -28,6 +30,7 @@ from .commands import COMMANDS
 from .commands.common import EXIT_CODES, CommandParser, HelpFormatter, UsageError
 from .data.errors import DataFileError
 from .errors import InputError
+from .interrupts import exit_code, handling_interrupts
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -61,6 +64,11 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as done:  # --help and --version print and stop here
         return int(done.code or 0)
     as_json = bool(getattr(args, "json", False))
+    with handling_interrupts():
+        return _run(args, argv, as_json)
+
+
+def _run(args, argv: list[str], as_json: bool) -> int:
     try:
         return args.func(args) or EXIT_OK
     except InputError as error:
@@ -71,9 +79,11 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         sys.stderr.close()
         return EXIT_OK
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return EXIT_FAILURE
+    except KeyboardInterrupt as interruption:  # Ctrl-C or SIGTERM: staging already removed
+        code = exit_code(interruption)
+        print(f"interrupted ({'SIGTERM' if code == 143 else 'Ctrl-C'}): stopped; no output "
+              "was left half-written", file=sys.stderr)
+        return code
     except Exception as error:  # a bug: say so in one line, keep the traceback in a file
         details = _write_details(argv)
         return _report(error, EXIT_FAILURE, as_json, kind="internal error", details=details)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import InputError
+from .interrupts import deferred
 
 
 @dataclass(frozen=True)
@@ -76,56 +77,72 @@ def _check_writable(option: str, target: Path, kind: str) -> None:
             raise InputError(f"{option} {target}: this is a file; give a folder to write into")
         if kind == "file" and target.is_dir():
             raise InputError(f"{option} {target}: this is a folder; give the path of a file")
-    # the nearest existing ancestor must be a folder we may create files in
-    ancestor = target.parent if kind == "file" or not target.exists() else target
+    # The output is staged next to it (atomic_file, atomic_directory), so the nearest existing
+    # ancestor of its parent must be a folder we may create files in; an existing output folder
+    # must take the finished files too.
+    ancestor = target.parent
     while not ancestor.exists():
         ancestor = ancestor.parent
     if not ancestor.is_dir():
         raise InputError(f"{option} {target}: {ancestor} is a file, not a folder, so nothing "
                          "can be written under it")
-    try:  # a real probe: permissions, read-only file systems and root all answer truthfully
-        with tempfile.TemporaryFile(dir=ancestor, prefix=".cbv-write-probe-"):
-            pass
-    except OSError as error:
-        raise InputError(f"{option} {target}: cannot write in {ancestor} "
-                         f"({error.strerror or error})") from None
+    places = [ancestor] + ([target] if kind == "folder" and target.is_dir() else [])
+    for place in places:
+        try:  # a real probe: permissions, read-only file systems and root all answer truthfully
+            with tempfile.TemporaryFile(dir=place, prefix=".cbv-write-probe-"):
+                pass
+        except OSError as error:
+            raise InputError(f"{option} {target}: cannot write in {place} "
+                             f"({error.strerror or error})") from None
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def _permissions() -> int:
     """The mode a new file gets here: 0666 less the process's umask (0644 with the usual 022)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
+    return 0o666 & ~_umask()
 
 
 @contextlib.contextmanager
 def atomic_directory(target: str | Path):
     """Yield a fresh temporary directory; on success move its files into ``target``.
 
-    If the body raises, ``target`` is left exactly as it was: no half-written results. Files of
-    the same name already in ``target`` are replaced; others are kept.
+    If the body raises (an interruption included), ``target`` is left exactly as it was and the
+    temporary directory is removed: no half-written results, nothing hidden left behind. Files of
+    the same name already in ``target`` are replaced; others are kept. Moving the files in and
+    removing the temporary directory are not cut short by Ctrl-C or SIGTERM
+    (:func:`surrogate.interrupts.deferred`): a signal then stops the command once they are done.
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{target.name}-", dir=target.parent))
     try:
         yield staging
-        target.mkdir(exist_ok=True)
-        for path in staging.iterdir():
-            destination = target / path.name
-            if destination.is_dir() and not destination.is_symlink():
-                shutil.rmtree(destination)
-            path.replace(destination)
+        with deferred():
+            if not target.exists():  # one rename: the folder appears whole
+                os.chmod(staging, 0o777 & ~_umask())
+                staging.replace(target)
+                return
+            for path in staging.iterdir():
+                destination = target / path.name
+                if destination.is_dir() and not destination.is_symlink():
+                    shutil.rmtree(destination)
+                path.replace(destination)
     finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        with deferred():
+            shutil.rmtree(staging, ignore_errors=True)
 
 
 @contextlib.contextmanager
 def atomic_file(target: str | Path):
     """Yield a text stream; on success its content replaces ``target`` in one rename.
 
-    If the body raises, the temporary file is removed and ``target`` is left as it was. The file
-    gets the usual permissions (mkstemp's own are owner-only).
+    If the body raises (an interruption included), the temporary file is removed and ``target``
+    is left as it was. The file gets the usual permissions (mkstemp's own are owner-only).
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -133,8 +150,10 @@ def atomic_file(target: str | Path):
     try:
         with os.fdopen(handle, "w", encoding="utf-8", newline="") as stream:
             yield stream
-        os.chmod(temporary, _permissions())
-        os.replace(temporary, target)
+        with deferred():
+            os.chmod(temporary, _permissions())
+            os.replace(temporary, target)
     except BaseException:
-        Path(temporary).unlink(missing_ok=True)
+        with deferred():
+            Path(temporary).unlink(missing_ok=True)
         raise

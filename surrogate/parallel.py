@@ -51,8 +51,14 @@ def map_threads(function: Callable[[Item], Result], items: Iterable[Item], *,
     if workers <= 1 or len(items) <= 1:
         yield from map(function, items)
         return
-    with _blas_limited(), ThreadPoolExecutor(max_workers=min(workers, len(items))) as pool:
-        yield from pool.map(function, items)
+    with _blas_limited():
+        pool = ThreadPoolExecutor(max_workers=min(workers, len(items)))
+        try:
+            yield from pool.map(function, items)
+        except BaseException:  # an item failed, or Ctrl-C/SIGTERM: start none of the rest
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
 
 
 _limit_lock = threading.Lock()
