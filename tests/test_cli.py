@@ -64,13 +64,14 @@ def test_written_files_get_the_usual_permissions(small_log, tmp_path, capsys):
         os.umask(previous)
 
 
-def test_per_run_parameters_of_runs_the_log_lacks_are_warned_about(small_log, tmp_path,
-                                                                   capsys):
+def test_per_run_parameters_of_runs_the_log_lacks_are_refused(small_log, tmp_path, capsys):
+    """The model was fitted to another log: its other parameters were fitted beside terms that
+    act on no sample here, so it is refused (exit 2) rather than replayed with a warning."""
     model = tmp_path / "model.toml"
     model.write_text('[model]\nmaps = { kind = "grid" }\n[[effects]]\nname = "pilot_zero_drift"\n'
                      '[effects.parameters]\n'
                      'delta_R01 = { value = 0.1, unit = "bar" }\n'
                      'delta_R99 = { value = 0.2, unit = "bar" }\n')
-    assert main(["compare", "--model", str(model), "--data", str(small_log), "--quiet"]) == 0
+    assert main(["compare", "--model", str(model), "--data", str(small_log), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert "warning" in err and "R99" in err and "R01" not in err
+    assert "run(s) R99," in err and "lacks (its runs: R01)" in err

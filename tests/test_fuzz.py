@@ -248,7 +248,7 @@ CASES = [
     with_log(LOG.replace("p_B_bar", "p_L_bar", 1), words=("each column name once",),
              id="log: duplicated column"),
     with_log(CFD, words=("CFD-sample file",), id="log: CFD samples where a log belongs"),
-    with_log("\n".join(LOG.splitlines()[:4]) + "\n", words=("noise floor", "3"),
+    with_log("\n".join(LOG.splitlines()[:4]) + "\n", words=("log.csv: the noise floor", "3"),
              id="log: too short for a noise floor"),
     Case("log: too few samples to fit", (*FIT, "--add", "friction_viscous"),
          ("needs more than 4 samples",), {"log.csv": "\n".join(LOG.splitlines()[:3]) + "\n"}),
@@ -343,6 +343,11 @@ CASES = [
                words=("unknown effect 'friction_magic'",), id="model: unknown effect"),
     with_model(replace(MODEL, '[model]\nname = "cfda"', "[model]\nname = 5"),
                words=("name must be a string",), id="model: name as a number"),
+    with_model(MODEL + '\n[[effects]]\nname = "pilot_zero_drift"\n[effects.parameters]\n'
+               'delta_R01 = { value = 0.1, unit = "bar", min = -2.0, max = 2.0, vary = true }\n'
+               'delta_R99 = { value = 0.2, unit = "bar", min = -2.0, max = 2.0, vary = true }\n',
+               words=("pilot_zero_drift", "R99", "log.csv lacks"),
+               id="model: per-run parameters of a run the log lacks"),
     with_model(replace(MODEL_V1, 'valve = "shipped"', 'valve = "nowhere.toml"'),
                words=("nowhere.toml",), id="model: valve file missing (format 1)"),
     with_model(MODEL.split("[valve]")[0] + '[valve]\nsource = "nowhere.toml"\n\n[maps]'

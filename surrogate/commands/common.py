@@ -176,20 +176,24 @@ def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, Ef
     log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
     progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")
     if model is not None:
-        _warn_about_foreign_runs(model, log, args.model)
+        _refuse_foreign_runs(model, log, args.model)
     return model, log, library
 
 
-def _warn_about_foreign_runs(model: ValveModel, log, source: str) -> None:
-    """Per-run parameters of runs the log lacks act on no sample: say so (they are kept)."""
+def _refuse_foreign_runs(model: ValveModel, log, source: str) -> None:
+    """Per-run parameters of runs the log lacks would act on no sample: the model was fitted to
+    another log, and its other parameters were fitted alongside terms that are missing here."""
     runs = set(log.run_ids)
     for effect in model.effects:
         foreign = sorted({p.scope for p in effect.params.values()
                           if p.scope is not None and p.scope not in runs})
         if foreign:
-            print(f"warning: {source}: {effect.name} has parameters for run(s) "
-                  f"{', '.join(foreign)}, which {log.source} lacks; they act on no sample",
-                  file=sys.stderr)
+            shown = ", ".join(foreign[:8]) + (f" and {len(foreign) - 8} more"
+                                             if len(foreign) > 8 else "")
+            raise InputError(f"{source}: effect {effect.name} has parameters for run(s) {shown}, "
+                             f"which {log.source} lacks (its runs: "
+                             f"{', '.join(log.run_ids[:8])}{' ...' if len(runs) > 8 else ''}); "
+                             "use the log the model was fitted to, or fit it on this one")
 
 
 def print_json(document: dict) -> None:

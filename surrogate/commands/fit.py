@@ -41,7 +41,7 @@ def run(args) -> int:
     progress(f"fitting {name}")
     result = fit_to_log(model, log)
     played = replay_log(result.model, log).require_solved(result.model.name)
-    floor = noise_floor(played.residual, played.runs)
+    floor = noise_floor(played.residual, played.runs, source=played.log.source)
     save_model(result.model, args.out, note=f"fitted to {log.source}: rms "
                                             f"{from_si(played.rms(), 'bar'):.3f} bar")
     progress(f"wrote {args.out}")

@@ -229,7 +229,7 @@ def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None
         model=model.name,
         played=played,
         rms=played.rms(),
-        noise_floor=noise_floor(played.residual, played.runs),
+        noise_floor=noise_floor(played.residual, played.runs, source=played.log.source),
         runs=_run_table(samples, solved, log.run_ids),
         pivot=_pivot(solved),
         regions=_regions(solved, samples["q"]),

@@ -256,7 +256,7 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     say = progress or (lambda message: None)
     base = base or replay_log(model, log)
     problem = _DiagnosisProblem(log, base)
-    floor = noise_floor(base.residual, base.runs)
+    floor = noise_floor(base.residual, base.runs, source=base.log.source)
     own = free_parameters(model)
     say(f"linearising the replay in the model's {len(own)} free parameter(s)")
     own_columns = [column for column in map_threads(
@@ -516,7 +516,7 @@ class _DiagnosisProblem(FitProblem):
         self.rss_before = float(np.sum(base.residual[self.ok] ** 2))
         self.rms_before = float(np.sqrt(self.rss_before / self.ok.sum()))
         self.n_eff = effective_samples(base.residual, base.runs)
-        self.noise_floor = noise_floor(base.residual, base.runs)
+        self.noise_floor = noise_floor(base.residual, base.runs, source=base.log.source)
         self.base_evaluation = Evaluation(base.residual[self.ok], base)
 
     def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:

@@ -134,7 +134,8 @@ def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = No
 NOISE_SAMPLES = 5
 
 
-def noise_floor(residual: np.ndarray, runs: np.ndarray, *, required: bool = True) -> float:
+def noise_floor(residual: np.ndarray, runs: np.ndarray, *, required: bool = True,
+                source: str | None = None) -> float:
     """The residual's white-noise level [same units], from its sample-to-sample scatter.
 
     Within each run the residual's second differences r[k+1] − 2·r[k] + r[k−1] cancel anything
@@ -163,8 +164,9 @@ def noise_floor(residual: np.ndarray, runs: np.ndarray, *, required: bool = True
             return float("nan")
         longest = max((int(np.sum((runs == run) & np.isfinite(residual)))
                        for run in dict.fromkeys(runs)), default=0)
-        raise InputError(f"the noise floor needs a run with at least {NOISE_SAMPLES} solved "
-                         f"samples; the longest run here has {longest}")
+        where = f"{source}: " if source else ""
+        raise InputError(f"{where}the noise floor needs a run with at least {NOISE_SAMPLES} "
+                         f"solved samples; the longest run here has {longest}")
     return float(np.sqrt(np.average(variances, weights=weights)))
 
 

@@ -227,7 +227,8 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
         staircase.record(start, [], "", f"the starting model {start.name!r}")
     diagnosis = staircase.add_diagnosed(library, candidates, max_additions)
     steps = staircase.steps
-    floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs)
+    floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs,
+                        source=steps[-1].played.log.source)
     return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began,
                     maps_spec.flow.kind if start is None else "")
 
