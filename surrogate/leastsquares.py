@@ -57,6 +57,9 @@ class FitProblem:
     (:meth:`effective_samples`).
     """
 
+    #: where the residuals come from (a bench log's file), named by the messages about them
+    source: str = ""
+
     def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
         """The residuals of ``model``. ``own`` is False for the Jacobian's columns, which run on
         threads: a problem that keeps a warm start moves it on its own steps only, so that the
@@ -246,7 +249,8 @@ class Minimizer:
         if len(evaluation.residual) <= len(self.parameters):
             # as many unknowns as equations: the fit would pass through every point and report
             # standard errors computed from nothing
-            raise InputError(f"fitting {len(self.parameters)} free parameter(s) of "
+            where = f"{self.problem.source}: " if self.problem.source else ""
+            raise InputError(f"{where}fitting {len(self.parameters)} free parameter(s) of "
                              f"{self.model.name!r} needs more than {len(self.parameters)} "
                              f"samples; there are {len(evaluation.residual)}")
         return evaluation

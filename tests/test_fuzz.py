@@ -251,7 +251,8 @@ CASES = [
     with_log("\n".join(LOG.splitlines()[:4]) + "\n", words=("log.csv: the noise floor", "3"),
              id="log: too short for a noise floor"),
     Case("log: too few samples to fit", (*FIT, "--add", "friction_viscous"),
-         ("needs more than 4 samples",), {"log.csv": "\n".join(LOG.splitlines()[:3]) + "\n"}),
+         ("log.csv: fitting", "needs more than 4 samples"),
+         {"log.csv": "\n".join(LOG.splitlines()[:3]) + "\n"}),
     Case("log: missing file", ("compare", "--model", "cfda", "--data", "nowhere.csv"),
          ("nowhere.csv",)),
 

@@ -25,6 +25,7 @@ class LogProblem(FitProblem):
 
     def __init__(self, log: BenchLog, start: LogReplay | None = None):
         self.log = log
+        self.source = log.source
         self.last = start
 
     def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
