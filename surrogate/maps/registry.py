@@ -12,7 +12,6 @@ the CFD force map with the orifice equation.
 
 from __future__ import annotations
 
-import hashlib
 import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -22,14 +21,10 @@ from ..errors import InputError
 from ..paths import SHIPPED_CFD_SAMPLES, shipped
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
+from .package import file_hash  # SHA-256 of a file: which data a map was built from
 
 TRAINED = Path(__file__).resolve().parents[1] / "trained"
 SHIPPED = "shipped"  # an option value that names the file or folder the package ships
-
-
-def file_hash(path: str | Path) -> str:
-    """SHA-256 of a file's bytes: which data a map was built or trained from."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 # --- options ---------------------------------------------------------------------------------------
@@ -279,14 +274,16 @@ _CACHE_SIZE = 16
 
 
 def _fingerprint(source: MapSource, base: Path) -> tuple:
-    """Modification times and sizes of the files a source names, so an edited file rebuilds."""
+    """Modification times and sizes of the files a source names (of every file in a folder it
+    names: a surrogate's weights), so an edited file rebuilds, and is checked again."""
     stamps = []
     for _, value in source.options:
         if isinstance(value, str) and value != SHIPPED:
             path = _resolve(value, base)
-            if path.exists():
-                stat = path.stat()
-                stamps.append((str(path), stat.st_mtime_ns, stat.st_size))
+            for file in (sorted(path.iterdir()) if path.is_dir() else [path]):
+                if file.exists():
+                    stat = file.stat()
+                    stamps.append((str(file), stat.st_mtime_ns, stat.st_size))
     return tuple(stamps)
 
 
@@ -355,11 +352,12 @@ def _learned_folder(kind: str, folder: str, base: Path) -> Path:
 def _learned_builder(kind: str):
     def build(options, valve, base):
         from .learned import MANIFEST, load_learned_maps
+        from .package import sealed_hashes
 
         path = _learned_folder(kind, options.get("folder", SHIPPED), base)
         expected = options.get("surrogate_sha256")
         if expected is not None and (path / MANIFEST).is_file() and \
-                file_hash(path / MANIFEST) != expected:
+                expected not in sealed_hashes(path / MANIFEST):
             raise InputError(f"{path}: this {kind} surrogate is not the one the model was built "
                              f"on (its {MANIFEST} has SHA-256 {file_hash(path / MANIFEST)[:12]}…, "
                              f"the model records {expected[:12]}…); refit the model on it, or "
