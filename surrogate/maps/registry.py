@@ -309,6 +309,10 @@ def _build_orifice(options, valve, base):
 
 
 def _grid_data(cfd, **options) -> dict:
+    if cfd is not None:  # a file the user names: checked here, where its errors may quote it
+        from ..data.loaders import load_cfd_samples
+
+        load_cfd_samples(cfd)
     reference = SHIPPED if cfd is None else str(Path(cfd).resolve())
     return {"cfd": reference,
             "cfd_sha256": file_hash(resolve_file(reference, Path("."), SHIPPED_CFD_SAMPLES))}
@@ -324,7 +328,9 @@ def _build_grid(options, valve, base):
         raise InputError(f"{path}: these CFD samples are not the ones the model was built from "
                          f"(SHA-256 {file_hash(path)[:12]}…, the model records {expected[:12]}…); "
                          "refit the model on them, or point cfd = ... at the original file")
-    return grid_maps_on(load_cfd_samples(path), valve)
+    # named by a model file (or checked already where the user named it, :func:`_grid_data`):
+    # its errors do not quote it, as it may be any file at all
+    return grid_maps_on(load_cfd_samples(path, named_by="the maps' cfd option"), valve)
 
 
 def _grid_accuracy(options, valve, base):
