@@ -30,34 +30,46 @@ class Output:
     kind: str = "file"
 
 
-def check_outputs(outputs: Iterable[Output], inputs: Iterable[str | Path]) -> None:
+def check_outputs(outputs: Iterable[Output],
+                  inputs: Iterable[str | Path | tuple[str | Path, str]]) -> None:
     """Refuse, before any work, outputs that would overwrite an input or cannot be written.
 
     Parameters
     ----------
     outputs : iterable of Output
         What the command will write.
-    inputs : iterable of path
-        Every file or folder the command reads (missing ones are skipped).
+    inputs : iterable of path, or of (path, what it is)
+        Every file or folder the command reads (missing ones are skipped), through symbolic
+        links: the files a command line names and those its model file, its maps and a trained
+        surrogate's manifest name.
 
     Raises
     ------
     InputError
-        Naming the option and the path: an output that is an input (or, for a folder, holds one),
-        a file where a folder is meant or the reverse, a parent that is a file, or a place the
-        user may not write to.
+        Naming the option, the path and the input: an output that is an input, that holds one
+        (an output folder) or that lies inside an input folder (a trained surrogate's), a file
+        where a folder is meant or the reverse, a parent that is a file, or a place the user may
+        not write to.
     """
-    existing = [Path(path) for path in inputs if path is not None and Path(path).exists()]
+    existing = []
+    for item in inputs:
+        path, role = item if isinstance(item, tuple) else (item, "")
+        if path is not None and Path(path).exists():
+            existing.append((Path(path), f" ({role})" if role else ""))
     for output in outputs:
         target = Path(output.path)
-        for source in existing:
+        for source, role in existing:
             if _same(target, source):
-                raise InputError(f"{output.option} {target}: that is the input {source}; "
+                raise InputError(f"{output.option} {target}: that is the input {source}{role}; "
                                  "refusing to overwrite an input, choose another path")
-            if output.kind == "folder" and _inside(source, target):
+            if _inside(source, target):
                 raise InputError(f"{output.option} {target}: this output folder holds the input "
-                                 f"{source}, which its files could replace; choose another "
+                                 f"{source}{role}, which its files could replace; choose another "
                                  "folder")
+            if source.is_dir() and _inside(target, source):
+                raise InputError(f"{output.option} {target}: lies inside the input folder "
+                                 f"{source}{role}, which this run reads; refusing to write into "
+                                 "an input, choose another path")
         _check_writable(output.option, target, output.kind)
 
 
@@ -68,6 +80,7 @@ def _same(a: Path, b: Path) -> bool:
 
 
 def _inside(path: Path, folder: Path) -> bool:
+    """Whether ``path`` lies (at any depth) inside ``folder``, both through symbolic links."""
     return folder.resolve() in path.resolve().parents
 
 

@@ -49,8 +49,8 @@ from .effects import LIBRARY, Effect, EffectLibrary
 from .errors import InputError
 from .maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
 from .outputs import atomic_file
-from .tomlio import dumps
-from .valve import ValveParameters, load_valve
+from .tomlio import dumps, loads
+from .valve import ValveParameters, load_valve, shipped_valve_path
 
 FORMAT = 2
 _TOP_KEYS = {"model", "valve", "maps", "effects"}
@@ -248,6 +248,15 @@ class ModelSpec:
     def with_valve(self, valve: ValveSource) -> "ModelSpec":
         return replace(self, valve=valve)
 
+    def inputs(self) -> list[tuple[Path, str]]:
+        """Every file and folder this model reads (or names as its valve's source), each with
+        what it is: the valve file, and what the maps read (:meth:`MapsSpec.inputs`: every
+        ``path`` option of their kind, a trained surrogate's folder and the files its manifest
+        names). A command refuses outputs over any of them."""
+        valve = shipped_valve_path() if self.valve.reference == SHIPPED \
+            else Path(self.valve.reference)
+        return [(valve, "the model's valve file"), *self.maps.inputs()]
+
     # --- files ------------------------------------------------------------------------------------
 
     def to_document(self, folder: Path | None = None) -> dict:
@@ -323,7 +332,7 @@ class ModelSpec:
     def from_toml(cls, text: str, where: str = "model file", base: Path = Path(".")
                   ) -> "ModelSpec":
         try:
-            document = tomllib.loads(text)
+            document = loads(text, where)
         except tomllib.TOMLDecodeError as error:
             raise InputError(f"{where}: not a valid TOML model file ({error})") from None
         return cls.from_document(document, where, base)

@@ -8,8 +8,45 @@ or inline tables of those.
 from __future__ import annotations
 
 import math
+import tomllib
+from collections.abc import Mapping
 
 from .errors import InputError
+
+#: how deeply a valve or model file may nest its tables and arrays; the formats need 4
+MAX_DEPTH = 32
+
+
+def loads(text: str, where: str) -> dict:
+    """Parse TOML text (:func:`tomllib.loads`; its TOMLDecodeError is the caller's to word),
+    refusing, as an InputError naming ``where``, a document nested deeper than
+    :data:`MAX_DEPTH`: the parser recurses and would fail on thousands of levels, and so would
+    anything walking the result."""
+    try:
+        document = tomllib.loads(text)
+    except RecursionError:
+        document = None
+    if document is None or nesting_depth(document) > MAX_DEPTH:
+        raise InputError(f"{where}: nested too deep (more than {MAX_DEPTH} levels of tables and "
+                         "arrays)")
+    return document
+
+
+def nesting_depth(document) -> int:
+    """How many tables (objects) and arrays deep ``document`` goes, measured without recursion
+    so that any depth is."""
+    deepest, stack = 0, [(document, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if isinstance(value, Mapping):
+            children = value.values()
+        elif isinstance(value, list):
+            children = value
+        else:
+            continue
+        deepest = max(deepest, depth)
+        stack.extend((child, depth + 1) for child in children)
+    return deepest
 
 
 def require_keys(table: dict, keys: set[str], source: str) -> None:

@@ -27,7 +27,7 @@ from pathlib import Path
 from .errors import InputError
 from .fluid import Oil
 from .limits import PRESSURE_MAX_BAR, Range
-from .tomlio import require_keys
+from .tomlio import loads, require_keys
 from .units import from_si, label, to_si
 
 SHIPPED_VALVE = "paper_cbv.toml"
@@ -167,6 +167,11 @@ class ValveParameters:
         return "\n".join(lines)
 
 
+def shipped_valve_path() -> Path:
+    """Where the shipped valve file is (the package's own data)."""
+    return Path(str(resources.files("surrogate.valves").joinpath(SHIPPED_VALVE)))
+
+
 def load_valve(path: str | Path | None = None) -> ValveParameters:
     """Read a valve file; ``None`` gives the shipped valve of the paper.
 
@@ -187,7 +192,7 @@ def load_valve(path: str | Path | None = None) -> ValveParameters:
             raise InputError(f"{path}: cannot read valve file ({error.strerror})") from None
         source = str(path)
     try:
-        document = tomllib.loads(text)
+        document = loads(text, source)
     except tomllib.TOMLDecodeError as error:
         raise InputError(f"{source}: not valid TOML: {error}") from None
     return ValveParameters.from_dict(document, source=source)

@@ -14,6 +14,8 @@ command-line misuse; hypothesis adds generated corruptions of each kind of file.
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import subprocess
 import sys
@@ -22,16 +24,18 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from surrogate.cli import main
 from surrogate.effects import LIBRARY
+from surrogate.maps.registry import trained_folder
 from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 from surrogate.presets import preset
 
-# --- the good inputs every case starts from -------------------------------------------------------
+# --- the good inputs every case starts from ------------------------------------------------------
 
 CFD = SHIPPED_CFD_SAMPLES.read_text()
 VALVE = resources.files("surrogate.valves").joinpath("paper_cbv.toml").read_text()
@@ -146,6 +150,73 @@ def with_model(text: str, *, words=(), id: str) -> Case:
 
 def with_effects(text: str, add: str, *, words=(), id: str) -> Case:
     return Case(id, (*FIT, "--effects-file", "fx.py", "--add", add), words, {"fx.py": text})
+
+
+# --- trained surrogate folders: copies of the shipped ones, edited -------------------------------
+
+TRAINED_FILES = {kind: {name: (trained_folder(kind) / name).read_bytes()
+                        for name in ("surrogate.json", "flow.npz", "force.npz")}
+                 for kind in ("nn", "gp")}
+
+
+def npz_bytes(arrays: dict) -> bytes:
+    stream = io.BytesIO()
+    np.savez(stream, **arrays)
+    return stream.getvalue()
+
+
+def surrogate(kind: str = "nn", folder: str | None = None, *, weights: str = "flow",
+              arrays=None, raw: bytes | None = None, reseal: bool = True, manifest=None,
+              manifest_text: str | None = None) -> dict:
+    """The files of a copy of the shipped ``kind`` surrogate in ``folder`` (default: named like
+    the kind): ``arrays(dict)`` edits the arrays of its ``weights`` file in place (or ``raw``
+    replaces the file's bytes), ``manifest(dict)`` edits its manifest in place (or
+    ``manifest_text`` replaces it). ``reseal`` records the edited file's SHA-256, as a manifest
+    consistent with its weights would, so that the check under test is the one that refuses
+    them, not the seal."""
+    files = dict(TRAINED_FILES[kind])
+    name = f"{weights}.npz"
+    if arrays is not None:
+        with np.load(io.BytesIO(files[name])) as data:
+            edited = {key: data[key] for key in data.files}
+        arrays(edited)
+        files[name] = npz_bytes(edited)
+    if raw is not None:
+        files[name] = raw
+    document = json.loads(files["surrogate.json"])
+    if reseal and (arrays is not None or raw is not None):
+        document[weights]["predictor"]["sha256"] = hashlib.sha256(files[name]).hexdigest()
+    if manifest is not None:
+        manifest(document)
+    files["surrogate.json"] = (manifest_text if manifest_text is not None
+                               else json.dumps(document, indent=2) + "\n").encode()
+    return {f"{folder or kind}/{key}": value for key, value in files.items()}
+
+
+def unsealed(document: dict) -> None:
+    """A manifest as versions before the weights' hashes wrote it."""
+    for name in ("flow", "force"):
+        document[name]["predictor"].pop("sha256")
+
+
+def predict_with(kind: str, *, words=(), id: str, **edits) -> Case:
+    """``predict`` on an edited copy of the shipped ``kind`` surrogate (:func:`surrogate`)."""
+    return Case(id, ("predict", "--maps", f"./{kind}", "--input", "queries.csv", "--output",
+                     "out.csv"), words, surrogate(kind, **edits))
+
+
+#: a model on the trained surrogate in ./nn, recording that folder's manifest (as fit writes it)
+MODEL_ON_NN = MODEL.split("[maps]")[0] + (
+    '[maps]\nkind = "nn"\nfolder = "nn"\nsurrogate_sha256 = "'
+    + hashlib.sha256(TRAINED_FILES["nn"]["surrogate.json"]).hexdigest() + '"\n\n[[effects]]'
+    + MODEL.split("[[effects]]", 1)[1])
+SECRET = "TOPSECRET-do-not-echo-7f3a"
+
+
+def model_on_cfd(path: str) -> str:
+    """The good model file with its grid maps on the CFD samples ``path`` (no hash recorded)."""
+    lines = replace(MODEL, 'cfd = "shipped"', f'cfd = "{path}"').splitlines(keepends=True)
+    return "".join(line for line in lines if not line.startswith("cfd_sha256"))
 
 
 CASES = [
@@ -513,6 +584,212 @@ CASES = [
                                           "--output", "out.csv"), ("q.csv", "temperature_C"),
          {"q.csv": "u_mm,p_L_bar,p_B_bar\n0.1,50,5\n"}),
     Case("cli: check-data of a missing file", ("check-data", "nowhere.csv"), ("nowhere.csv",)),
+
+    # what a run reads, through its model file and its maps: never an output ----------------------
+    Case("guard: fit over the CFD samples its model's maps name",
+         ("fit", "--model", "model.toml", "--data", "log.csv", "--out", "cfd.csv"),
+         ("--out cfd.csv", "that is the input", "the grid maps' cfd", "model.toml"),
+         {"model.toml": replace(MODEL, 'cfd = "shipped"', 'cfd = "cfd.csv"')}),
+    Case("guard: fit over the valve file of a format-1 model",
+         ("fit", "--model", "model.toml", "--data", "log.csv", "--out", "valve.toml"),
+         ("--out valve.toml", "that is the input", "valve file", "model.toml"),
+         {"model.toml": replace(MODEL_V1, 'valve = "shipped"', 'valve = "valve.toml"')}),
+    Case("guard: fit over a surrogate's manifest",
+         ("fit", "--model", "cfda", "--maps", "./nn", "--data", "log.csv", "--out",
+          "nn/surrogate.json"), ("--out nn/surrogate.json", "inside the input folder", "nn"),
+         surrogate("nn")),
+    Case("guard: predict over NN weights",
+         ("predict", "--maps", "./nn", "--input", "queries.csv", "--output", "nn/flow.npz"),
+         ("--output nn/flow.npz", "inside the input folder"), surrogate("nn")),
+    Case("guard: predict over GP weights",
+         ("predict", "--maps", "./gp", "--input", "queries.csv", "--output", "gp/force.npz"),
+         ("--output gp/force.npz", "inside the input folder"), surrogate("gp")),
+    Case("guard: fit into the surrogate folder a model file names",
+         ("fit", "--model", "model.toml", "--data", "log.csv", "--out", "nn/model.toml"),
+         ("--out nn/model.toml", "inside the input folder", "model.toml"),
+         {"model.toml": MODEL_ON_NN, **surrogate("nn")}),
+    Case("guard: compare into a surrogate folder",
+         ("compare", "--model", "model.toml", "--data", "log.csv", "--out", "nn"),
+         ("--out nn", "that is the input"), {"model.toml": MODEL_ON_NN, **surrogate("nn")}),
+    Case("guard: diagnose writing a folder that holds the model's CFD samples",
+         ("diagnose", "--model", "model.toml", "--data", "log.csv", "--out", "data"),
+         ("--out data", "holds the input", "cfd"),
+         {"model.toml": model_on_cfd("data/cfd.csv"),
+          "data/cfd.csv": CFD}),
+    Case("guard: workflow into a surrogate folder",
+         ("workflow", "--maps", "./gp", "--data", "log.csv", "--out", "gp/results"),
+         ("--out gp/results", "inside the input folder"), surrogate("gp")),
+    Case("guard: simulate over a surrogate's weights",
+         ("simulate", "--maps", "./nn", "--out", "nn/force.npz"),
+         ("--out nn/force.npz", "inside the input folder"), surrogate("nn")),
+    Case("guard: paper into a surrogate folder",
+         ("paper", "--maps", "./nn", "--data", "log.csv", "--out", "nn"),
+         ("--out nn", "that is the input"), surrogate("nn")),
+    Case("guard: suggest-cfd over the CFD samples --cfd names",
+         ("suggest-cfd", "--maps", "grid", "--cfd", "cfd.csv", "--data", "log.csv", "--out",
+          "cfd.csv"), ("--out cfd.csv", "that is the input")),
+    Case("guard: predict over a weight file outside the folder that its manifest names",
+         ("predict", "--maps", "./nn", "--input", "queries.csv", "--output", "flow.npz"),
+         ("--output flow.npz", "that is the input"),
+         {**surrogate("nn", manifest=lambda m: m["flow"]["predictor"].update(
+             file="../flow.npz")), "flow.npz": TRAINED_FILES["nn"]["flow.npz"]}),
+
+    # trained surrogates: sealed, checked, contained ---------------------------------------------
+    predict_with("nn", arrays=lambda a: a.update(
+        {key: value * 1.5 for key, value in a.items() if key.endswith("offset")}),
+        reseal=False, words=("nn/flow.npz", "not the ones the manifest recorded", "SHA-256"),
+        id="surrogate: NN weights edited after training"),
+    predict_with("gp", weights="force", arrays=lambda a: a.update(dual=a["dual"] * 1.01),
+                 reseal=False, words=("gp/force.npz", "not the ones the manifest recorded"),
+                 id="surrogate: GP weights edited after training"),
+    predict_with("nn", arrays=lambda a: a.update({"2/hidden.0": a["2/hidden.0"][:, :1]}),
+                 words=("nn/flow.npz", "member 2", "'hidden.0'", "shape (16, 1)", "(16, 2)"),
+                 id="surrogate: NN array of the wrong shape"),
+    predict_with("nn", weights="force", arrays=lambda a: a.update(
+        {"0/local_W": a["0/local_W"][:6]}), words=("nn/force.npz", "'local_W'", "(7, 8)"),
+        id="surrogate: bridged NN array of the wrong shape"),
+    predict_with("nn", arrays=lambda a: a.update({"1/bias.1": a["1/bias.1"] * np.nan}),
+                 words=("nn/flow.npz", "'bias.1'", "NaN"), id="surrogate: NaN NN weights"),
+    predict_with("gp", arrays=lambda a: a.update(dual=a["dual"] * np.nan),
+                 words=("gp/flow.npz", "'dual'", "NaN"), id="surrogate: NaN GP weights"),
+    predict_with("gp", weights="force", arrays=lambda a: a.update(dual=a["dual"][:-1]),
+                 words=("gp/force.npz", "'dual'", "shape (153,)", "(154,)"),
+                 id="surrogate: GP array of the wrong shape"),
+    predict_with("gp", arrays=lambda a: a.update(cholesky=a["cholesky"].T),
+                 words=("gp/flow.npz", "'cholesky'", "lower triangular"),
+                 id="surrogate: GP Cholesky factor not triangular"),
+    predict_with("nn", arrays=lambda a: a.pop("0/linear"),
+                 words=("nn/flow.npz", "member 0", "missing array", "linear"),
+                 id="surrogate: NN array missing"),
+    predict_with("gp", arrays=lambda a: a.pop("cholesky"),
+                 words=("gp/flow.npz", "missing array 'cholesky'"),
+                 id="surrogate: GP array missing"),
+    predict_with("nn", arrays=lambda a: a.update({"0/extra": np.zeros(3)}),
+                 words=("nn/flow.npz", "unexpected array", "extra"),
+                 id="surrogate: NN array the architecture lacks"),
+    predict_with("nn", raw=TRAINED_FILES["nn"]["flow.npz"][:5000], reseal=False,
+                 words=("nn/flow.npz", "not the ones the manifest recorded"),
+                 id="surrogate: truncated weights"),
+    predict_with("nn", raw=TRAINED_FILES["nn"]["flow.npz"][:5000], reseal=False,
+                 manifest=unsealed, words=("nn/flow.npz", "cannot load", "not sealed"),
+                 id="surrogate: truncated weights, unsealed manifest"),
+    predict_with("gp", raw=b"not a zip archive", manifest=unsealed,
+                 words=("gp/flow.npz", "cannot load GP arrays"),
+                 id="surrogate: GP weights not an npz"),
+    predict_with("nn", manifest=lambda m: m["features"].update(A_L=0),
+                 words=("nn/surrogate.json", "features.A_L", "must lie in (1e-10"),
+                 id="surrogate: manifest with A_L = 0"),
+    predict_with("gp", manifest=lambda m: m["features"].update(w=-0.012),
+                 words=("gp/surrogate.json", "features.w"), id="surrogate: negative w"),
+    predict_with("nn", manifest=lambda m: m["flow"]["predictor"]["feature_std"].__setitem__(
+        1, 0.0), words=("nn/surrogate.json", "feature_std", "> 0"),
+        id="surrogate: a feature's std of zero"),
+    predict_with("gp", manifest=lambda m: m["force"]["domain"].update(reach=float("nan")),
+                 words=("gp/surrogate.json", "force.domain.reach", "finite"),
+                 id="surrogate: NaN in the manifest"),
+    predict_with("nn", manifest=lambda m: m["force"]["predictor"].update(output="guess"),
+                 words=("nn/surrogate.json", "output", "log_negative_fraction"),
+                 id="surrogate: unknown network output"),
+    predict_with("gp", manifest=lambda m: m["flow"]["predictor"].update(target=3),
+                 words=("gp/surrogate.json", "target", "must be a string"),
+                 id="surrogate: GP target not a string"),
+    predict_with("nn", manifest=lambda m: m["flow"]["predictor"]["architecture"].update(
+        groups=[[0, 7]]), words=("nn/surrogate.json", "architecture", "feature index"),
+        id="surrogate: architecture naming a feature that does not exist"),
+    predict_with("nn", manifest=lambda m: m["flow"]["predictor"]["architecture"].update(
+        width="wide"), words=("nn/surrogate.json", "architecture", "malformed"),
+        id="surrogate: architecture with text for a number"),
+    predict_with("nn", manifest=lambda m: m["flow"]["predictor"].update(members=4),
+                 words=("nn/flow.npz", "5 member(s)"), id="surrogate: member count off"),
+    predict_with("nn", manifest_text="[1, 2, 3]\n",
+                 words=("nn/surrogate.json", "JSON object", "an array"),
+                 id="surrogate: manifest is a JSON list"),
+    predict_with("gp", manifest=lambda m: m.pop("features"),
+                 words=("gp/surrogate.json", "missing key 'features'"),
+                 id="surrogate: manifest without features"),
+    predict_with("nn", manifest=lambda m: m["force"].pop("domain"),
+                 words=("nn/surrogate.json", "force", "missing key 'domain'"),
+                 id="surrogate: manifest without a domain"),
+    predict_with("nn", manifest=lambda m: m["flow"]["predictor"].update(sha256="abc"),
+                 words=("nn/surrogate.json", "sha256", "64 hex"),
+                 id="surrogate: malformed weight hash"),
+    Case("surrogate: a weight file outside its folder",
+         ("predict", "--maps", "./nn", "--input", "queries.csv", "--output", "out.csv"),
+         ("nn/surrogate.json", "'../elsewhere/flow.npz'", "outside the surrogate folder"),
+         {**surrogate("nn", manifest=lambda m: m["flow"]["predictor"].update(
+             file="../elsewhere/flow.npz")),
+          "elsewhere/flow.npz": TRAINED_FILES["nn"]["flow.npz"]}),
+    predict_with("gp", manifest=lambda m: m["force"]["predictor"].update(file="/etc/hostname"),
+                 words=("gp/surrogate.json", "outside the surrogate folder"),
+                 id="surrogate: a weight file by absolute path"),
+    predict_with("nn", manifest_text='{"a": ' * 5000 + "1" + "}" * 5000,
+                 words=("nn/surrogate.json", "nested too deep"),
+                 id="surrogate: manifest nested 5000 deep"),
+    predict_with("nn", manifest_text='{"format_version": 2, "kind": "nn", "x": '
+                 + "[" * 40 + "]" * 40 + "}", words=("nn/surrogate.json", "nested too deep"),
+                 id="surrogate: manifest nested 40 deep"),
+    Case("surrogate: a model file on edited weights",
+         ("compare", "--model", "model.toml", "--data", "log.csv"),
+         ("model.toml", "nn/flow.npz", "not the ones the manifest recorded"),
+         {"model.toml": MODEL_ON_NN, **surrogate("nn", arrays=lambda a: a.update(
+             {"0/offset": a["0/offset"] + 0.1}), reseal=False)}),
+    Case("surrogate: a model file on a resealed manifest",
+         ("compare", "--model", "model.toml", "--data", "log.csv"),
+         ("model.toml", "not the one the model was built on"),
+         {"model.toml": MODEL_ON_NN, **surrogate("nn", arrays=lambda a: a.update(
+             {"0/offset": a["0/offset"] + 0.1}))}),
+
+    # a --maps value that is a kind and a folder here --------------------------------------------
+    Case("maps: predict --maps nn beside a surrogate folder nn",
+         ("predict", "--maps", "nn", "--input", "queries.csv", "--output", "out.csv"),
+         ("--maps nn", "ambiguous", "map kind", "--maps ./nn", "for the folder",
+          str(trained_folder("nn"))), surrogate("nn")),
+    Case("maps: compare --maps gp beside a surrogate folder gp",
+         ("compare", "--model", "cfda", "--maps", "gp", "--data", "log.csv"),
+         ("--maps gp", "ambiguous", "--maps ./gp"), surrogate("gp")),
+    Case("maps: simulate --maps nn beside a surrogate folder nn",
+         ("simulate", "--maps", "nn", "--out", "out.csv"), ("--maps nn", "ambiguous"),
+         surrogate("nn")),
+    Case("maps: paper --maps gp beside a surrogate folder gp",
+         ("paper", "--maps", "gp", "--data", "log.csv", "--out", "out"),
+         ("--maps gp", "ambiguous"), surrogate("gp")),
+    Case("maps: suggest-cfd --maps nn beside a surrogate folder nn",
+         ("suggest-cfd", "--maps", "nn", "--data", "log.csv", "--out", "out"),
+         ("--maps nn", "ambiguous"), surrogate("nn")),
+    Case("maps: workflow --maps nn beside a surrogate folder nn",
+         ("workflow", "--maps", "nn", "--data", "log.csv", "--out", "out"),
+         ("--maps nn", "ambiguous"), surrogate("nn")),
+    Case("maps: --maps grid beside a surrogate folder grid",
+         ("predict", "--maps", "grid", "--input", "queries.csv", "--output", "out.csv"),
+         ("--maps grid", "ambiguous", "--maps ./grid", "rename"), surrogate("nn", "grid")),
+    Case("maps: a format-1 model's maps = \"nn\" beside a surrogate folder nn",
+         ("compare", "--model", "model.toml", "--data", "log.csv"),
+         ("model.toml", "ambiguous", 'folder = "./nn"'),
+         {"model.toml": replace(MODEL_V1, 'maps = { kind = "grid" }', 'maps = "nn"'),
+          **surrogate("nn")}),
+
+    # files a model names are not echoed; nesting -------------------------------------------------
+    Case("leak: a model's cfd naming a file that is no CSV",
+         ("compare", "--model", "model.toml", "--data", "log.csv"),
+         ("secret.txt", "not a CSV file", "check-data"),
+         {"model.toml": model_on_cfd("secret.txt"),
+          "secret.txt": SECRET + "\nmore\n"}),
+    Case("leak: a model's cfd reaching up a folder for a CSV",
+         ("compare", "--model", "sub/model.toml", "--data", "log.csv"),
+         ("secret.csv", "column 'case'", "missing from the header", "check-data"),
+         {"sub/model.toml": model_on_cfd("../secret.csv"),
+          "secret.csv": f"{SECRET},x,y\n1,2,3\n"}),
+    Case("leak: a model's cfd naming CFD samples with a bad cell",
+         ("compare", "--model", "model.toml", "--data", "log.csv"),
+         ("bad.csv", "line 7", "'q_lpm'", "flow, 0 to 5000"),
+         {"model.toml": model_on_cfd("bad.csv"),
+          "bad.csv": set_cell(CFD, 7, "q_lpm", SECRET)}),
+    with_model("[model]\nname = \"x\"\nmaps = " + "[" * 5000 + "]" * 5000 + "\n",
+               words=("nested too deep",), id="nesting: a model 5000 levels deep"),
+    with_model("[" + ".".join(["x"] * 5000) + "]\n", words=("nested too deep",),
+               id="nesting: a model's table header 5000 levels deep"),
+    with_valve("a = " + "{ b = " * 3000 + "1" + " }" * 3000 + "\n", words=("nested too deep",),
+               id="nesting: a valve file 3000 levels deep"),
 ]
 
 
@@ -690,3 +967,106 @@ def test_generated_unknown_model_keys_are_refused(place, key):
 
         with pytest.raises(InputError, match=f"'{key}'"):
             load_model(str(path))
+
+
+# --- what a run reads, and what its errors may quote ---------------------------------------------
+
+LEAK_CASES = [case for case in CASES if case.id.startswith("leak:")]
+
+
+@pytest.mark.parametrize("as_json", [False, True], ids=["text", "json"])
+@pytest.mark.parametrize("case", LEAK_CASES, ids=[case.id for case in LEAK_CASES])
+def test_a_file_a_model_names_is_never_quoted(case, as_json, tmp_path, capsys, monkeypatch,
+                                              registry):
+    """A model's cfd = ... may name any file (../../etc/passwd): its errors say what is wrong
+    without a byte of it, on stderr and in the JSON error."""
+    code, captured = run_case(tmp_path, case, capsys, monkeypatch, as_json=as_json)
+    assert code == 2 and "Traceback" not in captured.err
+    assert SECRET not in captured.err and SECRET not in captured.out
+    if as_json:
+        error = json.loads(captured.out)["error"]
+        assert error["exit_code"] == 2 and "check-data" in error["message"]
+
+
+def test_a_file_the_user_names_is_quoted(tmp_path, capsys, monkeypatch):
+    """The control of the test above: the same files, named directly, are quoted."""
+    monkeypatch.chdir(tmp_path)
+    for case in LEAK_CASES:
+        name, content = next((name, content) for name, content in case.files.items()
+                             if "model.toml" not in name)
+        Path(name).write_text(content)
+        assert main(["check-data", name]) == 2
+        assert SECRET in capsys.readouterr().err, case.id
+
+
+def _args(**values):
+    import argparse
+
+    return argparse.Namespace(**{"model": None, "maps": None, "data": None, "valve": None,
+                                 "effects_file": [], "input": None, "cfd": None,
+                                 "sequence": None, **values})
+
+
+@pytest.mark.parametrize("target", ["surrogate/trained/nn/flow.npz", "surrogate/trained/gp",
+                                    "measurements/new_log.csv", "cfd_samples/cfd_samples.csv",
+                                    "surrogate/valves/paper_cbv.toml"])
+def test_the_shipped_data_is_an_input_of_every_run(target):
+    """No command writes over or into what the package ships, whatever its options (checked
+    on the guard itself: running a command against the shipped files would risk them)."""
+    from surrogate.commands.common import guard_outputs
+    from surrogate.errors import InputError
+    from surrogate.outputs import Output
+
+    with pytest.raises(InputError, match="input"):
+        guard_outputs(_args(), Output("--out", PROJECT_ROOT / target, "file"))
+
+
+def test_inputs_are_followed_through_symbolic_links(tmp_path, monkeypatch):
+    """An output reached through a link to an input, or into a linked surrogate folder, is an
+    input all the same."""
+    from surrogate.commands.common import guard_outputs
+    from surrogate.errors import InputError
+    from surrogate.outputs import Output
+
+    monkeypatch.chdir(tmp_path)
+    for name, content in surrogate("nn", "real").items():
+        Path(name).parent.mkdir(exist_ok=True)
+        Path(name).write_bytes(content)
+    Path("linked").symlink_to("real")
+    Path("cfd.csv").write_text(CFD)
+    Path("alias.csv").symlink_to("cfd.csv")
+    Path("model.toml").write_text(model_on_cfd("cfd.csv"))
+    with pytest.raises(InputError, match="--out real/flow.npz: lies inside the input folder"):
+        guard_outputs(_args(maps="./linked"), Output("--out", "real/flow.npz"))
+    with pytest.raises(InputError, match="--out alias.csv: that is the input"):
+        guard_outputs(_args(model="model.toml"), Output("--out", "alias.csv"))
+    guard_outputs(_args(model="model.toml", maps="./linked"), Output("--out", "fine.toml"))
+
+
+def test_a_local_folder_named_like_a_kind_without_a_surrogate_is_no_ambiguity(tmp_path,
+                                                                            monkeypatch):
+    from surrogate.commands.common import maps_from_args
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "nn").mkdir()
+    (tmp_path / "nn" / "notes.txt").write_text("not a surrogate")
+    assert maps_from_args("nn").flow.settings["folder"] == "shipped"
+    (tmp_path / "nn" / "surrogate.json").write_text(TRAINED_FILES["nn"]["surrogate.json"].decode())
+    from surrogate.errors import InputError
+
+    with pytest.raises(InputError, match="ambiguous"):
+        maps_from_args("nn")
+
+
+def test_training_refuses_an_out_folder_that_holds_its_cfd_samples(tmp_path):
+    """``training/train.py --out`` writes one folder per kind: never over what it trains on,
+    and it says so before any training."""
+    (tmp_path / "nn").mkdir()
+    (tmp_path / "nn" / "cfd.csv").write_text(CFD)
+    before = snapshot(tmp_path)
+    done = subprocess.run([sys.executable, str(PROJECT_ROOT / "training" / "train.py"),
+                           "--cfd", "nn/cfd.csv", "--out", ".", "--kinds", "nn"],
+                          cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "--out nn" in done.stderr and "holds the input nn/cfd.csv" in done.stderr
+    assert snapshot(tmp_path) == before

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -170,3 +171,22 @@ def test_no_map_kind_is_chosen_by_name_outside_the_registry():
             if branch.search(line):
                 offenders.append(f"{path.relative_to(PROJECT_ROOT)}:{number}: {line.strip()}")
     assert not offenders, offenders
+
+
+def test_a_spec_lists_every_file_it_reads_by_the_path_flag_not_by_name(tmp_path):
+    """What a model reads, for the guard over outputs: the valve file, and every ``path``
+    option of its maps' kind, whatever the kind and the option are called."""
+    from surrogate.maps.registry import MapKind, MapSource, Option, register
+
+    table = tmp_path / "table.csv"
+    table.write_text("x\n")
+    register(MapKind("lookup", "a kind a plug-in adds", lambda options, valve, base: None,
+                     (Option("table", "its file", path=True), Option("label", "a name"))))
+    try:
+        spec = preset("cfda").with_maps(MapsSpec.both("lookup", table=str(table), label="t"))
+        valve = ValveSource.read(PROJECT_ROOT / "surrogate" / "valves" / "paper_cbv.toml")
+        paths = [path for path, _ in spec.with_valve(valve).inputs()]
+        assert table in paths and Path(valve.reference) in paths and len(paths) == 2
+        assert [p for p, _ in MapSource.of("nn").inputs()][0].name == "nn"
+    finally:
+        del MAP_KINDS["lookup"]

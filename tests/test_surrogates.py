@@ -215,6 +215,12 @@ def test_loading_refuses_pickled_code(tmp_path, valve):
             return (print, ("this must never run",))
 
     (folder / "flow.npz").write_bytes(pickle.dumps({"weights": Payload()}))
+    with pytest.raises(InputError, match="not the ones the manifest recorded"):
+        load_learned_maps(folder)  # the seal catches it first
+    # a manifest sealing the pickle itself: still refused, by the loader, and never run
+    manifest = json.loads((folder / "surrogate.json").read_text())
+    manifest["flow"]["predictor"]["sha256"] = file_hash(folder / "flow.npz")
+    (folder / "surrogate.json").write_text(json.dumps(manifest))
     with pytest.raises(InputError, match="plain arrays"):
         load_learned_maps(folder)
 
@@ -306,3 +312,118 @@ def test_evaluating_saved_network_maps_needs_numpy_only():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "False"
+
+
+# --- surrogate folders as sealed packages --------------------------------------------------------
+
+def _copy_of(kind: str, folder):
+    folder.mkdir()
+    for path in trained_folder(kind).iterdir():
+        (folder / path.name).write_bytes(path.read_bytes())
+    return folder
+
+
+def _predictions(maps, valve):
+    fluid = valve.oil.state(np.array([313.15, 333.15]))
+    p_L, p_B, u = np.array([60e5, 90e5]), np.array([5e5, 10e5]), np.array([0.1e-3, 0.2e-3])
+    return maps[0].flow(p_L, p_B, u, fluid), maps[1].force(p_L, p_B, u, fluid)
+
+
+@pytest.mark.parametrize("kind", LEARNED)
+def test_committed_manifests_seal_every_weight_file(kind):
+    manifest = read_manifest(trained_folder(kind))
+    for name in ("flow", "force"):
+        entry = manifest[name]["predictor"]
+        assert entry["sha256"] == file_hash(trained_folder(kind) / entry["file"])
+
+
+@pytest.mark.parametrize("kind", LEARNED)
+def test_training_writes_the_hashes_loading_checks(kind, tmp_path, valve, capsys):
+    """What ``training/train.py`` saves (:meth:`TrainedSurrogate.save`, here on the committed
+    predictors, to keep it fast) records each weight file's SHA-256 and loads back sealed."""
+    from surrogate.learn.training import TrainedSurrogate
+
+    flow, force = load_learned_maps(trained_folder(kind))
+    TrainedSurrogate(kind, flow, force, 1.0).save(tmp_path / kind, {"samples": "all"}, {})
+    manifest = read_manifest(tmp_path / kind)
+    for name in ("flow", "force"):
+        entry = manifest[name]["predictor"]
+        assert entry["sha256"] == file_hash(tmp_path / kind / entry["file"])
+    reloaded = load_learned_maps(tmp_path / kind)
+    assert "not sealed" not in capsys.readouterr().err
+    for fresh, committed in zip(_predictions(reloaded, valve), _predictions((flow, force), valve)):
+        np.testing.assert_array_equal(fresh, committed)
+
+
+def test_a_folder_without_hashes_loads_with_a_one_line_warning(tmp_path, valve, capsys):
+    folder = _copy_of("gp", tmp_path / "gp")
+    manifest = json.loads((folder / "surrogate.json").read_text())
+    for name in ("flow", "force"):
+        del manifest[name]["predictor"]["sha256"]
+    (folder / "surrogate.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    maps = load_learned_maps(folder)
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "not sealed" in err and str(folder) in err
+    for fresh, committed in zip(_predictions(maps, valve),
+                                _predictions(load_learned_maps(trained_folder("gp")), valve)):
+        np.testing.assert_array_equal(fresh, committed)
+
+
+def test_a_format_1_folder_of_pytorch_state_dicts_still_loads_and_stays_contained(
+        tmp_path, valve, capsys):
+    """Folders written before the .npz weights: one state_dict per member, ``files`` in the
+    manifest, no hashes. They load (with the warning), and their files stay in the folder."""
+    folder = _copy_of("nn", tmp_path / "nn")
+    manifest = json.loads((folder / "surrogate.json").read_text())
+    manifest["format_version"] = 1
+    for name in ("flow", "force"):
+        entry = manifest[name]["predictor"]
+        with np.load(folder / entry.pop("file")) as data:
+            arrays = {key: data[key] for key in data.files}
+        del entry["sha256"]
+        entry["files"] = []
+        for member in range(entry["members"]):
+            state = {key.split("/", 1)[1]: torch.as_tensor(value) for key, value in
+                     arrays.items() if key.startswith(f"{member}/")}
+            torch.save(state, folder / f"{name}_{member}.pt")
+            entry["files"].append(f"{name}_{member}.pt")
+        (folder / f"{name}.npz").unlink()
+    (folder / "surrogate.json").write_text(json.dumps(manifest))
+    maps = load_learned_maps(folder)
+    assert "not sealed" in capsys.readouterr().err
+    for fresh, committed in zip(_predictions(maps, valve),
+                                _predictions(load_learned_maps(trained_folder("nn")), valve)):
+        np.testing.assert_array_equal(fresh, committed)
+    manifest["flow"]["predictor"]["files"][0] = "../flow_0.pt"
+    (folder / "surrogate.json").write_text(json.dumps(manifest))
+    with pytest.raises(InputError, match="outside the surrogate folder"):
+        load_learned_maps(folder)
+
+
+def test_a_weight_file_linked_from_outside_the_folder_is_refused(tmp_path):
+    folder = _copy_of("nn", tmp_path / "nn")
+    outside = tmp_path / "elsewhere.npz"
+    (folder / "flow.npz").rename(outside)
+    (folder / "flow.npz").symlink_to(outside)
+    with pytest.raises(InputError, match="leads outside the surrogate folder"):
+        load_learned_maps(folder)
+
+
+#: SHA-256 of the committed manifests before they recorded their weights' hashes
+UNSEALED_MANIFESTS = {"nn": "3d9df9f55647d7a7944a394f23691ad66ba578276e9513b9da5b8e99e44f0635",
+                      "gp": "c192393f8906e6af235a8ecfd247e67973d3b59f390c97555ac26189b1281f5d"}
+
+
+@pytest.mark.parametrize("kind", LEARNED)
+def test_model_files_recording_a_manifest_from_before_the_seal_still_load(kind, valve):
+    """A model file records its surrogate's manifest hash; adding the weights' hashes changed the
+    committed manifests' bytes, not what they describe, so the hash of the manifest as it was
+    written before still names it (and the weights are checked against the seal)."""
+    from surrogate.maps.registry import MapSource
+
+    old = MapSource.of(kind, folder="shipped", surrogate_sha256=UNSEALED_MANIFESTS[kind])
+    assert build_maps(old, valve)[0].kind == kind
+    other = MapSource.of(kind, folder="shipped", surrogate_sha256="0" * 64)
+    with pytest.raises(InputError, match="not the one the model was built on"):
+        build_maps(other, valve)
+

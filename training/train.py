@@ -30,7 +30,9 @@ from surrogate.data import load_cfd_samples
 from surrogate.learn.reproducibility import environment
 from surrogate.learn.training import KINDS, learned_maps_on, train_surrogate
 from surrogate.maps.registry import TRAINED, file_hash
-from surrogate.paths import PROJECT_ROOT, SHIPPED_CFD_SAMPLES
+from surrogate.errors import InputError
+from surrogate.outputs import Output, check_outputs
+from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 from surrogate.progress import Progress
 
 
@@ -43,6 +45,13 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=2,
                         help="processes for the cross-validation (default 2)")
     args = parser.parse_args()
+    try:  # before any training: no kind's folder may replace or hold what training reads
+        check_outputs([Output("--out", args.out / kind, "folder") for kind in args.kinds],
+                      [(args.cfd, "given by --cfd"), (args.valve, "given by --valve"),
+                       (SHIPPED_CFD_SAMPLES.parent, "the shipped CFD samples"),
+                       (SHIPPED_BENCH_LOG.parent, "the shipped measurements")])
+    except InputError as error:
+        parser.error(str(error))
 
     progress = Progress()
     import torch

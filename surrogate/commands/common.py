@@ -11,12 +11,14 @@ from pathlib import Path
 from ..data import load_bench_log
 from ..effects import LIBRARY, EffectLibrary, load_effects_file
 from ..errors import InputError
-from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, map_kind
+from ..maps.registry import (MAP_KINDS, TRAINED, MapsSpec, MapSource, map_kind,
+                             refuse_ambiguous_kind)
 from ..model import ValveModel
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, check_outputs
 from ..paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, shipped
 from ..progress import Progress
+from ..valve import shipped_valve_path
 
 EXIT_CODES = """exit codes:
   0  success
@@ -26,6 +28,15 @@ EXIT_CODES = """exit codes:
 
 #: options whose values are files or folders a command reads
 INPUT_OPTIONS = ("data", "model", "valve", "effects_file", "input", "cfd", "sequence")
+#: what the package ships, which no command may overwrite or write into: the CFD samples and the
+#: bench log (their folders, with their READMEs), the trained surrogates and the valve file
+SHIPPED_INPUTS = ((SHIPPED_CFD_SAMPLES.parent, "the shipped CFD samples"),
+                  (SHIPPED_BENCH_LOG.parent, "the shipped measurements"),
+                  (TRAINED, "the shipped trained surrogates"),
+                  (shipped_valve_path(), "the shipped valve file"))
+#: how --maps reads its value, for the options' help
+MAPS_HELP = ("a map kind ({kinds}) or the folder of a trained surrogate; a local folder named "
+             "like a kind is refused as ambiguous: write ./nn for the folder")
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -102,8 +113,7 @@ def add_data_options(parser, *, model: bool = True, out_help: str = "output fold
             "--model", required=True,
             help=f"a preset ({', '.join(PRESETS)}) or a model file (TOML)")
     parser.add_argument("--maps", metavar="KIND",
-                        help=f"{maps_help}: a map kind ({', '.join(MAP_KINDS)}) or the folder of "
-                             "a trained surrogate")
+                        help=f"{maps_help}: {maps_help_text()}")
     parser.add_argument("--data", help="bench log CSV (default: the shipped one)")
     parser.add_argument("--effects-file", action="append", default=[], metavar="FILE",
                         help="Python file defining custom effects (repeatable)")
@@ -112,9 +122,21 @@ def add_data_options(parser, *, model: bool = True, out_help: str = "output fold
                                                                 help=out_help)
 
 
+def maps_help_text() -> str:
+    """What a --maps value may be, for an option's help."""
+    return MAPS_HELP.format(kinds=", ".join(MAP_KINDS))
+
+
 def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
     """The maps a --maps option names: a kind (with --cfd for maps built from CFD samples) or
-    the folder of a trained surrogate."""
+    the folder of a trained surrogate.
+
+    A value that is both a kind and a folder here holding a trained surrogate (``--maps nn``
+    beside the ``nn`` folder ``training/train.py --out .`` writes) is refused as ambiguous
+    (:func:`~surrogate.maps.registry.refuse_ambiguous_kind`): either reading would surprise
+    someone, and ``./nn`` or the shipped folder's path says which is meant.
+    """
+    refuse_ambiguous_kind(kind, Path.cwd(), "--maps")
     if kind in MAP_KINDS:
         source = map_kind(kind).source(cfd)
     else:  # the folder of a trained surrogate: its kind, with the folder and its hash recorded
@@ -126,14 +148,31 @@ def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
 def guard_outputs(args, *outputs: Output) -> None:
     """Refuse outputs that would overwrite an input or cannot be written, before any work.
 
-    The inputs are every path the command's options name plus the shipped data, which no command
-    may overwrite.
+    The inputs are everything the run reads (:func:`run_inputs`).
     """
-    inputs: list[str | Path] = [SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES]
+    check_outputs([output for output in outputs if output.path], run_inputs(args))
+
+
+def run_inputs(args) -> list[tuple[Path | str, str]]:
+    """Every file and folder a command's run reads, with what it is: the paths its options name,
+    what its model file names once resolved (:meth:`~surrogate.spec.ModelSpec.inputs`: the
+    valve file, the CFD samples, a trained surrogate's folder and every file of it), what
+    --maps names, and the shipped data, which no command may overwrite."""
+    inputs: list[tuple[Path | str, str]] = list(SHIPPED_INPUTS)
     for name in INPUT_OPTIONS:
         value = getattr(args, name, None)
-        inputs += value if isinstance(value, list) else [value]
-    check_outputs([output for output in outputs if output.path], inputs)
+        option = "--" + name.replace("_", "-")
+        inputs += [(path, f"given by {option}") for path in
+                   (value if isinstance(value, list) else [value]) if path is not None]
+    model = getattr(args, "model", None)
+    if model:
+        where = "preset" if model in PRESETS else "named by " + model
+        inputs += [(path, f"{role}, {where}") for path, role in
+                   load_spec(model, getattr(args, "valve", None)).inputs()]
+    if getattr(args, "maps", None):
+        inputs += [(path, f"{role}, given by --maps {args.maps}") for path, role in
+                   maps_from_args(args.maps, getattr(args, "cfd", None)).inputs()]
+    return inputs
 
 
 def progress_for(args) -> Progress:

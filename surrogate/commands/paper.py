@@ -5,13 +5,12 @@ from __future__ import annotations
 import json
 
 from ..data import load_bench_log
-from ..maps.registry import MAP_KINDS
 from ..outputs import Output
 from ..paper.comparison import reproduce
 from ..paper.report import write_report
 from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..spec import ValveSource
-from .common import add_command, guard_outputs, maps_from_args, progress_for
+from .common import add_command, guard_outputs, maps_from_args, maps_help_text, progress_for
 
 DEFAULT_OUT = "results/paper"
 
@@ -22,7 +21,7 @@ def register(subparsers) -> None:
         description="Fit BMBEBF and CFDA to the 40 °C, p_Pe = 65 bar median line, compare all "
                     "models with the median lines (Table 5), fit friction per temperature "
                     "(Table 6) and draw Figures 16–21.")
-    parser.add_argument("--maps", default="grid", help=f"map kind: {', '.join(MAP_KINDS)}")
+    parser.add_argument("--maps", default="grid", help=f"{maps_help_text()} (default grid)")
     parser.add_argument("--out", help=f"output folder (default {DEFAULT_OUT}, none with --json)")
     parser.add_argument("--data", help="bench log (default: the shipped one)")
     parser.add_argument("--cfd", help="CFD samples for grid maps (default: the shipped ones)")

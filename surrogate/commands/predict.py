@@ -8,12 +8,12 @@ import numpy as np
 
 from ..data.queries import load_queries
 from ..maps.coverage import describe_all
-from ..maps.registry import MAP_KINDS, build_maps
+from ..maps.registry import build_maps
 from ..outputs import Output, atomic_file
 from ..units import from_si
 from ..valve import load_valve
-from .common import (add_command, guard_outputs, maps_from_args, print_json, progress_for,
-                     required)
+from .common import (add_command, guard_outputs, maps_from_args, maps_help_text, print_json,
+                     progress_for, required)
 
 
 def register(subparsers) -> None:
@@ -25,8 +25,7 @@ def register(subparsers) -> None:
                     "standard deviations; empty for maps without data), extrapolating and "
                     "outside_samples (why a state lies outside the CFD samples).")
     options = required(parser)
-    options.add_argument("--maps", required=True,
-                         help=f"map kind ({', '.join(MAP_KINDS)}) or a trained surrogate folder")
+    options.add_argument("--maps", required=True, help=maps_help_text())
     options.add_argument("--input", required=True, help="query CSV")
     options.add_argument("--output", required=True, help="output CSV")
     parser.add_argument("--valve", help="valve file (default: the shipped valve)")

@@ -12,7 +12,7 @@ from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..workbench.mismatch import MapMismatch
 from ..workbench.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
                                   noise_free_sequence, reference_spec)
-from .common import (add_command, effect_library, guard_outputs, maps_from_args,
+from .common import (add_command, effect_library, guard_outputs, maps_from_args, maps_help_text,
                      non_negative_int, positive_int, print_json, progress_for, required)
 
 #: largest --mismatch: ten times the CFD's own error is already far beyond any real valve's
@@ -46,9 +46,8 @@ def register(subparsers) -> None:
     parser.add_argument("--sequence", help="bench log whose test sequence to use "
                                            "(default: the shipped one)")
     parser.add_argument("--maps", metavar="KIND",
-                        help="maps the valve runs on: a map kind or the folder of a trained "
-                             "surrogate (default: grid maps of the shipped CFD samples); use the "
-                             "kind you will diagnose with")
+                        help=f"maps the valve runs on: {maps_help_text()} (default: grid maps "
+                             "of the shipped CFD samples); use the kind you will diagnose with")
     parser.add_argument("--mismatch", type=float, metavar="SCALE",
                         help="make the valve differ from its CFD as a real one does, SCALE times "
                              "the CFD's own error (1: per-opening errors of 1.5 %% in Δp and "

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
 
 from ..errors import InputError
 
@@ -43,6 +44,20 @@ class Problem:
             return f"{where}: expected {self.expected}"
         return f"{where}: got {self.value!r}, expected {self.expected}"
 
+    def redacted(self, columns: Mapping[str, str]) -> "Problem":
+        """This problem without the file's content, for a file the user did not name (a model
+        file's ``cfd = ...`` did): never the value, nor a column name the schema lacks (the
+        header is content too). A problem of the file as a whole or of its header keeps what was
+        expected, which the readers phrase in the schema's terms; a row's problem says what its
+        column allows (``columns``: name -> that description) instead, as the checks across
+        rows quote other cells."""
+        column = self.column if self.column in columns else None
+        if self.column is None or self.line == 1:
+            return replace(self, column=column, value=None)
+        return replace(self, column=column, value=None,
+                       expected=f"{columns[column]} (this cell is not, alone or against other "
+                                "rows)" if column else "a valid row")
+
 
 class DataFileError(InputError):
     """A file was rejected as a whole; ``problems`` lists every reason found.
@@ -51,11 +66,21 @@ class DataFileError(InputError):
     report each one.
     """
 
-    def __init__(self, file: str, problems: list[Problem], kind: str = "data file"):
+    def __init__(self, file: str, problems: list[Problem], kind: str = "data file",
+                 note: str = ""):
         self.file = file
         self.kind = kind
         self.problems = list(problems)
+        self.note = note
         super().__init__(self._message())
+
+    def redacted(self, columns: Mapping[str, str], named_by: str = "another file"
+                 ) -> "DataFileError":
+        """The same rejection without quoting the file (:meth:`Problem.redacted`), for a file
+        reached through ``named_by``: errors echo only what the user gave as data."""
+        return DataFileError(self.file, [problem.redacted(columns) for problem in self.problems],
+                             self.kind, note=f"(its values are not shown: the file was named by "
+                                             f"{named_by}; `check-data {self.file}` shows them)")
 
     def _message(self) -> str:
         count = len(self.problems)
@@ -64,4 +89,6 @@ class DataFileError(InputError):
         lines = [head, *(f"  - {problem}" for problem in self.problems[:_SHOWN])]
         if count > _SHOWN:
             lines.append(f"  ... and {count - _SHOWN} more of the same kinds")
+        if self.note:
+            lines.append(f"  {self.note}")
         return "\n".join(lines)

@@ -104,15 +104,24 @@ class BenchLog:
         return BenchRun(run_id, frame.reset_index(drop=True))
 
 
-def load_cfd_samples(path: str | Path) -> CfdSamples:
+def load_cfd_samples(path: str | Path, *, named_by: str | None = None) -> CfdSamples:
     """Load and validate a CFD-sample file (schema: ``cfd_samples/README.md``).
+
+    ``named_by``: the file the path came from (a model file), when the user did not name the
+    file itself; its errors then quote nothing of it (:meth:`DataFileError.redacted`).
 
     Raises
     ------
     DataFileError
         With every problem found: file, line, column, value and what was expected.
     """
-    frame = _load(path, CFD_SCHEMA, _check_cfd_rows)
+    try:
+        frame = _load(path, CFD_SCHEMA, _check_cfd_rows)
+    except DataFileError as error:
+        if named_by is None:
+            raise
+        raise error.redacted({column.name: column.describe_expected()
+                              for column in CFD_SCHEMA.columns}, named_by) from None
     return CfdSamples(frame, str(path))
 
 

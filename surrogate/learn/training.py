@@ -17,6 +17,7 @@ from ..maps.nn import NetworkEnsemble
 from ..maps.calibration import Calibration
 from ..maps.coverage import Coverage
 from ..maps.domain import FeatureDomain
+from ..maps.package import seal
 from ..maps.registry import MAP_KINDS, map_kind
 from ..outputs import atomic_directory
 from ..valve import ValveParameters
@@ -73,12 +74,16 @@ class TrainedSurrogate:
 
     def save(self, folder: str | Path, training: dict, metrics: dict,
              cross_validation=None) -> None:
-        """Write the folder (weights plus ``surrogate.json``, and the cross-validated errors as
-        ``cross_validation.csv`` if given), all at once or not at all."""
+        """Write the folder (weights plus ``surrogate.json``, which records their SHA-256, and
+        the cross-validated errors as ``cross_validation.csv`` if given), all at once or not at
+        all."""
         kind = map_kind(self.kind)
         with atomic_directory(folder) as staging:
-            flow_entry = kind.save_predictor(staging, "flow", self.flow_map.predictor)
-            force_entry = kind.save_predictor(staging, "force", self.force_map.predictor)
+            # each entry records its weight file's SHA-256: loading refuses other bytes
+            flow_entry = seal(staging, kind.save_predictor(staging, "flow",
+                                                           self.flow_map.predictor))
+            force_entry = seal(staging, kind.save_predictor(staging, "force",
+                                                            self.force_map.predictor))
             write_manifest(staging, {
                 "kind": self.kind,
                 "feature_names": list(FEATURE_NAMES),

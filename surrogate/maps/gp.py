@@ -24,6 +24,8 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from ..errors import InputError
+from ..features import FEATURE_NAMES
+from . import package
 
 RBF, BRIDGE = 0, 1
 PART_KINDS = {"rbf": RBF, "bridge": BRIDGE}
@@ -210,11 +212,63 @@ def save_predictor(folder: Path, name: str, predictor: GaussianProcessPredictor)
 
 
 def load_predictor(folder: Path, entry: dict) -> GaussianProcessPredictor:
-    """A predictor saved by :func:`save_predictor`."""
-    path = folder / entry["file"]
+    """A predictor saved by :func:`save_predictor`, its arrays checked (:func:`check_arrays`)."""
+    where = f"{folder / package.MANIFEST}: the predictor of {_named(entry)}:"
+    target = package.text(entry, "target", where, TARGETS)
+    path = folder / package.text(entry, "file", where)
+    data = package.read_npz(path, "GP arrays")
     try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = GPArrays.from_npz(data)
-    except (OSError, ValueError, KeyError) as error:
-        raise InputError(f"{path}: cannot load GP arrays ({error})") from None
-    return GaussianProcessPredictor(arrays, entry["target"])
+        arrays = GPArrays.from_npz(data)
+    except KeyError as error:
+        raise InputError(f"{path}: missing array {error.args[0]!r}; a GP holds "
+                         f"{', '.join(GPArrays._FIELDS + GPArrays._SCALARS)} and "
+                         "bridge_range") from None
+    except (TypeError, ValueError):
+        raise InputError(f"{path}: an array meant to hold one number holds several") from None
+    check_arrays(arrays, str(path))
+    return GaussianProcessPredictor(arrays, target)
+
+
+def check_arrays(a: GPArrays, where: str) -> None:
+    """Refuse GP arrays that cannot predict: shapes that do not fit together (n training points,
+    d features, P kernel parts), values that are not finite, scales that are not positive, a
+    Cholesky factor that is not lower triangular with a positive diagonal."""
+    d = len(FEATURE_NAMES)
+    check = package.check_array
+    check(a.feature_mean, f"{where}, array 'feature_mean'", (d,))
+    check(a.feature_std, f"{where}, array 'feature_std'", (d,), low=0.0, above=True)
+    check(a.trend, f"{where}, array 'trend'", (d + 1,))
+    inputs = check(a.inputs, f"{where}, array 'inputs'", (None, d))
+    n = len(inputs)
+    if n == 0:
+        raise InputError(f"{where}, array 'inputs': holds no training point")
+    check(a.dual, f"{where}, array 'dual'", (n,))
+    cholesky = check(a.cholesky, f"{where}, array 'cholesky'", (n, n))
+    if np.any(np.triu(cholesky, 1) != 0) or not np.all(np.diag(cholesky) > 0):
+        raise InputError(f"{where}, array 'cholesky': must be lower triangular with a positive "
+                         "diagonal (a Cholesky factor)")
+    kinds = check(a.part_kinds, f"{where}, array 'part_kinds'", (None,), integer=True)
+    parts = len(kinds)
+    if parts == 0 or not np.all(np.isin(kinds, list(PART_KINDS.values()))):
+        raise InputError(f"{where}, array 'part_kinds': one kind per part, each "
+                         f"{' or '.join(f'{v} ({k})' for k, v in PART_KINDS.items())}")
+    dims = check(a.part_dims, f"{where}, array 'part_dims'", (parts, None), low=-1,
+                 integer=True)
+    if np.any(dims >= d) or np.any(dims[:, :1] < 0):
+        raise InputError(f"{where}, array 'part_dims': feature columns 0 to {d - 1} (−1 pads), "
+                         "at least one per part")
+    check(a.amplitudes, f"{where}, array 'amplitudes'", (parts,), low=0.0)
+    check(a.length_scales, f"{where}, array 'length_scales'", (parts, dims.shape[1]), low=0.0,
+          above=True)
+    for name, low, above in (("noise", 0.0, False), ("y_mean", -np.inf, False),
+                             ("y_std", 0.0, True), ("condition_number", 0.0, False),
+                             ("bridge_origin", -np.inf, False)):
+        check(np.asarray(getattr(a, name)), f"{where}, array {name!r}", (), low=low, above=above)
+    span = check(a.bridge_range, f"{where}, array 'bridge_range'", (2,))
+    if span[0] > span[1]:
+        raise InputError(f"{where}, array 'bridge_range': must be (low, high)")
+
+
+def _named(entry: dict) -> str:
+    """The weight file a predictor entry names, for messages (never another value of it)."""
+    return entry["file"] if isinstance(entry.get("file"), str) else "a map"

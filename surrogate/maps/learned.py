@@ -21,6 +21,7 @@ pickle).
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -28,12 +29,13 @@ import numpy as np
 from ..errors import InputError
 from ..features import FeatureSpec
 from ..fluid import FluidState
+from . import package
 from .base import FlowMap, ForceMap, broadcast_query
 from .calibration import Calibration
 from .coverage import DP_OUTSIDE, FEATURES_SPARSE, Coverage
 from .domain import FeatureDomain
 
-MANIFEST = "surrogate.json"
+MANIFEST = package.MANIFEST
 FORMAT_VERSION = 2  # 2: network weights as .npz (1: PyTorch state_dicts, still read)
 _READABLE = (1, 2)
 
@@ -137,36 +139,53 @@ def write_manifest(folder: Path, manifest: dict) -> None:
 
 
 def read_manifest(folder: str | Path) -> dict:
-    """The ``surrogate.json`` of a surrogate folder, checked for its format."""
+    """The ``surrogate.json`` of a surrogate folder, checked for its format and for every value
+    the maps are built from (:func:`.package.check_manifest`)."""
     path = Path(folder) / MANIFEST
     if not path.is_file():
         raise InputError(f"{folder}: not a surrogate folder (no {MANIFEST}); train one with "
                          "`python training/train.py`")
     try:
-        manifest = json.loads(path.read_text())
-    except json.JSONDecodeError as error:
-        raise InputError(f"{path}: not valid JSON ({error})") from None
+        text = path.read_text("utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(f"{path}: cannot read the manifest "
+                         f"({getattr(error, 'strerror', None) or 'not UTF-8 text'})") from None
+    manifest = package.parse_json(text, str(path))
     from .registry import MAP_KINDS
 
     learned = [name for name, kind in MAP_KINDS.items() if kind.learned]
+    if not isinstance(manifest, dict):
+        raise InputError(f"{path}: must be a JSON object {{...}}, got "
+                         f"{package.json_type(manifest)}; not a surrogate manifest")
     if manifest.get("format_version") not in _READABLE or manifest.get("kind") not in learned:
         raise InputError(f"{path}: unknown surrogate format (need format_version "
                          f"{FORMAT_VERSION} and a learned kind: {', '.join(learned)})")
-    return manifest
+    return package.check_manifest(manifest, str(path))
 
 
 def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceMap]:
-    """The flow and force map of a saved surrogate folder (NN or GP)."""
+    """The flow and force map of a saved surrogate folder (NN or GP): its manifest checked, its
+    weight files inside it and, when it records them, holding the bytes it records
+    (:mod:`.package`); a folder without recorded hashes loads with a warning."""
     from .registry import map_kind
 
+    folder = Path(folder)
     manifest = read_manifest(folder)
+    where = str(folder / MANIFEST)
     load = map_kind(manifest["kind"]).load_predictor
     spec = FeatureSpec.from_dict(manifest["features"])
     coverage = Coverage.from_dict(manifest["coverage"]) if "coverage" in manifest else None
+    unsealed = [name for name in ("flow", "force") if not package.verify(
+        folder, manifest[name]["predictor"], f"{where}: {name}.predictor")]
+    if unsealed:  # before the arrays load: a warning that explains a broken file too
+        print(f"warning: {folder}: its weights are not sealed ({MANIFEST} records no SHA-256 of "
+              f"the {' and '.join(unsealed)} weights: written by an older version), so a changed "
+              "weight file would go unnoticed; retrain it with training/train.py to seal it",
+              file=sys.stderr)
     maps = []
     for cls, name in ((LearnedFlowMap, "flow"), (LearnedForceMap, "force")):
         entry = manifest[name]
-        maps.append(cls(spec, load(Path(folder), entry["predictor"]),
+        maps.append(cls(spec, load(folder, entry["predictor"]),
                         FeatureDomain.from_dict(entry["domain"]), manifest["kind"],
                         Calibration.from_dict(entry.get("calibration")), coverage))
     return tuple(maps)

@@ -161,6 +161,40 @@ class Architecture:
     def features(self) -> int:
         return len(self.signs)
 
+    def parameter_shapes(self) -> dict[str, tuple[int, ...]]:
+        """The raw parameters of a network of this architecture (its saved arrays), by name."""
+        shapes = {}
+        for i, group in enumerate(self.groups):
+            shapes.update({f"hidden.{i}": (self.width, len(group)), f"bias.{i}": (self.width,),
+                           f"output.{i}": (self.width,)})
+        return {**shapes, "linear": (self.features,), "offset": (1,),
+                "knee": (self.features + 1,)}
+
+    def problem(self, features: int) -> str | None:
+        """What makes this architecture unusable on ``features`` input columns (None: nothing):
+        the checks a manifest's architecture passes before a network is built from it."""
+        columns = range(features)
+        if self.features != features or not len(self.bounds) == len(self.scales) == features:
+            return (f"signs, bounds and scales must each have {features} entries (one per "
+                    "feature)")
+        if self.width < 1 or not self.groups or any(not group for group in self.groups):
+            return "needs width >= 1 and at least one non-empty group"
+        used = [i for group in self.groups for i in group] + list(self.knee_features) + \
+            list(self.linear_features or ()) + list(self.held) + \
+            ([] if self.transition is None else [self.transition])
+        if any(i not in columns for i in used):
+            return f"a feature index lies outside 0 to {features - 1}"
+        if any(sign not in (-1, 0, 1) for sign in self.signs):
+            return "signs must be -1, 0 or 1"
+        if not all(np.isfinite(s) and s > 0 for s in self.scales) or not all(
+                b is None or (np.isfinite(b) and b > 0) for b in self.bounds):
+            return "scales and bounds must be finite and > 0"
+        if not (np.isfinite(self.transition_depth) and self.transition_depth >= 0) or not all(
+                np.isfinite(low) and np.isfinite(high) and low <= high
+                for low, high in self.held.values()):
+            return "transition_depth must be finite and >= 0, held ranges finite (low, high)"
+        return None
+
     @property
     def parameter_count(self) -> int:
         per_part = [len(g) * self.width + 2 * self.width for g in self.groups]
@@ -338,6 +372,28 @@ class BridgedArchitecture:
     @property
     def parameter_count(self) -> int:
         return len(self.knots) * (3 * self.width + 2) + 3 * self.width + 1
+
+    def parameter_shapes(self) -> dict[str, tuple[int, ...]]:
+        """The raw parameters of a network of this architecture (its saved arrays), by name."""
+        knots, width = len(self.knots), self.width
+        return {"local_W": (knots, width), "local_b": (knots, width), "local_v": (knots, width),
+                "local_c": (knots,), "local_l": (knots,), "shared_W": (width,),
+                "shared_b": (width,), "shared_v": (width,), "shared_l": (1,)}
+
+    def problem(self, features: int) -> str | None:
+        """What makes this architecture unusable on ``features`` input columns (None: nothing)."""
+        knots = np.asarray(self.knots, float)
+        if len(knots) < 1 or not np.all(np.isfinite(knots)) or np.any(np.diff(knots) <= 0):
+            return "knots must be finite and increasing, at least one"
+        if self.width < 1:
+            return "needs width >= 1"
+        columns = (self.bridge_column, self.local_column, self.shared_column, *self.held)
+        if any(c not in range(features) for c in columns):
+            return f"a feature index lies outside 0 to {features - 1}"
+        if not all(np.isfinite(low) and np.isfinite(high) and low <= high
+                   for low, high in self.held.values()):
+            return "held ranges must be finite (low, high)"
+        return None
 
 
 def hat_weights(x: np.ndarray, knots) -> np.ndarray:

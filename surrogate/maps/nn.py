@@ -15,7 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..features import FEATURE_NAMES
+from . import package
 from .network import architecture_from_dict, network
+
+MANIFEST = package.MANIFEST
 
 #: what the network's output R means, and how the map's target follows from it
 OUTPUTS = {"log_discharge": lambda r: r,  # flow: R = ln C_d
@@ -74,25 +78,72 @@ def save_ensemble(folder: Path, name: str, ensemble: NetworkEnsemble) -> dict:
 
 
 def load_ensemble(folder: Path, entry: dict) -> NetworkEnsemble:
-    """An ensemble saved by :func:`save_ensemble` (or as PyTorch state_dicts, format 1)."""
-    states = (_load_npz(folder / entry["file"]) if "file" in entry
-              else [_load_legacy(folder / name) for name in entry["files"]])
-    return NetworkEnsemble(architecture_from_dict(entry["architecture"]), states,
-                           entry["feature_mean"], entry["feature_std"], entry["output"])
+    """An ensemble saved by :func:`save_ensemble` (or as PyTorch state_dicts, format 1), its
+    entry and weights checked: the architecture, the feature scaling, and every member's arrays
+    by name, shape (those of the architecture) and finite value."""
+    where = f"{folder / MANIFEST}: the predictor of {_named(entry)}:"
+    architecture = _architecture(package.table(entry, "architecture", where),
+                                 package.place(where, "architecture"))
+    features = len(FEATURE_NAMES)
+    mean = package.numbers(entry, "feature_mean", where, (features,))
+    std = package.numbers(entry, "feature_std", where, (features,), low=0.0, above=True)
+    output = package.text(entry, "output", where, OUTPUTS)
+    if "file" in entry:
+        path = folder / entry["file"]
+        states = _members(package.read_npz(path, "network weights"), path)
+    else:
+        states = [_load_legacy(folder / name) for name in package.entry_files(entry, where)]
+        path = folder / package.entry_files(entry, where)[0]
+    shapes = architecture.parameter_shapes()
+    for index, state in enumerate(states):
+        _check_member(state, shapes, f"{path}: member {index}")
+    members = entry.get("members", len(states))
+    if isinstance(members, bool) or members != len(states):
+        raise InputError(f"{path}: holds {len(states)} member(s), the manifest records another "
+                         "number (members)")
+    return NetworkEnsemble(architecture, states, mean, std, output)
 
 
-def _load_npz(path: Path) -> list[dict[str, np.ndarray]]:
+def _architecture(data: dict, where: str):
+    """The architecture a manifest records, checked (its values are not echoed)."""
     try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {key: data[key] for key in data.files}
-    except (OSError, ValueError) as error:  # missing, truncated, or object arrays (pickles)
-        raise InputError(f"{path}: cannot load network weights as plain arrays ({error})") from None
+        architecture = architecture_from_dict(data)
+    except KeyError as error:
+        raise InputError(f"{where}: missing key {error.args[0]!r}") from None
+    except (TypeError, ValueError, AttributeError, IndexError):
+        raise InputError(f"{where}: malformed; it holds numbers, lists of numbers and null as "
+                         "training writes them") from None
+    problem = architecture.problem(len(FEATURE_NAMES))
+    if problem:
+        raise InputError(f"{where}: {problem}")
+    return architecture
+
+
+def _check_member(state: dict[str, np.ndarray], shapes: dict[str, tuple], where: str) -> None:
+    """One member's arrays: exactly the architecture's, in its shapes, all finite."""
+    missing = [name for name in shapes if name not in state]
+    if missing:
+        raise InputError(f"{where}: missing array(s) {', '.join(missing)}; the architecture "
+                         f"needs {', '.join(shapes)}")
+    extra = [name for name in state if name not in shapes]
+    if extra:
+        raise InputError(f"{where}: unexpected array(s) {', '.join(extra)}; the architecture "
+                         f"has {', '.join(shapes)}")
+    for name, shape in shapes.items():
+        package.check_array(state[name], f"{where}, array {name!r}", shape)
+
+
+def _members(arrays: dict[str, np.ndarray], path: Path) -> list[dict[str, np.ndarray]]:
+    """The members' arrays of an ``.npz`` (keys ``<member>/<name>``), members numbered from 0."""
     members: dict[int, dict[str, np.ndarray]] = {}
     for key, value in arrays.items():
         index, _, name = key.partition("/")
         if not index.isdigit() or not name:
             raise InputError(f"{path}: unexpected array {key!r} (expected '<member>/<name>')")
         members.setdefault(int(index), {})[name] = value
+    if sorted(members) != list(range(len(members))) or not members:
+        raise InputError(f"{path}: members must be numbered 0, 1, ... without gaps; found "
+                         f"{', '.join(map(str, sorted(members))) or 'none'}")
     return [members[index] for index in sorted(members)]
 
 
@@ -106,4 +157,13 @@ def _load_legacy(path: Path) -> dict[str, np.ndarray]:
         first_line = str(error).strip().splitlines()[0] if str(error).strip() else ""
         raise InputError(f"{path}: cannot load network weights as plain tensors "
                          f"({type(error).__name__}: {first_line})") from None
-    return {key: value.numpy() for key, value in state.items()}
+    if not isinstance(state, dict) or not all(isinstance(value, torch.Tensor)
+                                              for value in state.values()):
+        raise InputError(f"{path}: not a state_dict of tensors")
+    # the sign buffer is the architecture's, not a weight
+    return {key: value.numpy() for key, value in state.items() if key != "signs"}
+
+
+def _named(entry: dict) -> str:
+    """The weight file a predictor entry names, for messages (never another value of it)."""
+    return entry["file"] if isinstance(entry.get("file"), str) else "a map"

@@ -12,7 +12,6 @@ the CFD force map with the orifice equation.
 
 from __future__ import annotations
 
-import hashlib
 import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -22,14 +21,10 @@ from ..errors import InputError
 from ..paths import SHIPPED_CFD_SAMPLES, shipped
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
+from .package import file_hash  # SHA-256 of a file: which data a map was built from
 
 TRAINED = Path(__file__).resolve().parents[1] / "trained"
 SHIPPED = "shipped"  # an option value that names the file or folder the package ships
-
-
-def file_hash(path: str | Path) -> str:
-    """SHA-256 of a file's bytes: which data a map was built or trained from."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 # --- options ---------------------------------------------------------------------------------------
@@ -63,8 +58,9 @@ class Option:
 
     ``parse(value, where)`` checks a value read from a file and returns it (or raises InputError
     naming ``where``); ``default`` is used when the option is absent (None: no default). A
-    ``path`` option names a file or folder (``"shipped"`` for the package's own): files write it
-    relative to themselves, so a model and its data move together.
+    ``path`` option names a file or folder (``"shipped"`` for the package's own, ``shipped``):
+    files write it relative to themselves, so a model and its data move together, and a command
+    counts it among the inputs no output may replace (:meth:`MapSource.inputs`).
     """
 
     name: str
@@ -72,6 +68,7 @@ class Option:
     parse: Callable[[object, str], object] = _text
     default: object = None
     path: bool = False
+    shipped: Path | None = None  # what "shipped" names, for a path option
 
 
 # --- kinds -----------------------------------------------------------------------------------------
@@ -194,11 +191,32 @@ class MapSource:
     def to_dict(self) -> dict:
         return {"kind": self.kind, **self.settings}
 
+    def inputs(self, base: Path = Path(".")) -> list[tuple[Path, str]]:
+        """The files and folders these maps read, each with what it is: the value of every
+        ``path`` option (the shipped file or folder for ``"shipped"``) and, for the folder of a
+        trained surrogate, the files its manifest names."""
+        from .package import MANIFEST, package_files
+
+        found = []
+        for option in map_kind(self.kind).options:
+            value = self.settings.get(option.name, option.default)
+            if not option.path or not isinstance(value, str):
+                continue
+            path = option.shipped if value == SHIPPED else _resolve(value, base)
+            if path is None:
+                continue
+            role = f"the {self.kind} maps' {option.name}"
+            found.append((path, role))
+            if (path / MANIFEST).is_file():
+                found += [(file, f"a file of {role}") for file in package_files(path)[1:]]
+        return found
+
     @classmethod
     def from_dict(cls, table, where: str, base: Path = Path(".")) -> "MapSource":
         """Read ``{kind = ..., options...}`` (or a kind name, or the folder of a trained
         surrogate, as older files wrote it), checking the options against the kind."""
         if isinstance(table, str):
+            refuse_ambiguous_kind(table, base, where, command_line=False)
             table = {"kind": table}
         if not isinstance(table, Mapping):
             raise InputError(f"{where}: expected a map kind ({', '.join(MAP_KINDS)}) or a table "
@@ -220,6 +238,34 @@ def _is_surrogate_folder(text: str, base: Path) -> bool:
     return (_resolve(text, base) / "surrogate.json").is_file()
 
 
+def refuse_ambiguous_kind(text: str, base: Path, where: str, *, command_line: bool = True
+                          ) -> None:
+    """Refuse a kind name that is also a folder in ``base`` holding a trained surrogate.
+
+    ``--maps nn`` beside the ``nn`` folder that ``training/train.py --out .`` writes could mean
+    either; taking the kind silently ignored the user's surrogate, taking the folder would change
+    what ``--maps nn`` means wherever such a folder lies. So neither: the message says how to
+    name each. A folder named like a kind without ``surrogate.json`` is no surrogate, and the
+    kind is meant.
+    """
+    if text not in MAP_KINDS or not _is_surrogate_folder(text, base):
+        return
+    kind = MAP_KINDS[text]
+    shipped_one = trained_folder(text) if kind.learned else None
+    if command_line:
+        folder, other = f"{where} ./{text}", (f"{where} {shipped_one} for the shipped one"
+                                              if shipped_one else "rename the folder to use "
+                                              f"{text} maps")
+    else:
+        folder = f'{{ kind = "{text}", folder = "./{text}" }}'
+        other = (f'{{ kind = "{text}" }} for the shipped one' if shipped_one
+                 else "rename the folder to use the kind")
+    what = f"the shipped surrogate, {shipped_one}" if shipped_one else kind.description
+    raise InputError(f"{where} {text}: ambiguous: {text!r} is the map kind ({what}) and "
+                     f"{_resolve(text, base)} is a trained surrogate folder here; write {folder} "
+                     f"for the folder, or {other}")
+
+
 @dataclass(frozen=True)
 class MapsSpec:
     """The sources of a model's flow map and force map (usually one source for both)."""
@@ -231,6 +277,11 @@ class MapsSpec:
     def both(cls, kind: str, **options) -> "MapsSpec":
         source = MapSource.of(kind, **options)
         return cls(source, source)
+
+    def inputs(self, base: Path = Path(".")) -> list[tuple[Path, str]]:
+        """The files and folders the two maps read (:meth:`MapSource.inputs`)."""
+        return self.flow.inputs(base) + (self.force.inputs(base) if self.force != self.flow
+                                         else [])
 
     def to_dict(self) -> dict:
         if self.flow == self.force:
@@ -279,14 +330,16 @@ _CACHE_SIZE = 16
 
 
 def _fingerprint(source: MapSource, base: Path) -> tuple:
-    """Modification times and sizes of the files a source names, so an edited file rebuilds."""
+    """Modification times and sizes of the files a source names (of every file in a folder it
+    names: a surrogate's weights), so an edited file rebuilds, and is checked again."""
     stamps = []
     for _, value in source.options:
         if isinstance(value, str) and value != SHIPPED:
             path = _resolve(value, base)
-            if path.exists():
-                stat = path.stat()
-                stamps.append((str(path), stat.st_mtime_ns, stat.st_size))
+            for file in (sorted(path.iterdir()) if path.is_dir() else [path]):
+                if file.exists():
+                    stat = file.stat()
+                    stamps.append((str(file), stat.st_mtime_ns, stat.st_size))
     return tuple(stamps)
 
 
@@ -312,6 +365,10 @@ def _build_orifice(options, valve, base):
 
 
 def _grid_data(cfd, **options) -> dict:
+    if cfd is not None:  # a file the user names: checked here, where its errors may quote it
+        from ..data.loaders import load_cfd_samples
+
+        load_cfd_samples(cfd)
     reference = SHIPPED if cfd is None else str(Path(cfd).resolve())
     return {"cfd": reference,
             "cfd_sha256": file_hash(resolve_file(reference, Path("."), SHIPPED_CFD_SAMPLES))}
@@ -327,7 +384,9 @@ def _build_grid(options, valve, base):
         raise InputError(f"{path}: these CFD samples are not the ones the model was built from "
                          f"(SHA-256 {file_hash(path)[:12]}…, the model records {expected[:12]}…); "
                          "refit the model on them, or point cfd = ... at the original file")
-    return grid_maps_on(load_cfd_samples(path), valve)
+    # named by a model file (or checked already where the user named it, :func:`_grid_data`):
+    # its errors do not quote it, as it may be any file at all
+    return grid_maps_on(load_cfd_samples(path, named_by="the maps' cfd option"), valve)
 
 
 def _grid_accuracy(options, valve, base):
@@ -355,11 +414,12 @@ def _learned_folder(kind: str, folder: str, base: Path) -> Path:
 def _learned_builder(kind: str):
     def build(options, valve, base):
         from .learned import MANIFEST, load_learned_maps
+        from .package import sealed_hashes
 
         path = _learned_folder(kind, options.get("folder", SHIPPED), base)
         expected = options.get("surrogate_sha256")
         if expected is not None and (path / MANIFEST).is_file() and \
-                file_hash(path / MANIFEST) != expected:
+                expected not in sealed_hashes(path / MANIFEST):
             raise InputError(f"{path}: this {kind} surrogate is not the one the model was built "
                              f"on (its {MANIFEST} has SHA-256 {file_hash(path / MANIFEST)[:12]}…, "
                              f"the model records {expected[:12]}…); refit the model on it, or "
@@ -395,8 +455,11 @@ def _learned_data(kind: str):
 
 BASIC_DISCHARGE_COEFFICIENT = 0.4  # the paper's BMBE choice, from C_d at u = 0.63 mm
 
-_FOLDER = Option("folder", "the trained surrogate's folder (default: the committed one)",
-                 default=SHIPPED, path=True)
+def _folder_option(kind: str) -> Option:
+    return Option("folder", "the trained surrogate's folder (default: the committed one)",
+                  default=SHIPPED, path=True, shipped=TRAINED / kind)
+
+
 _SURROGATE_HASH = Option("surrogate_sha256",
                          "SHA-256 of the surrogate's manifest the model was built on", _sha256)
 
@@ -434,13 +497,14 @@ register(MapKind(
             BASIC_DISCHARGE_COEFFICIENT),)))
 register(MapKind(
     "grid", "interpolation of the CFD samples (surrogate/maps/grid.py)", _build_grid,
-    (Option("cfd", "the CFD-sample file (default: the shipped one)", default=SHIPPED, path=True),
+    (Option("cfd", "the CFD-sample file (default: the shipped one)", default=SHIPPED, path=True,
+            shipped=SHIPPED_CFD_SAMPLES),
      Option("cfd_sha256", "SHA-256 of the CFD-sample file the model was built from", _sha256)),
     data=_grid_data, accuracy=_grid_accuracy))
 register(MapKind(
     "nn", "neural-network ensembles on dimensionless features: a monotone flow network, a "
           "force network bridged across openings", _learned_builder("nn"),
-    (_FOLDER, _SURROGATE_HASH), trainer="surrogate.learn.training:train_networks",
+    (_folder_option("nn"), _SURROGATE_HASH), trainer="surrogate.learn.training:train_networks",
     data=_learned_data("nn"), accuracy=_learned_accuracy("nn"),
     save_predictor=_save_network, load_predictor=_load_network,
     constraints={
@@ -452,7 +516,7 @@ register(MapKind(
 register(MapKind(
     "gp", "Gaussian processes on dimensionless features (the force's bridged across openings), "
           "with a standard deviation",
-    _learned_builder("gp"), (_FOLDER, _SURROGATE_HASH),
+    _learned_builder("gp"), (_folder_option("gp"), _SURROGATE_HASH),
     trainer="surrogate.learn.training:train_processes", data=_learned_data("gp"),
     accuracy=_learned_accuracy("gp"),
     save_predictor=_save_process, load_predictor=_load_process,
