@@ -1,0 +1,228 @@
+"""Fitting a shape-free effect (:mod:`surrogate.effects.shapes`) to a log, cheaply.
+
+A shape-free term is linear in its coefficients: its hook's output is Σ_k c_k·b_k(x). To first
+order, a sample's Δp answers a small extra hook output with a *sensitivity* that depends on the
+sample's state, not on where the output came from. So one replay with a uniform output (a force
+of 1 N everywhere, a friction band widened by 1 N ...) measures that sensitivity s at every
+sample, and the Jacobian column of coefficient k is b_k(x)·s: a whole basis costs one replay,
+not one per coefficient. Where friction holds the piston, a sample answers the output it met when
+the piston last moved, not its own; the column is then approximate, and the refinement's real
+replays (Gauss–Newton with Broyden updates, :class:`~surrogate.leastsquares.Minimizer`) correct
+what it got wrong.
+
+The roughness penalty's weight λ is chosen by the held-out runs: for each λ of
+:data:`ROUGHNESS_WEIGHTS` the linearised fit is refitted without each run, each temperature and
+each pilot pressure in turn (:class:`.heldout.RunBlocks`, with the maps' discrepancy), and the λ
+that predicts the left-out runs best (pooled over the schemes) is kept.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from ..effects import BalanceState, Effect, FlowState, Parameter
+from ..effects.shapes import PRESSURE_DROP, ShapeFreeEffect
+from ..model import ValveModel
+from ..units import LPM, to_si
+from .heldout import Linearised, RunBlocks
+from .logfit import probe_change
+from .residuals import LogReplay
+
+#: λ tried, relative to the columns' mean square (so that the choice does not depend on units)
+ROUGHNESS_WEIGHTS = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+
+
+# --- probes: how Δp answers a uniform hook output ------------------------------------------------
+
+class _Probe(Effect):
+    """A uniform output ``v`` of one hook everywhere: the probe of :func:`sensitivities`."""
+
+    category = "physics"
+    title = "probe"
+
+
+class _ForceProbe(_Probe):
+    name, kind = "probe_force", "force"
+    parameter_specs = (Parameter("v", 0.0, "N", min=-50.0, max=50.0),)
+
+    def force(self, state: BalanceState) -> np.ndarray:
+        return np.broadcast_to(self["v"], state.u.shape)
+
+
+class _FrictionProbe(_Probe):
+    name, kind = "probe_friction", "friction"
+    parameter_specs = (Parameter("v", 0.0, "N", min=0.0, max=50.0),)
+
+    def friction(self, state: BalanceState) -> np.ndarray:
+        return np.broadcast_to(self["v"], state.u.shape)
+
+
+class _LeakageProbe(_Probe):
+    name, kind = "probe_leakage", "leakage"
+    parameter_specs = (Parameter("v", 0.0, "L/min", min=0.0, max=5.0 * LPM),)
+
+    def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
+        return np.where(dp > 0, self["v"], 0.0)
+
+
+class _FlowForceProbe(_Probe):
+    name, kind = "probe_flow_force", "force"
+    parameter_specs = (Parameter("v", 0.0, "1", min=-1.0, max=1.0),)
+
+    def force(self, state: BalanceState) -> np.ndarray:
+        return self["v"] * state.flow_force
+
+
+class _DischargeProbe(_Probe):
+    name, kind = "probe_discharge", "flow"
+    parameter_specs = (Parameter("v", 0.0, "1", min=-0.5, max=0.5),)
+
+    def restriction_flow(self, q: np.ndarray, state: FlowState) -> np.ndarray:
+        return q / (1.0 + self["v"])
+
+
+#: the probe of each shape-free effect's hook, by what the shape scales
+_PROBES = {"force": _ForceProbe, "friction": _FrictionProbe, "leakage": _LeakageProbe,
+           "flow force": _FlowForceProbe, "discharge": _DischargeProbe}
+
+
+def probe_of(cls: type[ShapeFreeEffect]) -> type[_Probe]:
+    """The probe whose uniform output a shape of ``cls`` scales sample by sample."""
+    if cls.kind == "flow":
+        return _DischargeProbe
+    if cls.kind == "force" and cls.value_unit == "1":
+        return _FlowForceProbe
+    return _PROBES[cls.kind]
+
+
+def sensitivity(model: ValveModel, probe: type[_Probe], base: LogReplay) -> np.ndarray:
+    """Δp's change [Pa] per SI unit of the probe's uniform output at every sample of ``base``'s
+    log (0 where the model has no solution), from one replay warm-started at ``base``."""
+    trial = model.copy()
+    trial.effects.append(probe())
+    step, change = probe_change(trial, probe.name, "v", base.log, base)
+    return np.where(np.isfinite(change), change, 0.0) / step
+
+
+# --- the variables at the samples ----------------------------------------------------------------
+
+def state_at_samples(model: ValveModel, base: LogReplay) -> dict[str, np.ndarray]:
+    """Every shape's variable [SI] at each sample of ``base`` as the model sees it: the opening
+    and Δp of its replay, the sensor-corrected readings, p_L = p_B + Δp, the oil's viscosity."""
+    points = model.true_points(base.replay.points)
+    dp = base.replay.dp
+    return {"u": base.replay.u, "p_L": points.p_B + dp, "p_P": points.p_P, "p_B": points.p_B,
+            "p_LP": points.p_B + dp - points.p_P, "nu": model.fluid(base.replay.points).nu,
+            "q": points.q, "dp": dp}
+
+
+def variable_values(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) -> np.ndarray:
+    return state[cls.variable.name]
+
+
+def column_factor(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) -> np.ndarray:
+    """What multiplies the basis in the hook's output besides the coefficients (the laminar
+    viscosity factor of a leakage, 1 otherwise)."""
+    if cls.variable is PRESSURE_DROP:
+        from ..effects.shapes import NU_REFERENCE
+
+        return NU_REFERENCE / state["nu"]
+    return np.ones(len(state["u"]))
+
+
+# --- the fit -------------------------------------------------------------------------------------
+
+@dataclass
+class ShapeColumns:
+    """A shape-free effect on the log's knots and its linearised columns at the solved samples.
+
+    Attributes
+    ----------
+    effect : ShapeFreeEffect
+        The effect, off, on knots where the log's values of its variable lie.
+    columns : numpy.ndarray
+        (n, k) [Pa]: Δp's change at each solved sample for a step ``steps[j]`` of coefficient j.
+    steps : numpy.ndarray
+        (k,) [SI]: one display unit of each coefficient.
+    roughness : numpy.ndarray
+        The penalty's difference matrix over the coefficients (SI values).
+    """
+
+    effect: ShapeFreeEffect
+    columns: np.ndarray
+    steps: np.ndarray
+    roughness: np.ndarray
+
+    @property
+    def scale(self) -> float:
+        """The columns' mean square per coefficient [Pa²] (λ is relative to it)."""
+        return float(np.sum(self.columns**2)) / max(self.columns.shape[1], 1)
+
+    def penalty(self, weight: float) -> np.ndarray:
+        """L over the coefficients' SI values for a relative weight ``weight``: ‖L·c‖² is
+        weight·scale·Σ(differences in display units)²."""
+        return np.sqrt(weight * self.scale) * self.roughness / self.steps
+
+
+def shape_columns(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray],
+                  sensitivities: np.ndarray, ok: np.ndarray, moving: np.ndarray) -> ShapeColumns:
+    """The effect on knots at the values its variable takes where the piston moves (``moving``;
+    where it rests on a stop or friction holds it, a shape's value changes nothing), and its
+    columns at the solved samples ``ok``."""
+    x = variable_values(cls, state)
+    where = ok & moving & np.isfinite(x)
+    effect = cls.on_knots(cls.knots_for(x[where if where.any() else ok & np.isfinite(x)]))
+    steps = np.array([float(to_si(1.0, cls.value_unit) - to_si(0.0, cls.value_unit))]
+                     * len(effect.coefficients))
+    basis = effect.basis(np.where(np.isfinite(x[ok]), x[ok], effect.knots[0]))
+    factor = (column_factor(cls, state) * sensitivities)[ok]
+    return ShapeColumns(effect, basis * factor[:, None] * steps, steps, effect.roughness())
+
+
+@dataclass
+class RoughnessChoice:
+    """The roughness weight a shape's held-out runs chose, and the linear fit at it."""
+
+    weight: float
+    heldout: dict  # [Pa] per scheme and "pooled"
+    coefficients: np.ndarray  # [SI]
+    rms: float  # [Pa] of the linear fit, in sample
+
+
+def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
+                     runs: np.ndarray, discrepancy, prior: float, schemes: dict,
+                     weights: tuple[float, ...] = ROUGHNESS_WEIGHTS) -> RoughnessChoice:
+    """The weight of :data:`ROUGHNESS_WEIGHTS` whose linearised fit (the model's own columns
+    ``own`` refitted too, coefficients within their bounds) predicts held-out runs best, pooled
+    over the held-out schemes (:meth:`.heldout.RunBlocks.heldout_rms`).
+
+    ``residual`` [Pa] is the model's at its optimum on the solved samples, ``discrepancy`` and
+    ``prior`` (s² [Pa²]) the maps' nuisance terms of the judgement.
+    """
+    k, p = shape.columns.shape[1], own.shape[1]
+    jacobian = np.column_stack([own, shape.columns])
+    parameters = shape.effect.params
+    names = shape.effect.coefficient_names()
+    lower = np.r_[[-np.inf] * p, [parameters[n].min / s for n, s in zip(names, shape.steps)]]
+    upper = np.r_[[np.inf] * p, [parameters[n].max / s for n, s in zip(names, shape.steps)]]
+    best = None
+    for weight in weights:
+        rough = np.hstack([np.zeros((shape.roughness.shape[0], p)),
+                           np.sqrt(weight * shape.scale) * shape.roughness])
+        ridge = 1e-8 * np.sqrt(shape.scale) * np.eye(p + k)  # keeps collinear columns defined
+        theta = lsq_linear(np.vstack([jacobian, rough, ridge]),
+                           np.r_[-residual, np.zeros(len(rough) + p + k)],
+                           bounds=(lower, upper)).x
+        fitted = residual + jacobian @ theta
+        # held out: refits of the shape's linearisation at this fit, its inactive bounds free
+        active = np.r_[np.ones(p, bool), (theta[p:] > lower[p:] + 1e-9) | ~np.isfinite(lower[p:])]
+        blocks = RunBlocks(Linearised(fitted, jacobian[:, active]), discrepancy, runs, prior,
+                           (rough[:, active], rough @ theta))
+        heldout = blocks.heldout_rms(schemes)
+        if best is None or heldout["pooled"] < best.heldout["pooled"]:
+            best = RoughnessChoice(weight, heldout, theta[p:] * shape.steps,
+                                   float(np.sqrt(np.mean(fitted**2))))
+    return best
