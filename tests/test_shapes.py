@@ -95,3 +95,28 @@ def test_a_roughness_penalty_in_the_linear_refits_equals_the_penalised_solve():
     plain = RunBlocks(Linearised(residual, jacobian), None, runs, 0.0)
     assert blocks.effective_parameters(np.arange(p)) < plain.effective_parameters(np.arange(p))
     assert np.isclose(plain.effective_parameters(np.arange(p)), p)
+
+
+@pytest.mark.parametrize("cls", SHAPE_FREE, ids=[cls.name for cls in SHAPE_FREE])
+def test_a_shape_handed_over_as_an_effects_file_reproduces_it(cls, tmp_path):
+    """The written file loads as a user's effects file, keeps the effect contract, and at
+    scale = 1 gives the fitted shape's output (to the table's interpolation)."""
+    from surrogate.effects import load_effects_file
+    from surrogate.effects.handover import write_effect_file
+    from surrogate.testing import _call, _effect_states
+    from surrogate import load_valve
+
+    x = {"u": np.linspace(0.02e-3, 0.63e-3, 50), "nu": np.linspace(20e-6, 120e-6, 50),
+         "q": np.linspace(1 / 6e4, 12 / 6e4, 50)}.get(cls.variable.name,
+                                                     np.linspace(1e5, 170e5, 50))
+    effect = cls.on_knots(cls.knots_for(x))
+    for index, name in enumerate(effect.coefficient_names()):
+        effect.params[name].value = effect.params[name].max * 0.1 * (1 + index % 3)
+    path = write_effect_file(effect, tmp_path / "found.py", origin="a log")
+    (found,) = load_effects_file(path).values()
+    check_effect(found)
+    handed = found()
+    handed.params["scale"].set_display(1.0)
+    states = _effect_states(0, 40, load_valve())
+    assert np.allclose(_call(handed, states), _call(effect, states), rtol=2e-3,
+                       atol=2e-3 * np.max(np.abs(_call(effect, states))))

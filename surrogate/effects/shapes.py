@@ -66,26 +66,32 @@ class Variable:
         Display unit (:mod:`surrogate.units`).
     of : callable
         ``of(state)`` -> its values [SI] in a :class:`BalanceState` or :class:`FlowState`.
+    source : str
+        The same as Python source, for the effect file a shape is handed over as
+        (:mod:`.handover`).
     """
 
     name: str
     label: str
     unit: str
     of: Callable[[object], np.ndarray]
+    source: str
 
 
 VARIABLES = {variable.name: variable for variable in (
-    Variable("u", "the opening u", "mm", lambda state: state.u),
-    Variable("p_L", "the load pressure p_L", "bar", lambda state: state.p_L),
-    Variable("p_P", "the pilot pressure p_P", "bar", lambda state: state.p_P),
-    Variable("p_B", "the back pressure p_B", "bar", lambda state: state.p_B),
+    Variable("u", "the opening u", "mm", lambda state: state.u, "state.u"),
+    Variable("p_L", "the load pressure p_L", "bar", lambda state: state.p_L, "state.p_L"),
+    Variable("p_P", "the pilot pressure p_P", "bar", lambda state: state.p_P, "state.p_P"),
+    Variable("p_B", "the back pressure p_B", "bar", lambda state: state.p_B, "state.p_B"),
     Variable("p_LP", "the pressure across the pilot seal, p_L − p_P", "bar",
-             lambda state: state.p_L - state.p_P),
-    Variable("nu", "the oil's viscosity ν", "cSt", lambda state: state.fluid.nu),
-    Variable("q", "the flow q", "L/min", lambda state: state.q),
+             lambda state: state.p_L - state.p_P, "(state.p_L - state.p_P)"),
+    Variable("nu", "the oil's viscosity ν", "cSt", lambda state: state.fluid.nu,
+             "state.fluid.nu"),
+    Variable("q", "the flow q", "L/min", lambda state: state.q, "state.q"),
 )}
 #: the pressure drop, the variable of a leakage (given to the hook, not part of its state)
-PRESSURE_DROP = Variable("dp", "the pressure drop Δp", "bar", lambda state: state.dp)
+PRESSURE_DROP = Variable("dp", "the pressure drop Δp", "bar", lambda state: state.dp,
+                         "np.maximum(dp, 0.0)")
 
 
 def spline_basis(knots: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -142,6 +148,9 @@ class ShapeFreeEffect(Effect):
     value_limit: ClassVar[float] = 200.0
     #: what the shape is in words ("force", "friction" ...), for titles and reports
     quantity: ClassVar[str] = ""
+    #: the hook's output as Python source, ``{shape}`` standing for the shape's values [SI]
+    #: (the effect file of :mod:`.handover` writes it)
+    formula: ClassVar[str] = "{shape}"
 
     def __init__(self, knots=None, **values: float):
         """The effect off on ``knots`` [SI] (default: evenly on [0, 1], to be replaced by
@@ -287,6 +296,8 @@ class Leakage(ShapeFreeEffect):
     def knots_for(cls, x: np.ndarray) -> np.ndarray:
         return quantile_knots(x, start=0.0)
 
+    formula = "{shape} * (%r / state.fluid.nu)" % NU_REFERENCE
+
     def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
         return self.shape(np.maximum(dp, 0.0)) * (NU_REFERENCE / state.fluid.nu)
 
@@ -305,6 +316,8 @@ class FlowForceFactor(ShapeFreeEffect):
     value_limit = 0.5
     validity = "Acts on the force map's flow force; zero with a uniform-pressure map."
 
+    formula = "{shape} * state.flow_force"
+
     def force(self, state: BalanceState) -> np.ndarray:
         return self.shape(state.u) * state.flow_force
 
@@ -322,6 +335,8 @@ class DischargeFactor(ShapeFreeEffect):
     value_unit = "1"
     value_limit = 0.5
     validity = "Acts on the flow map's discharge coefficient."
+
+    formula = "q / (1.0 + {shape})"
 
     def restriction_flow(self, q: np.ndarray, state: FlowState) -> np.ndarray:
         return q / (1.0 + self.shape(state.u))
