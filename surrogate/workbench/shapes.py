@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 from scipy.optimize import lsq_linear
 
 from ..effects import BalanceState, Effect, FlowState, Parameter
@@ -167,19 +168,50 @@ class ShapeColumns:
         return np.sqrt(weight * self.scale) * self.roughness / self.steps
 
 
+def last_moving(x: np.ndarray, moving: np.ndarray, runs: np.ndarray) -> np.ndarray:
+    """``x`` with each held sample's value replaced by that of the last sample of its run at
+    which the piston moved (its own before the run's first move)."""
+    frame = pd.DataFrame({"x": np.where(moving, x, np.nan), "run": runs})
+    carried = frame.groupby("run", sort=False)["x"].ffill().to_numpy()
+    return np.where(np.isfinite(carried), carried, x)
+
+
 def shape_columns(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray],
-                  sensitivities: np.ndarray, ok: np.ndarray, moving: np.ndarray) -> ShapeColumns:
+                  sensitivities: np.ndarray, ok: np.ndarray, moving: np.ndarray,
+                  runs: np.ndarray) -> ShapeColumns:
     """The effect on knots at the values its variable takes where the piston moves (``moving``;
     where it rests on a stop or friction holds it, a shape's value changes nothing), and its
-    columns at the solved samples ``ok``."""
+    columns at the solved samples ``ok`` (``runs``: each sample's run)."""
     x = variable_values(cls, state)
     where = ok & moving & np.isfinite(x)
     effect = cls.on_knots(cls.knots_for(x[where if where.any() else ok & np.isfinite(x)]))
     steps = np.array([float(to_si(1.0, cls.value_unit) - to_si(0.0, cls.value_unit))]
                      * len(effect.coefficients))
-    basis = effect.basis(np.where(np.isfinite(x[ok]), x[ok], effect.knots[0]))
-    factor = (column_factor(cls, state) * sensitivities)[ok]
-    return ShapeColumns(effect, basis * factor[:, None] * steps, steps, effect.roughness())
+    # A held piston stays where the shape's output put it when it last moved: that part of a
+    # held sample's answer is the output at that moment. A flow or a leakage also acts on the
+    # held sample itself, through the restriction at its fixed opening (local_sensitivity).
+    def basis_at(values):
+        return effect.basis(np.where(np.isfinite(values[ok]), values[ok], effect.knots[0]))
+
+    now, then = basis_at(x), basis_at(last_moving(x, moving, runs))
+    factor = column_factor(cls, state)[ok]
+    local = local_sensitivity(cls, state)[ok]
+    columns = (then * (factor * sensitivities[ok])[:, None]
+               + (now - then) * (factor * local)[:, None])
+    return ShapeColumns(effect, columns * steps, steps, effect.roughness())
+
+
+def local_sensitivity(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) -> np.ndarray:
+    """Δp's change [Pa] per SI unit of the shape's output at a fixed opening: a flow effect
+    scales the restriction's Δp ∝ (q/C_d)² by (1 + d)⁻², a leakage takes its flow from the
+    restriction's; a force or a friction moves nothing while the piston is held."""
+    dp, q = state["dp"], state["q"]
+    if cls.kind == "flow":
+        return -2.0 * dp
+    if cls.kind == "leakage":
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(q > 0, -2.0 * dp / q, 0.0)
+    return np.zeros(len(dp))
 
 
 @dataclass

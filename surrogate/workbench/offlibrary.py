@@ -1,0 +1,172 @@
+"""Hidden effects whose shapes the library does not name, for the off-library stress test.
+
+A workbench that finds only what its library names has proved little about a real valve. These
+effects are what real valves show, in shapes no library term has; a stress case draws one, with
+its size, shape and position, and hides it in a virtual valve that also differs from its CFD
+(:mod:`.mismatch`). The diagnosis must find a term of the right *kind* (a force, a friction, a
+leakage) on the right *variable* (:attr:`OffLibraryEffect.variable`), shape-free or from the
+library, and nothing else.
+
+* :class:`DetentForce`: a closing force bump around one opening (a detent, a ball seat, a
+  magnet): a force of u;
+* :class:`KinkedSpring`: a spring whose rate grows beyond one opening (a second spring, a coil
+  that touches): a force of u;
+* :class:`ExtrusionFriction`: seal friction that sets in above a load pressure (a seal pressed
+  into its gap): a friction of p_L;
+* :class:`FlowFriction`: friction rising with the flow (a jet on a seal lip): a friction of q;
+* :class:`ThresholdLeakage`: a leak that opens above a pressure drop (a clearance that deforms,
+  a check ball lifting): a leakage of Δp.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..effects import BalanceState, Effect, EffectLibrary, FlowState, Parameter
+from ..units import BAR, CST, LPM
+
+
+class OffLibraryEffect(Effect):
+    """Base class: an effect the generator hides; ``variable`` is what its shape depends on
+    (a name of :data:`surrogate.effects.shapes.VARIABLES`, or ``"dp"``)."""
+
+    category = "physics"
+    variable: ClassVar[str] = ""
+
+    @classmethod
+    def draw(cls, rng: np.random.Generator) -> dict[str, float]:
+        """Parameter values (display units) for one stress case."""
+        raise NotImplementedError
+
+
+class DetentForce(OffLibraryEffect):
+    """A closing force A·exp(−½((u − u₀)/w)²) around the opening u₀."""
+
+    name = "detent_force"
+    kind = "force"
+    title = "a detent: a closing force bump around one opening"
+    variable = "u"
+    parameter_specs = (Parameter("A", 0.0, "N", min=0.0, max=50.0),
+                       Parameter("u0", 0.15e-3, "mm", min=0.0, max=1e-3, vary=False),
+                       Parameter("w", 0.04e-3, "mm", min=1e-6, max=1e-3, vary=False))
+
+    def force(self, state: BalanceState) -> np.ndarray:
+        return -self["A"] * np.exp(-0.5 * ((state.u - self["u0"]) / self["w"]) ** 2)
+
+    @classmethod
+    def draw(cls, rng):
+        return {"A": rng.uniform(6.0, 12.0), "u0": rng.uniform(0.08, 0.30),
+                "w": rng.uniform(0.03, 0.07)}
+
+
+class KinkedSpring(OffLibraryEffect):
+    """An extra spring rate k beyond the opening u_k: a closing force k·max(u − u_k, 0)."""
+
+    name = "kinked_spring"
+    kind = "force"
+    title = "a spring whose rate grows beyond one opening"
+    variable = "u"
+    parameter_specs = (Parameter("k", 0.0, "N/m", min=0.0, max=500e3),
+                       Parameter("u_k", 0.2e-3, "mm", min=0.0, max=1e-3, vary=False))
+
+    def force(self, state: BalanceState) -> np.ndarray:
+        return -self["k"] * np.maximum(state.u - self["u_k"], 0.0)
+
+    @classmethod
+    def draw(cls, rng):
+        knee = rng.uniform(0.10, 0.30)  # and 20-40 N more at the full stroke, 0.63 mm
+        return {"k": rng.uniform(20.0, 40.0) / ((0.63 - knee) * 1e-3), "u_k": knee}
+
+
+class ExtrusionFriction(OffLibraryEffect):
+    """Friction K·max(p_L − p₀, 0)/(100 bar) that sets in above the load pressure p₀."""
+
+    name = "extrusion_friction"
+    kind = "friction"
+    title = "seal friction setting in above a load pressure"
+    variable = "p_L"
+    parameter_specs = (Parameter("K", 0.0, "N", min=0.0, max=100.0),
+                       Parameter("p0", 80 * BAR, "bar", min=0.0, max=400 * BAR, vary=False))
+
+    def friction(self, state: BalanceState) -> np.ndarray:
+        return self["K"] * np.maximum(state.p_L - self["p0"], 0.0) / (100.0 * BAR)
+
+    @classmethod
+    def draw(cls, rng):
+        return {"K": rng.uniform(12.0, 24.0), "p0": rng.uniform(50.0, 100.0)}
+
+
+class FlowFriction(OffLibraryEffect):
+    """Friction K·(q/10 L/min)^n rising with the flow."""
+
+    name = "flow_friction"
+    kind = "friction"
+    title = "friction rising with the flow"
+    variable = "q"
+    parameter_specs = (Parameter("K", 0.0, "N", min=0.0, max=100.0),
+                       Parameter("n", 1.5, "1", min=0.5, max=4.0, vary=False))
+
+    def friction(self, state: BalanceState) -> np.ndarray:
+        return self["K"] * (np.maximum(state.q, 0.0) / (10.0 * LPM)) ** self["n"]
+
+    @classmethod
+    def draw(cls, rng):
+        return {"K": rng.uniform(3.0, 7.0), "n": rng.uniform(1.0, 2.5)}
+
+
+class ThresholdLeakage(OffLibraryEffect):
+    """A laminar leak G·max(Δp − p₀, 0)·ν_ref/ν that opens above the pressure drop p₀ (G per
+    100 bar above it, at 46 cSt)."""
+
+    name = "threshold_leakage"
+    kind = "leakage"
+    title = "a leak opening above a pressure drop"
+    variable = "dp"
+    parameter_specs = (Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM),
+                       Parameter("p0", 80 * BAR, "bar", min=0.0, max=400 * BAR, vary=False))
+
+    def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
+        return (self["G"] * np.maximum(dp - self["p0"], 0.0) / (100.0 * BAR)
+                * (46.0 * CST / state.fluid.nu))
+
+    @classmethod
+    def draw(cls, rng):
+        return {"G": rng.uniform(0.3, 0.6), "p0": rng.uniform(40.0, 90.0)}
+
+
+OFF_LIBRARY = EffectLibrary([DetentForce, KinkedSpring, ExtrusionFriction, FlowFriction,
+                             ThresholdLeakage])
+
+#: the kind and variable of every library effect that a diagnosis may add for an off-library
+#: one (a term of the right kind on the right variable counts as found)
+LIBRARY_SHAPES = {
+    "spring_preload_offset": ("force", "u"), "progressive_spring": ("force", "u"),
+    "friction_load_pressure": ("friction", "p_L"),
+    "friction_seal_pressure": ("friction", "p_LP"), "friction_pilot_pressure": ("friction", "p_P"),
+    "friction_pilot_differential": ("friction", "p_P"), "friction_viscous": ("friction", "nu"),
+    "laminar_leakage": ("leakage", "dp"),
+}
+
+
+@dataclass(frozen=True)
+class OffLibraryCase:
+    """One log of the off-library stress test: the hidden effect (None: nothing) and its values
+    (display units), and the seed of its noise and map mismatch."""
+
+    hidden: str | None
+    values: dict[str, float] | None
+    seed: int
+
+
+def off_library_suite(cases: int = 20, controls: int = 10, seed: int = 4242
+                      ) -> list[OffLibraryCase]:
+    """``cases`` logs with one off-library effect each (the kinds in turn, sizes, shapes and
+    positions drawn), and ``controls`` with nothing hidden; every log has its own seed."""
+    rng = np.random.default_rng(seed)
+    names = list(OFF_LIBRARY)
+    suite = [OffLibraryCase(names[i % len(names)], OFF_LIBRARY[names[i % len(names)]].draw(rng),
+                            seed + 1 + i) for i in range(cases)]
+    return suite + [OffLibraryCase(None, None, seed + 501 + i) for i in range(controls)]
