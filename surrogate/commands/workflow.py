@@ -14,10 +14,9 @@ from ..presets import maps
 from ..spec import ValveSource
 from ..units import from_si
 from ..workbench.compare import compare
-from ..workbench.figures import all_figures
 from ..workbench.report import (comparison_section, diagnosis_section, figure_png,
-                                staircase_figure, staircase_section, staircase_table,
-                                staircases_section, write_html)
+                                figure_pngs, staircase_figure, staircase_section,
+                                staircase_table, staircases_section, write_html)
 from ..workbench.workflow import MAX_ADDITIONS, run_workflow
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, maps_from_args,
                      non_negative_int, print_json, progress_for)
@@ -88,13 +87,14 @@ def run(args) -> int:
             figure_png(staircase_figure(workflow.steps, workflow.noise_floor)))
         save_model(final.model, staging / "final_model.toml",
                    note=f"final model of the workflow on {log.source}")
-        for name, figure in all_figures(comparison).items():
-            (staging / f"{name}.png").write_bytes(figure_png(figure))
+        pngs = figure_pngs(comparison)  # drawn once, for the files and the report
+        for name, png in pngs.items():
+            (staging / f"{name}.png").write_bytes(png)
         others = ([staircases_section(workflows, main, scores)] if len(workflows) > 1
                   else [])
         write_html(staging / "report.html", "CBV model against bench data: the workflow",
                    [staircase_section(workflow), *others,
-                    comparison_section(comparison, "The final model against the data"),
+                    comparison_section(comparison, "The final model against the data", pngs),
                     diagnosis_section(workflow.final_diagnosis, "What is left: final diagnosis")],
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
                         f"Maps: {main}. Run time "

@@ -37,7 +37,7 @@ from scipy.signal import savgol_filter
 
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
-from .steady import Status, solve_steady
+from .steady import BATCH, Status, solve_steady
 from .uncertainty import map_error_gains
 
 
@@ -162,12 +162,12 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
     dp = np.full(count, np.nan)
     reasons = np.zeros(count, dtype=np.int64)
     solved = np.flatnonzero(status >= 0)
-    if solved.size:
-        sub = points[solved]
-        dp[solved] = model.balance(u[solved], sub, fluid[solved]).dp
+    for part in _batches(solved):
+        sub = points[part]
+        dp[part] = model.balance(u[part], sub, fluid[part]).dp
         if diagnostics:
-            reasons[solved] = model.extrapolation_reasons(u[solved], sub.p_B + dp[solved], sub,
-                                                          fluid[solved])
+            reasons[part] = model.extrapolation_reasons(u[part], sub.p_B + dp[part], sub,
+                                                        fluid[part])
     at_stop = (status == Status.OK) & (u >= model.valve.U_max)
     status[at_stop] = Status.AT_STOP
     map_gain = map_std = None
@@ -176,10 +176,23 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         floats = moving if model.has_friction else np.ones(count, dtype=bool)
         side = np.where(~model.has_friction | ~moving, STEADY,
                         np.where(u <= np.fmin(u_edges[0], u_edges[1]), OPENING, CLOSING))
-        found = map_error_gains(model, points, u, dp, side, ~floats | (status == Status.AT_STOP))
-        if found is not None:
-            map_gain, map_std = found
+        held = ~floats | (status == Status.AT_STOP)
+        for part in _batches(np.arange(count)):
+            found = map_error_gains(model, points[part], u[part], dp[part], side[part],
+                                    held[part])
+            if found is None:
+                break
+            if map_gain is None:
+                map_gain, map_std = np.empty((2, count)), np.empty((2, count))
+            map_gain[:, part], map_std[:, part] = found
     return Replay(points, u, dp, status, moving, reasons, u_edges, map_gain, map_std)
+
+
+def _batches(index: np.ndarray) -> list[np.ndarray]:
+    """``index`` cut into pieces of at most :data:`.steady.BATCH` points: the maps' grids
+    allocate a few hundred bytes per point they are asked about, which a log of millions of
+    samples would otherwise multiply."""
+    return [index[start:start + BATCH] for start in range(0, len(index), BATCH)]
 
 
 def _segment_starts(segments, count: int) -> np.ndarray:

@@ -26,9 +26,9 @@ import numpy as np
 import pandas as pd
 
 from ..data.loaders import BenchLog
-from ..maps.coverage import shares
+from ..maps.coverage import describe_all, shares
 from ..model import ValveModel
-from ..solver.steady import Status
+from ..solver.steady import status_names
 from ..units import from_si
 from .residuals import LogReplay, noise_floor, replay_log
 
@@ -179,28 +179,44 @@ class Comparison:
         return "\n".join(lines)
 
 
-    def sample_table(self) -> pd.DataFrame:
-        """One row per sample in display units: inputs, measured and model Δp, the model's Δp
-        standard deviation from the maps, residual, solver status, whether the piston moved,
-        and why the maps' query lies outside the CFD samples (empty inside)."""
-        frame = self.played.frame()
+    def sample_table(self, rows=slice(None)) -> pd.DataFrame:
+        """One row per sample (or per sample of ``rows``, positions) in display units: inputs,
+        measured and model Δp, the model's Δp standard deviation from the maps, residual,
+        solver status, whether the piston moved, and why the maps' query lies outside the CFD
+        samples (empty inside)."""
+        log, played, replay = self.played.log.frame, self.played, self.played.replay
+        dp_std = replay.dp_std
+
+        def column(name):
+            return log[name].to_numpy()[rows]
+
         return pd.DataFrame({
-            "run": frame["run"].to_numpy(),
-            "line": frame["line"].to_numpy(),
-            "time_s": frame["time"].to_numpy(),
-            "direction": frame["direction"].to_numpy(),
-            "q_lpm": from_si(frame["q"].to_numpy(), "L/min"),
-            "p_P_bar": from_si(frame["p_P"].to_numpy(), "bar"),
-            "p_B_bar": from_si(frame["p_B"].to_numpy(), "bar"),
-            "temperature_C": from_si(frame["temperature"].to_numpy(), "degC"),
-            "dp_measured_bar": from_si(frame["dp_measured"].to_numpy(), "bar"),
-            "dp_model_bar": from_si(frame["dp_predicted"].to_numpy(), "bar"),
-            "dp_std_bar": from_si(frame["dp_std"].to_numpy(), "bar"),
-            "residual_bar": from_si(frame["residual"].to_numpy(), "bar"),
-            "status": [Status(code).name.lower() for code in frame["status"]],
-            "moving": frame["moving"].to_numpy(),
-            "outside_samples": frame["outside_samples"].to_numpy(),
+            "run": column("run"),
+            "line": column("line"),
+            "time_s": column("time"),
+            "direction": column("direction"),
+            "q_lpm": from_si(column("q"), "L/min"),
+            "p_P_bar": from_si(column("p_P"), "bar"),
+            "p_B_bar": from_si(column("p_B"), "bar"),
+            "temperature_C": from_si(column("temperature"), "degC"),
+            "dp_measured_bar": from_si(played.measured[rows], "bar"),
+            "dp_model_bar": from_si(replay.dp[rows], "bar"),
+            "dp_std_bar": from_si(np.full(len(played.residual), np.nan)[rows] if dp_std is None
+                                  else dp_std[rows], "bar"),
+            "residual_bar": from_si(played.residual[rows], "bar"),
+            "status": status_names(replay.status[rows]),
+            "moving": replay.moving[rows],
+            "outside_samples": describe_all(replay.reasons_outside[rows]),
         })
+
+    def write_samples(self, path, chunk: int = 200_000) -> None:
+        """Write :meth:`sample_table` as CSV, a chunk of rows at a time (the table of a big log
+        is never held whole)."""
+        count = len(self.played.residual)
+        with open(path, "w", encoding="utf-8", newline="") as stream:
+            for start in range(0, max(count, 1), chunk):
+                self.sample_table(slice(start, min(start + chunk, count))).to_csv(
+                    stream, index=False, header=start == 0, float_format="%.6g")
 
     def _uncertainty_line(self) -> str:
         """The maps' Δp standard deviation and why samples lie outside the CFD samples."""
@@ -271,10 +287,20 @@ def hysteresis_width(runs, q, direction, dp, bins: int = HYSTERESIS_BINS) -> pd.
 
 
 def _samples(played: LogReplay) -> pd.DataFrame:
-    """The replay's per-sample frame (SI) with the squared residual and the nominal temperature."""
-    samples = played.frame()
+    """What the statistics need of each sample (SI): the log's run, time, line, flow, ramp
+    direction, temperature and set point, the measured and predicted Δp, the residual and its
+    square, the Δp variance the maps imply, whether they extrapolate, and the run's nominal
+    temperature. Only these: a log of millions of samples is not copied whole."""
+    log, replay = played.log.frame, played.replay
+    std = np.full(len(played.residual), np.nan) if replay.dp_std is None else replay.dp_std
+    samples = pd.DataFrame({name: log[name].to_numpy() for name in (
+        "run", "time", "line", "q", "direction", "temperature", "p_Pe_nominal")})
+    samples["dp_measured"] = played.measured
+    samples["dp_predicted"] = replay.dp
+    samples["residual"] = played.residual
+    samples["extrapolating"] = replay.extrapolating
     samples["residual_squared"] = samples["residual"] ** 2
-    samples["dp_variance"] = samples["dp_std"] ** 2
+    samples["dp_variance"] = std ** 2
     run_temperature = samples.groupby("run", sort=False)["temperature"].transform("mean")
     samples["temperature_nominal_C"] = TEMPERATURE_STEP_C * np.round(
         from_si(run_temperature.to_numpy(), "degC") / TEMPERATURE_STEP_C)

@@ -108,8 +108,15 @@ def readable(name: str) -> str:
     return name.replace("+", " + ")
 
 
-def comparison_section(comparison: Comparison, heading: str) -> str:
-    """Headline, per-run table, p_Pe × temperature table, worst regions and the figures."""
+def figure_pngs(comparison: Comparison) -> dict[str, bytes]:
+    """Every figure of a comparison rendered as PNG, by name (:func:`.figures.all_figures`)."""
+    return {name: figure_png(figure) for name, figure in all_figures(comparison).items()}
+
+
+def comparison_section(comparison: Comparison, heading: str,
+                       pngs: dict[str, bytes] | None = None) -> str:
+    """Headline, per-run table, p_Pe × temperature table, worst regions and the figures
+    (``pngs``: the figures already rendered, by name; else they are drawn here)."""
     rms, floor = from_si(comparison.rms, "bar"), from_si(comparison.noise_floor, "bar")
     runs = comparison.runs.assign(extrapolating=100 * comparison.runs["extrapolating_fraction"])
     runs = runs[["run", "temperature_C", "p_Pe_bar", "samples", "failed", "rms_bar", "bias_bar",
@@ -153,10 +160,11 @@ def comparison_section(comparison: Comparison, heading: str) -> str:
                              "the model misses.",
                 "hysteresis": "Filled circles: measured; open squares: the model; the line "
                               "between them is the model's error."}
-    for name, figure in all_figures(comparison).items():
+    if pngs is None:
+        pngs = figure_pngs(comparison)
+    for name, png in pngs.items():
         parts.append(f"<h3>{headings.get(name, name)}</h3>"
-                     + _figure(figure_png(figure), name,
-                               f"{caption(comparison)} {captions.get(name, '')}"))
+                     + _figure(png, name, f"{caption(comparison)} {captions.get(name, '')}"))
     return "\n".join(parts)
 
 

@@ -85,6 +85,14 @@ class LogReplay:
         return frame
 
 
+def run_groups_of(runs: np.ndarray) -> list[np.ndarray]:
+    """The positions of each run's samples, runs in order of first appearance, samples in their
+    order: one pass over the labels, however many runs a log holds."""
+    codes, labels = pd.factorize(np.asarray(runs), sort=False)
+    order = np.argsort(codes, kind="stable")
+    return np.split(order, np.cumsum(np.bincount(codes, minlength=len(labels)))[:-1])
+
+
 def run_rows(log: BenchLog, run: str) -> np.ndarray:
     """Positions of one run's samples in the log."""
     return np.flatnonzero(log.frame["run"].astype(str).to_numpy() == str(run))
@@ -151,8 +159,9 @@ def noise_floor(residual: np.ndarray, runs: np.ndarray, *, required: bool = True
         result is NaN): the log is too short to tell noise from misfit.
     """
     weights, variances = [], []
-    for run in dict.fromkeys(runs):
-        r = residual[(runs == run) & np.isfinite(residual)]
+    finite = np.isfinite(residual)
+    for rows in run_groups_of(runs):
+        r = residual[rows[finite[rows]]]
         if len(r) < NOISE_SAMPLES:
             continue
         second = r[2:] - 2.0 * r[1:-1] + r[:-2]
@@ -162,8 +171,7 @@ def noise_floor(residual: np.ndarray, runs: np.ndarray, *, required: bool = True
     if not weights:
         if not required:
             return float("nan")
-        longest = max((int(np.sum((runs == run) & np.isfinite(residual)))
-                       for run in dict.fromkeys(runs)), default=0)
+        longest = max((int(np.sum(finite[rows])) for rows in run_groups_of(runs)), default=0)
         where = f"{source}: " if source else ""
         raise InputError(f"{where}the noise floor needs a run with at least {NOISE_SAMPLES} "
                          f"solved samples; the longest run here has {longest}")
@@ -178,8 +186,9 @@ def effective_samples(residual: np.ndarray, runs: np.ndarray) -> float:
     extra term look significant.
     """
     total = 0.0
-    for run in dict.fromkeys(runs):
-        r = residual[(runs == run) & np.isfinite(residual)]
+    finite = np.isfinite(residual)
+    for rows in run_groups_of(runs):
+        r = residual[rows[finite[rows]]]
         if len(r) < 3:
             total += len(r)
             continue
