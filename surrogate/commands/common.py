@@ -211,7 +211,7 @@ def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, Ef
         if getattr(args, "maps", None):
             spec = spec.with_maps(maps_from_args(args.maps), f"{spec.name} ({args.maps} maps)")
         model = spec.build(library, where)
-    log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
+    log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG), progress)
     progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")
     if model is not None:
         _refuse_foreign_runs(model, log, args.model)

@@ -32,8 +32,9 @@ def run(args) -> int:
     progress = progress_for(args)
     model, log, _ = load_inputs(args, progress)
     progress(f"replaying {model.name}")
-    comparison = compare(model, log)
+    comparison = compare(model, log, progress=progress)
     if args.out:
+        progress(f"writing {args.out}")
         write_comparison(comparison, args.out)
         progress(f"wrote {args.out}/report.html")
     if args.json:

@@ -15,6 +15,7 @@ import pandas as pd
 
 from ..fluid import FluidState
 from ..limits import PRESSURE_NOISE_BAR
+from ..memory import release_freed
 from ..units import to_si
 from .errors import DataFileError, Problem
 from .reader import RawTable, detect_schema, parse_cells, read_raw_table
@@ -191,6 +192,7 @@ def _validate(file: str, values: Values, problems: list[Problem], lines: np.ndar
         columns[column.si_name] = to_si(raw, column.unit) if column.is_number else raw
     frame = pd.DataFrame(columns, copy=False)
     frame["line"] = lines
+    release_freed(len(frame))
     return frame
 
 

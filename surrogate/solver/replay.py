@@ -119,7 +119,7 @@ class Replay:
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
            u_start: float = 0.0, guess: Replay | None = None,
-           diagnostics: bool = True, smoothing: int = 1) -> Replay:
+           diagnostics: bool = True, smoothing: int = 1, progress=None) -> Replay:
     """Replay samples in time order with friction as a play.
 
     Parameters
@@ -141,17 +141,39 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
     smoothing : int
         Samples over which the band edges are smoothed for the friction state (see the module
         docstring); 1, the default, is the classic play on the edges as they are.
+    progress : Progress, optional
+        Told how far the solves got, with the time left (:meth:`surrogate.progress.Progress.
+        stage`), for a log of more than :data:`.steady.BATCH` samples.
     """
     count = len(points)
-    if model.has_friction:  # both edges of the band in one batch
+    stage = None
+    # the work: one solve per sample and band edge, then the maps queried at the solutions
+    work = (3 if model.has_friction else 2) * count
+    if progress is not None and count > BATCH:
+        stage = progress.stage("replaying", count, "samples")
+    done = [0]
+
+    def solved(points_done: int) -> None:
+        done[0] += points_done
+        if stage is not None:
+            stage(min(count * done[0] // work, count))
+    if model.has_friction and 2 * count <= BATCH:  # both edges of the band in one batch
         both = concatenate([points.replace(direction=np.full(count, OPENING)),
                             points.replace(direction=np.full(count, CLOSING))])
         start = None if guess is None else guess.band.ravel()
         edges = solve_steady(model, both, guess=start, positions_only=True)
         u_edges, status_edges = edges.u.reshape(2, count), edges.status.reshape(2, count)
+    elif model.has_friction:  # a big log: one edge after the other, each solved in batches
+        u_edges, status_edges = np.empty((2, count)), np.empty((2, count), dtype=np.int8)
+        for row, side in enumerate((OPENING, CLOSING)):
+            edge = solve_steady(model, points.replace(direction=np.full(count, side)),
+                                guess=None if guess is None else guess.band[row],
+                                positions_only=True, solved=solved)
+            u_edges[row], status_edges[row] = edge.u, edge.status
     else:
         start = None if guess is None else guess.band[0]
-        edge = solve_steady(model, points, friction=False, guess=start, positions_only=True)
+        edge = solve_steady(model, points, friction=False, guess=start, positions_only=True,
+                            solved=solved)
         u_edges = np.vstack([edge.u, edge.u])
         status_edges = np.vstack([edge.status, edge.status])
 
@@ -161,13 +183,14 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
     fluid = model.fluid(points)
     dp = np.full(count, np.nan)
     reasons = np.zeros(count, dtype=np.int64)
-    solved = np.flatnonzero(status >= 0)
-    for part in _batches(solved):
+    solved_rows = np.flatnonzero(status >= 0)
+    for part in _batches(solved_rows):
         sub = points[part]
         dp[part] = model.balance(u[part], sub, fluid[part]).dp
         if diagnostics:
             reasons[part] = model.extrapolation_reasons(u[part], sub.p_B + dp[part], sub,
                                                         fluid[part])
+        solved(len(part) // 2)
     at_stop = (status == Status.OK) & (u >= model.valve.U_max)
     status[at_stop] = Status.AT_STOP
     map_gain = map_std = None
@@ -185,6 +208,9 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
             if map_gain is None:
                 map_gain, map_std = np.empty((2, count)), np.empty((2, count))
             map_gain[:, part], map_std[:, part] = found
+            solved(len(part) // 2)
+    if stage is not None and count * done[0] // work < count:
+        stage(count)
     return Replay(points, u, dp, status, moving, reasons, u_edges, map_gain, map_std)
 
 
@@ -222,23 +248,31 @@ def _play(u_open, u_close, status_open, status_close, starts, u_start, smoothing
     else:
         state_low, state_high = low, high
     previous = u_start
-    # a plain loop over Python floats: about 1 µs a sample, far below the batch solve
-    for k, (lo, hi, state_lo, state_hi, ok, start) in enumerate(zip(
-            low.tolist(), high.tolist(), state_low.tolist(), state_high.tolist(),
-            solved.tolist(), starts.tolist())):
-        if start:
-            previous = u_start
-        if ok:
-            state = min(max(previous, state_lo), state_hi)
-            if state != previous:  # pushed: the piston slides with this sample's own edge
-                moving[k] = True
-                u[k] = lo if state > previous else hi
+    # a plain loop over Python floats: about 1 µs a sample, far below the batch solve; a block
+    # of samples at a time, so that a big log is never held as Python floats whole
+    for begin in range(0, count, _PLAY_BLOCK):
+        block = slice(begin, begin + _PLAY_BLOCK)
+        for k, (lo, hi, state_lo, state_hi, ok, start) in enumerate(zip(
+                low[block].tolist(), high[block].tolist(), state_low[block].tolist(),
+                state_high[block].tolist(), solved[block].tolist(), starts[block].tolist()),
+                start=begin):
+            if start:
+                previous = u_start
+            if ok:
+                state = min(max(previous, state_lo), state_hi)
+                if state != previous:  # pushed: the piston slides with this sample's own edge
+                    moving[k] = True
+                    u[k] = lo if state > previous else hi
+                else:
+                    u[k] = state
+                previous = state
             else:
-                u[k] = state
-            previous = state
-        else:
-            u[k] = previous
+                u[k] = previous
     return u, moving, status
+
+
+#: samples the play turns into Python floats at a time
+_PLAY_BLOCK = 65_536
 
 
 def _smoothed(edge: np.ndarray, starts: np.ndarray, solved: np.ndarray, window: int

@@ -23,6 +23,7 @@ Edge cases get a status instead of a number that looks valid:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -154,9 +155,11 @@ BATCH = 50_000
 
 
 def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool = True,
-                 guess: np.ndarray | None = None, positions_only: bool = False) -> SteadyState:
+                 guess: np.ndarray | None = None, positions_only: bool = False,
+                 solved: Callable[[int], None] | None = None) -> SteadyState:
     """Solve the force balance at every point (:func:`_solve_batch`, :data:`BATCH` points at a
-    time; the points are independent, so the batches change nothing)."""
+    time; the points are independent, so the batches change nothing). ``solved`` is called
+    with the number of points of each batch as it is done, for progress reports."""
     count = len(points)
     if count <= BATCH:
         return _solve_batch(model, points, friction=friction, guess=guess,
@@ -168,7 +171,11 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
                             guess=None if guess is None else guess[part],
                             positions_only=positions_only)
 
-    parts = list(map_threads(batch, range(0, count, BATCH)))
+    parts = []
+    for part in map_threads(batch, range(0, count, BATCH)):
+        parts.append(part)
+        if solved is not None:
+            solved(len(part.u))
     stds = [part.dp_std for part in parts]
     return SteadyState(points, *(np.concatenate([getattr(part, name) for part in parts])
                                  for name in ("u", "dp", "status", "reasons_outside")),

@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 
 from ..outputs import atomic_file
 from ..units import from_si, label
-from .compare import Comparison
+from .compare import TEXT_RUNS, Comparison
 from .diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN, NOISE_MARGIN,
                        Diagnosis)
 from .figures import DPI, all_figures, caption
@@ -94,8 +94,11 @@ def _table(frame: pd.DataFrame, text_columns: tuple[str, ...] = (),
         for column, value in zip(frame.columns, row):
             if isinstance(value, (bool, np.bool_)):
                 text = "yes" if value else "no"
+            elif isinstance(value, (float, np.floating)) and not np.isfinite(value):
+                # a run without both ramps has no hysteresis width: say so, not "nan"
+                text = "not measured" if "hysteresis" in str(column) else ""
             elif isinstance(value, (float, np.floating)):
-                text = "" if not np.isfinite(value) else format(value, formats.get(column, ".4g"))
+                text = format(value, formats.get(column, ".4g"))
             else:  # long effect names may wrap after their underscores
                 text = html.escape(str(value)).replace("_", "_<wbr>")
             cells.append(f'<td class="{"text" if column in text_columns else ""}">{text}</td>')
@@ -119,6 +122,11 @@ def comparison_section(comparison: Comparison, heading: str,
     (``pngs``: the figures already rendered, by name; else they are drawn here)."""
     rms, floor = from_si(comparison.rms, "bar"), from_si(comparison.noise_floor, "bar")
     runs = comparison.runs.assign(extrapolating=100 * comparison.runs["extrapolating_fraction"])
+    shown_runs = ""
+    if len(runs) > TEXT_RUNS:  # a big log: its worst runs here, every run in runs.csv
+        runs = runs.sort_values("rms_bar", ascending=False, kind="stable").head(TEXT_RUNS)
+        shown_runs = (f" The {TEXT_RUNS} runs of largest RMS are shown, of "
+                      f"{len(comparison.runs)}; runs.csv holds every run.")
     runs = runs[["run", "temperature_C", "p_Pe_bar", "samples", "failed", "rms_bar", "bias_bar",
                  "hysteresis_measured_bar", "hysteresis_model_bar", "hysteresis_error_bar",
                  "extrapolating"]]
@@ -146,7 +154,7 @@ def comparison_section(comparison: Comparison, heading: str,
         f"{100 * comparison.extrapolating_fraction:.0f} % of the samples.</p>",
         "<h3>Per run</h3><p>Bias is the mean residual; hysteresis width is Δp on the ramp up minus "
         "Δp on the ramp down at equal flow; <i>maps extrapolate</i> is the share of samples where "
-        "the model leaves its maps' data.</p>", _table(runs, ("run",), bar),
+        f"the model leaves its maps' data.{shown_runs}</p>", _table(runs, ("run",), bar),
         "<h3>RMS by pilot set point and temperature [bar]</h3>", _table(pivot, (), bar),
         "<h3>Worst operating regions</h3><p>Flow band × temperature × set point, worst first.</p>",
         _table(regions, (), bar),

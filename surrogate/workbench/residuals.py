@@ -15,6 +15,7 @@ import pandas as pd
 from ..data.loaders import BenchLog
 from ..errors import InputError
 from ..maps.coverage import describe_all
+from ..memory import release_freed
 from ..model import ValveModel
 from ..points import OperatingPoints
 from ..solver import Replay, replay
@@ -121,20 +122,22 @@ def state_smoothing_samples(log: BenchLog, seconds: float = STATE_SMOOTHING) -> 
 
 
 def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = None,
-               diagnostics: bool = True) -> LogReplay:
+               diagnostics: bool = True, progress=None) -> LogReplay:
     """Replay every run of ``log`` with ``model`` (friction as a play within each run, its state
     blind to the inputs' sample-to-sample noise over :data:`STATE_SMOOTHING`).
 
     ``guess``: a replay of the same log with nearby parameters, to start the solver from.
     ``diagnostics=False`` skips the maps' extrapolation reasons and Δp standard deviation
-    (:func:`surrogate.solver.replay.replay`), for the inner loop of a fit.
+    (:func:`surrogate.solver.replay.replay`), for the inner loop of a fit. ``progress``
+    (a :class:`~surrogate.progress.Progress`) hears how far the replay of a big log got.
     """
     points = OperatingPoints.from_bench(log.frame)
     played = replay(model, points, log.frame["run"].to_numpy(),
                     guess=None if guess is None else guess.replay, diagnostics=diagnostics,
-                    smoothing=state_smoothing_samples(log))
+                    smoothing=state_smoothing_samples(log), progress=progress)
     measured = measured_dp(log)
     residual = np.where(played.ok, played.dp - measured, np.nan)
+    release_freed(len(log))
     return LogReplay(log, played, measured, residual)
 
 
