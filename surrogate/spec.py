@@ -103,10 +103,18 @@ class ValveSource:
 
     @classmethod
     def _from_file(cls, reference: str, where: str, base: Path) -> "ValveSource":
+        """The valve of the file a model file names. Its errors quote nothing of it (keys,
+        values, lines): the user named the model file, not this one, which could be any file
+        on the machine; ``--valve FILE`` shows what is wrong in full."""
+        path = reference if reference == SHIPPED else _absolute(reference, base)
         try:
-            return cls.read(reference if reference == SHIPPED else _absolute(reference, base))
+            return cls.read(path)
         except InputError as error:
-            raise InputError(f"{where} = {reference!r}: {error}") from None
+            if path == SHIPPED or "cannot read valve file" in str(error):
+                raise InputError(f"{where} = {reference!r}: {error}") from None
+            raise InputError(f"{where} = {reference!r}: {path} is not a valid valve file (its "
+                             "content is not shown: the model file named it; give it with "
+                             f"--valve {path} to see what is wrong)") from None
 
 
 @dataclass(frozen=True)
