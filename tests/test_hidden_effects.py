@@ -10,12 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surrogate.diagnosis.diagnose import diagnose
 from surrogate.effects import LIBRARY, load_effects_file
-from surrogate.testing import check_effect
-from surrogate.workbench.diagnose import diagnose
-from surrogate.workbench.logfit import fit_to_log
-from surrogate.workbench.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case, identified,
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.reporting.prose import summarise
+from surrogate.synthetic.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case, identified,
                                           noise_free_sequence, random_settings)
+from surrogate.testing import check_effect
 
 pytestmark = pytest.mark.slow  # each case fits and diagnoses a synthetic log: seconds each
 
@@ -39,7 +40,7 @@ def test_every_library_effect_is_found_at_a_realistic_magnitude(sequence, hidden
     case = hidden_effect_case(hidden, sequence=sequence, seed=sorted(REALISTIC_MAGNITUDES)
                               .index(hidden))
     diagnosis = find(case)
-    assert identified(diagnosis, hidden), (hidden, diagnosis.summary)
+    assert identified(diagnosis, hidden), (hidden, summarise(diagnosis))
     best = next(c for c in diagnosis.candidates if hidden in c.group)
     assert best.rms_after <= RATIO * diagnosis.noise_floor, (best.rms_after, diagnosis.noise_floor)
     # the hidden effect's group (one name, or the indistinguishable ones) reaches the floor too
@@ -55,16 +56,16 @@ def test_indistinguishable_candidates_are_reported_as_one_group(sequence):
     diagnosis = find(case)
     best = diagnosis.candidates[0]
     assert set(best.group) >= {"pilot_transducer_offset", "spring_preload_offset"}
-    assert "cannot tell it apart" in diagnosis.summary
+    assert "cannot tell it apart" in summarise(diagnosis)
 
 
 def test_nothing_is_discovered_when_nothing_is_hidden(sequence):
     for seed in (0, 1):
         case = hidden_effect_case(None, sequence=sequence, seed=seed)
         diagnosis = find(case)
-        assert diagnosis.best is None, diagnosis.summary
+        assert diagnosis.best is None, summarise(diagnosis)
         assert not any(c.significant for c in diagnosis.candidates)
-        assert diagnosis.summary.startswith("Nothing beyond noise is left")
+        assert summarise(diagnosis).startswith("Nothing beyond noise is left")
         assert not diagnosis.sensor_checks, diagnosis.sensor_checks  # no run's sensor flagged
 
 
@@ -98,7 +99,7 @@ def test_a_custom_effect_explains_what_the_library_cannot(sequence, custom_libra
     assert without.candidates[0].rms_after > RATIO * without.noise_floor
 
     with_custom = find(case, library)
-    assert identified(with_custom, name), with_custom.summary
+    assert identified(with_custom, name), summarise(with_custom)
     assert with_custom.candidates[0].rms_after <= RATIO * with_custom.noise_floor
     assert with_custom.candidates[0].rms_after < without.candidates[0].rms_after
 

@@ -1,6 +1,6 @@
 """The workbench tells missing physics from map error on a valve that differs from its CFD.
 
-Each log comes from a virtual valve (:mod:`surrogate.workbench.mismatch`): the shipped CFD
+Each log comes from a virtual valve (:mod:`surrogate.synthetic.mismatch`): the shipped CFD
 samples perturbed per opening (Δp 1.5 %, flow force 2.5 %, one draw per opening and case), its
 own curve across the unsampled gap and below the smallest opening, and a cavitation-driven
 back-pressure dependence of the flow force, plus one hidden effect (or none) and the shipped
@@ -15,19 +15,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from surrogate.data import load_cfd_samples
 from surrogate import load_valve
+from surrogate.data import load_cfd_samples
+from surrogate.diagnosis.diagnose import diagnose
+from surrogate.diagnosis.rule import BIC_THRESHOLD, INCLUSION_MIN
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.fluid import FluidState
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 from surrogate.presets import maps
-from surrogate.testing import check_effect
-from surrogate.fluid import FluidState
-from surrogate.workbench.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
+from surrogate.reporting.prose import sensor_check_text, summarise
+from surrogate.synthetic.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
                                           PerturbedForceMap, mismatched_samples)
-from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case,
-                                          noise_free_sequence, stress_suite,
-                                          unexplained_additions)
-from surrogate.workbench.diagnose import BIC_THRESHOLD, INCLUSION_MIN, diagnose
-from surrogate.workbench.logfit import fit_to_log
+from surrogate.synthetic.simulate import (cleanly_identified, hidden_effect_case,
+                                          noise_free_sequence, stress_suite, unexplained_additions)
+from surrogate.testing import check_effect
 from surrogate.workbench.workflow import run_workflow
 
 EVERY = 8
@@ -114,7 +115,8 @@ def test_nothing_hidden_adds_no_physics_or_sensor_effect(sequence, kind):
     for case in controls:
         workflow = run_case(None, None, sequence, seed=case.seed, kind=kind)
         extra = unexplained_additions(workflow, None)
-        flagged = [str(check) for check in workflow.final_diagnosis.sensor_checks]
+        flagged = [sensor_check_text(check)
+                   for check in workflow.final_diagnosis.sensor_checks]
         if extra or flagged:
             invented[case.seed] = extra + flagged
     assert not invented, invented
@@ -147,4 +149,5 @@ def test_a_term_the_runs_do_not_agree_on_is_named_but_not_added(sequence):
     top = diagnosis.candidates[0]
     assert not top.stable and top.delta_bic < BIC_THRESHOLD
     assert diagnosis.group_inclusion(top) < INCLUSION_MIN
-    assert top.name in diagnosis.summary and "resamples over runs" in diagnosis.summary
+    summary = summarise(diagnosis)
+    assert top.name in summary and "resamples over runs" in summary

@@ -7,16 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from surrogate.effects.shapes import (
-    SHAPE_FREE,
-    Leakage,
-    OpeningForce,
-    quantile_knots,
-    rising_basis,
-    spline_basis,
-)
+from surrogate.effects.shapes import (SHAPE_FREE, Leakage, OpeningForce, quantile_knots,
+                                      rising_basis, spline_basis)
+from surrogate.fitting.heldout import Linearised, RunBlocks
 from surrogate.testing import check_effect
-from surrogate.workbench.heldout import Linearised, RunBlocks
 
 KNOTS = np.array([0.0, 1.0, 2.5, 3.0, 6.0, 10.0])
 
@@ -101,10 +95,10 @@ def test_a_roughness_penalty_in_the_linear_refits_equals_the_penalised_solve():
 def test_a_shape_handed_over_as_an_effects_file_reproduces_it(cls, tmp_path):
     """The written file loads as a user's effects file, keeps the effect contract, and at
     scale = 1 gives the fitted shape's output (to the table's interpolation)."""
+    from surrogate import load_valve
     from surrogate.effects import load_effects_file
     from surrogate.effects.handover import write_effect_file
     from surrogate.testing import _call, _effect_states
-    from surrogate import load_valve
 
     x = {"u": np.linspace(0.02e-3, 0.63e-3, 50), "nu": np.linspace(20e-6, 120e-6, 50),
          "q": np.linspace(1 / 6e4, 12 / 6e4, 50)}.get(cls.variable.name,

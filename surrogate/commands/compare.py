@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 
 from ..outputs import Output, atomic_directory
+from ..reporting.report import comparison_section, figure_pngs, write_html
 from ..workbench.compare import compare
-from ..workbench.report import comparison_section, figure_pngs, write_html
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)
 

@@ -4,15 +4,17 @@ from __future__ import annotations
 
 import json
 
+from ..diagnosis.diagnose import candidate_effects, diagnose
+from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
+                              NOISE_MARGIN)
 from ..errors import InputError
+from ..fitting.logfit import fit_to_log
 from ..outputs import Output, atomic_directory
+from ..reporting.prose import diagnosis_document, summarise
+from ..reporting.report import (comparison_section, diagnosis_figure, diagnosis_section,
+                                diagnosis_table, figure_png, write_html)
 from ..units import from_si
 from ..workbench.compare import compare
-from ..workbench.diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
-                                  NOISE_MARGIN, candidate_effects, diagnose)
-from ..workbench.logfit import fit_to_log
-from ..workbench.report import (comparison_section, diagnosis_figure, diagnosis_section,
-                                diagnosis_table, figure_png, write_html)
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)
 
@@ -62,7 +64,8 @@ def run(args) -> int:
     progress(f"done in {progress.elapsed:.1f} s")
     if args.out:
         with atomic_directory(args.out) as staging:
-            (staging / "diagnosis.json").write_text(json.dumps(diagnosis.to_json(), indent=2))
+            (staging / "diagnosis.json").write_text(json.dumps(diagnosis_document(diagnosis),
+                                                               indent=2))
             diagnosis_table(diagnosis).to_csv(staging / "candidates.csv", index=False)
             (staging / "diagnosis.png").write_bytes(figure_png(diagnosis_figure(diagnosis)))
             write_html(staging / "report.html", f"Diagnosis: {model.name}",
@@ -70,14 +73,14 @@ def run(args) -> int:
                         comparison_section(comparison, "The fitted model against the data")])
         progress(f"wrote {args.out}/report.html")
     if args.json:
-        print_json(diagnosis.to_json())
+        print_json(diagnosis_document(diagnosis))
     else:
         print(format_diagnosis(diagnosis))
     return 0
 
 
 def format_diagnosis(diagnosis) -> str:
-    lines = [diagnosis.summary, "",
+    lines = [summarise(diagnosis), "",
              f"  current RMS {from_si(diagnosis.rms_before, 'bar'):.3f} bar, noise floor "
              f"{from_si(diagnosis.noise_floor, 'bar'):.3f} bar, "
              f"{diagnosis.effective_samples:.0f} effectively independent samples", "",

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from ..errors import InputError
+from ..fitting.logfit import fit_to_log
+from ..fitting.residuals import noise_floor, replay_log
 from ..modelfile import save_model
 from ..outputs import Output
 from ..units import from_si
-from ..workbench.logfit import fit_to_log
-from ..workbench.residuals import noise_floor, replay_log
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)
 

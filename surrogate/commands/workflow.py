@@ -11,12 +11,13 @@ from ..maps.registry import MAP_KINDS
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
+from ..reporting.prose import summarise
+from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
+                                staircase_figure, staircase_section, staircase_table,
+                                staircases_section, write_html)
 from ..spec import ValveSource
 from ..units import from_si
 from ..workbench.compare import compare
-from ..workbench.report import (comparison_section, diagnosis_section, figure_png,
-                                figure_pngs, staircase_figure, staircase_section,
-                                staircase_table, staircases_section, write_html)
 from ..workbench.workflow import MAX_ADDITIONS, run_workflow
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, maps_from_args,
                      non_negative_int, print_json, progress_for)
@@ -112,6 +113,6 @@ def run(args) -> int:
             print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
                   f"{from_si(step.rms, 'bar'):7.3f} bar")
         print(f"    noise floor {from_si(workflow.noise_floor, 'bar'):.3f} bar")
-        print(workflow.final_diagnosis.summary)
+        print(summarise(workflow.final_diagnosis))
         print(f"report: {out}/report.html")
     return 0

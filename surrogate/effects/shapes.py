@@ -26,7 +26,7 @@ parameters a fit varies. Every coefficient 0 is the effect off.
 
 A roughness penalty (differences of neighbouring coefficients, :meth:`ShapeFreeEffect.roughness`)
 keeps the shape smooth; its weight is chosen by the held-out runs
-(:mod:`surrogate.workbench.shapes`). Such a term has more freedom than a library term: a
+(:mod:`surrogate.diagnosis.shapes`). Such a term has more freedom than a library term: a
 diagnosis tries it only beside the library and prefers a library term that fits as well.
 """
 

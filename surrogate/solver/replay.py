@@ -23,7 +23,7 @@ that many samples (a centred quadratic Savitzky–Golay filter within each run, 
 and their curvature without lag), while the *prediction* of a sliding sample is the edge at that
 sample's own measured inputs, as before: the model still answers each sample's inputs, it just
 does not let their noise push the friction state around. On a synthetic log made with the
-package's own valve (:mod:`surrogate.workbench.simulate`, nothing hidden) the true model's residual
+package's own valve (:mod:`surrogate.synthetic.simulate`, nothing hidden) the true model's residual
 RMS is 1.14 times the noise floor with 7 samples, 1.37 times with the classic play
 (``python eval/workbench.py`` prints both).
 """

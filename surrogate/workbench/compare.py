@@ -1,9 +1,11 @@
 """Compare: how much, and where, a model and a bench log disagree.
 
-The model is replayed over every run of the log (:func:`.residuals.replay_log`); the residual of a
+The model is replayed over every run of the log (:func:`~surrogate.fitting.residuals.replay_log`);
+the residual of a
 sample is the model's Δp = p_L − p_B minus the measured one. The comparison summarises it
 
-* over the whole log: RMS and the noise floor no model can beat (:func:`.residuals.noise_floor`);
+* over the whole log: RMS and the noise floor no model can beat
+  (:func:`~surrogate.fitting.residuals.noise_floor`);
 * per run: RMS, bias, the error in hysteresis width and the worst samples;
 * per pilot set point × temperature: RMS;
 * per operating region (flow band × temperature × set point), ranked by RMS, with how much of it
@@ -26,13 +28,13 @@ import numpy as np
 import pandas as pd
 
 from ..data.loaders import BenchLog
+from ..fitting.residuals import LogReplay, noise_floor, replay_log, run_groups_of
 from ..maps.coverage import describe_all, shares
 from ..memory import release_freed
 from ..model import ValveModel
 from ..solver.steady import status_names
 from ..texttable import cell, text_table
 from ..units import from_si
-from .residuals import LogReplay, noise_floor, replay_log, run_groups_of
 
 FLOW_BANDS = 4  # equal-width bands over the log's flow range, for the operating regions
 HYSTERESIS_BINS = 10  # flow bins within a run in which the ramps up and down are matched
@@ -245,7 +247,8 @@ def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None
     """Replay ``model`` over ``log`` and summarise the residual (see the module doc).
 
     ``played``: the model's replay of ``log``, if already computed. It must have been made with
-    diagnostics on (the default of :func:`.replay_log`), or every region reads as inside the maps
+    diagnostics on (the default of :func:`~surrogate.fitting.residuals.replay_log`), or every
+    region reads as inside the maps
     and no uncertainty is shown. ``progress`` hears how far the replay of a big log got.
     """
     played = played if played is not None else replay_log(model, log, progress=progress)

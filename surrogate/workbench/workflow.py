@@ -7,12 +7,15 @@ Steps
 3. ``cfd-maps``: the CFD grid maps replace the orifice equation and the uniform pressure, with a
    fitted flow-force scale — the paper's CFDA without friction.
 4. ``cfda``: plus Coulomb friction s·(K1 + K2·p_L), one K1 and one K2 for all temperatures.
-5. Then, until nothing significant is left: diagnose (:mod:`.diagnose`), add the best significant
+5. Then, until nothing significant is left: diagnose (:mod:`~surrogate.diagnosis.diagnose`), add
+   the best significant
    candidate, refit every free parameter together.
 
-Every step refits all free parameters against every sample of the log (:func:`.fit.fit_to_log`);
+Every step refits all free parameters against every sample of the log
+(:func:`~surrogate.fitting.logfit.fit_to_log`);
 the RMS after each step is the *error staircase*. Next to it stands each step's RMS on runs its
-fit did not see (each run predicted by a refit to the others; :mod:`.heldout`): a step the
+fit did not see (each run predicted by a refit to the others; :mod:`~surrogate.fitting.heldout`):
+a step the
 diagnosis adds must lower it, and the RMS with one temperature or one pilot pressure left out
 too, so the loop stops when the held-out RMS stops falling. Each
 step carries the category of what it added (valve physics, map correction, sensor).
@@ -27,17 +30,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.loaders import BenchLog
+from ..diagnosis.diagnose import diagnose
+from ..diagnosis.result import Diagnosis
 from ..effects import LIBRARY, DischargeScale, EffectLibrary, FlowForceScale
+from ..fitting.heldout import HEADLINE, Linearised, RunBlocks, run_groups
+from ..fitting.logfit import fit_to_log
+from ..fitting.residuals import LogReplay, noise_floor, replay_log
 from ..leastsquares import FitResult
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
+from ..reporting.prose import summarise
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
-from .diagnose import Diagnosis, diagnose
-from .heldout import HEADLINE, Linearised, RunBlocks, run_groups
-from .logfit import fit_to_log
-from .residuals import LogReplay, noise_floor, replay_log
 
 MAX_ADDITIONS = 8  # effects the loop may add after the paper's steps
 
@@ -102,7 +107,7 @@ class Workflow:
         return {"data": self.log.source, "samples": len(self.log), "maps": self.maps,
                 "noise_floor_bar": round(float(from_si(self.noise_floor, "bar")), 4),
                 "final_rms_over_noise": round(self.final.rms / self.noise_floor, 3),
-                "summary": self.final_diagnosis.summary,
+                "summary": summarise(self.final_diagnosis),
                 "steps": [step.to_json() for step in self.steps],
                 "seconds": round(self.seconds, 1)}
 
@@ -126,7 +131,8 @@ def paper_steps(valve: ValveSource, maps_spec: MapsSpec
 def heldout_rms(fitted: FitResult | None, played: LogReplay,
                 schemes: dict[str, dict[str, list[str]]]) -> float:
     """A fitted model's RMS on held-out runs [Pa], each run predicted by a linearised refit to
-    the others (:mod:`.heldout`); without free parameters it is the RMS itself."""
+    the others (:mod:`~surrogate.fitting.heldout`); without free parameters it is the RMS
+    itself."""
     ok = played.ok
     if fitted is None or fitted.jacobian is None or not fitted.jacobian.size:
         return played.rms()
@@ -177,13 +183,14 @@ class _Staircase:
             self.say(f"diagnosing {current.model.name} ...")
             diagnosis = diagnose(current.model, self.log, library, base=current.played,
                                  candidates=candidates)
-            self.say(f"  {diagnosis.summary}")
+            summary = summarise(diagnosis)
+            self.say(f"  {summary}")
             best = diagnosis.best
             if best is None or additions == max_additions:
                 return diagnosis
             # the diagnosis already refitted every parameter with the effect added: polish that
             self.record(best.model.copy(name=f"{current.model.name}+{best.name}"), [best.name],
-                        best.category, diagnosis.summary, diagnosis, near=best.replay)
+                        best.category, summary, diagnosis, near=best.replay)
             additions += 1
 
 

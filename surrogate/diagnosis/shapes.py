@@ -12,7 +12,8 @@ what it got wrong.
 
 The roughness penalty's weight λ is chosen by the held-out runs: for each λ of
 :data:`ROUGHNESS_WEIGHTS` the linearised fit is refitted without each run, each temperature and
-each pilot pressure in turn (:class:`.heldout.RunBlocks`, with the maps' discrepancy), and the λ
+each pilot pressure in turn (:class:`~surrogate.fitting.heldout.RunBlocks`, with the maps'
+discrepancy), and the λ
 that predicts the left-out runs best (pooled over the schemes) is kept.
 """
 
@@ -26,17 +27,17 @@ from scipy.optimize import lsq_linear
 
 from ..effects import BalanceState, Effect, FlowState, Parameter
 from ..effects.shapes import PRESSURE_DROP, ShapeFreeEffect
+from ..fitting.heldout import Linearised, RunBlocks
+from ..fitting.logfit import probe_change
+from ..fitting.residuals import LogReplay
 from ..model import ValveModel
 from ..units import LPM, to_si
-from .heldout import Linearised, RunBlocks
-from .logfit import probe_change
-from .residuals import LogReplay
 
 #: λ tried, relative to the columns' mean square (so that the choice does not depend on units)
 ROUGHNESS_WEIGHTS = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 
 
-# --- probes: how Δp answers a uniform hook output ------------------------------------------------
+# --- probes: how Δp answers a uniform hook output ----------------------------------------------
 
 class _Probe(Effect):
     """A uniform output ``v`` of one hook everywhere: the probe of :func:`sensitivities`."""
@@ -229,7 +230,7 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
                      weights: tuple[float, ...] = ROUGHNESS_WEIGHTS) -> RoughnessChoice:
     """The weight of :data:`ROUGHNESS_WEIGHTS` whose linearised fit (the model's own columns
     ``own`` refitted too, coefficients within their bounds) predicts held-out runs best, pooled
-    over the held-out schemes (:meth:`.heldout.RunBlocks.heldout_rms`).
+    over the held-out schemes (:meth:`~surrogate.fitting.heldout.RunBlocks.heldout_rms`).
 
     ``residual`` [Pa] is the model's at its optimum on the solved samples, ``discrepancy`` and
     ``prior`` (s² [Pa²]) the maps' nuisance terms of the judgement.

@@ -1,4 +1,5 @@
-"""Figures of a model-against-log comparison (:mod:`.compare`), written as PNG files.
+"""Figures of a model-against-log comparison (:mod:`~surrogate.workbench.compare`), written as
+PNG files.
 
 * ``dp_vs_q``: Δp over q, measured against the model, one panel per temperature;
 * ``residuals``: the residual against q, p_L, p_P, p_B, temperature and ramp direction;
@@ -22,7 +23,7 @@ from matplotlib.patches import Patch
 
 from ..outputs import atomic_directory
 from ..units import from_si, label
-from .compare import Comparison
+from ..workbench.compare import Comparison
 
 DPI = 110
 # the paper's colours for 20, 40 and 60 °C, then more for logs with more temperatures

@@ -29,7 +29,8 @@ Held-out schemes (:func:`run_groups`): leave one run out, leave one temperature 
 pilot pressure out. A parameter the training runs do not determine (one run's own, with that run
 left out) keeps its value in the linear refit, so a per-run parameter would carry what it learnt
 from a run to that run's held-out prediction: per-run candidates are not judged on held-out runs
-at all (:func:`..diagnose.diagnose`), since by construction they cannot predict another run.
+at all (:func:`~surrogate.diagnosis.diagnose.diagnose`), since by construction they cannot predict
+another run.
 
 The held-out RMS quoted for a model (a workflow step, a candidate) is that of every run predicted
 by a fit to the others (:data:`HEADLINE`). A candidate must also predict a whole condition left

@@ -15,12 +15,14 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from ..diagnosis.result import Diagnosis
+from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
+                              NOISE_MARGIN)
 from ..outputs import atomic_file
 from ..units import from_si, label
-from .compare import TEXT_RUNS, Comparison
-from .diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN, NOISE_MARGIN,
-                       Diagnosis)
+from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, all_figures, caption
+from .prose import sensor_check_text, summarise
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1200px; margin: 2em auto; color: #222;
@@ -279,7 +281,7 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
          for k, v in diagnosis.correlations.items()])
     return "\n".join([
         f"<h2>{html.escape(heading)}</h2>",
-        f'<p class="summary">{html.escape(diagnosis.summary)}</p>',
+        f'<p class="summary">{html.escape(summarise(diagnosis))}</p>',
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
         _table(_heldout_shown(diagnosis_table(diagnosis)),
@@ -347,7 +349,7 @@ def staircase_section(workflow) -> str:
         f'<p class="summary">From the paper\'s basic model to the final one, the residual RMS '
         f"fell from {from_si(workflow.steps[0].rms, 'bar'):.2f} to {final:.2f} bar "
         f"({final / floor:.2f}× the noise floor of {floor:.2f} bar). "
-        f"{html.escape(workflow.final_diagnosis.summary)}</p>",
+        f"{html.escape(summarise(workflow.final_diagnosis))}</p>",
         "<p>Steps 1–4 are the paper's models (BMBE, BMBEBF, CFD maps, CFDA); later steps add the "
         "effect the diagnosis found most likely. Every step refits all free parameters on every "
         "sample. <i>held out</i> is the RMS on runs the step's fit did not see (each run "
@@ -386,7 +388,7 @@ def _category_story(workflow) -> str:
     checks = workflow.final_diagnosis.sensor_checks
     if checks:
         lines.append("<b>Sensor checks</b> (per-run readings, never part of the model): "
-                     + html.escape("; ".join(map(str, checks))) + ".")
+                     + html.escape("; ".join(map(sensor_check_text, checks))) + ".")
     if not lines:
         lines.append("The diagnosis added nothing beyond the paper's steps.")
     return "<p>" + "<br>".join(lines) + "</p>"

@@ -1,0 +1,152 @@
+"""Which physical effect is the model missing? Refit with each candidate and judge the gain.
+
+Procedure
+---------
+1. Replay the model over the log: residual r0, its noise floor σ
+   (:func:`~surrogate.fitting.residuals.noise_floor`) and its effective number of independent
+   samples n_eff (:func:`~surrogate.fitting.residuals.effective_samples`).
+2. *Linearise* and *refit* every candidate together with the model's free parameters
+   (:mod:`.refit`).
+3. Judge each candidate against the maps' own error and on runs it was not fitted to: ΔBIC
+   against the maps' discrepancy, held-out RMS per scheme, inclusion frequency over bootstrap
+   resamples of runs (:mod:`.judge`). Rank the candidates by ΔBIC, best (most negative) first.
+4. Split each run's residual, before and after each candidate, into its median line and its
+   half-width (:mod:`~surrogate.fitting.hysteresis`): a map error moves both ramps alike,
+   friction changes their split. A friction term must narrow the half-width, any other term the
+   median line.
+5. Group the candidates the data cannot tell apart (:mod:`.lookalikes`), apply the significance
+   rule (:mod:`.rule`), and flag per-run readings that look like a sensor fault (:mod:`.sensors`).
+6. When the best candidate has a look-alike, replay both over the runs the bench could make
+   next and name the one where they differ most, or say that none within reach decides
+   (:mod:`~surrogate.planning.bench_runs`).
+
+The result is numbers only (:class:`~.result.Diagnosis`); :mod:`surrogate.reporting.prose` puts
+them into words.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import replace
+
+import numpy as np
+
+from ..data.loaders import BenchLog
+from ..effects import LIBRARY, Effect, EffectLibrary
+from ..fitting.heldout import HEADLINE
+from ..fitting.hysteresis import hysteresis_split
+from ..fitting.residuals import LogReplay, noise_floor, replay_log
+from ..leastsquares import free_parameters
+from ..model import ValveModel
+from ..parallel import map_threads
+from ..units import from_si
+from .judge import Judge
+from .lookalikes import grouped, look_alike_separation
+from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
+from .result import Diagnosis
+from .rule import RULE, SignificanceRule, gains_in_own_view
+from .sensors import sensor_checks
+
+
+def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
+                      names: Iterable[str] | None = None) -> list[type[Effect]]:
+    """The effects of ``library`` the model does not have (or those of them named).
+
+    Raises
+    ------
+    InputError
+        For a name the library does not hold.
+    """
+    chosen = library if names is None else {name: library.effect(name) for name in names}
+    return [cls for name, cls in chosen.items() if not model.has_effect(name)]
+
+
+def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY, *,
+             candidates: Iterable[str] | None = None, base: LogReplay | None = None,
+             steps: int = REFINE_STEPS, progress=None, workers: int | None = None,
+             rule: SignificanceRule = RULE) -> Diagnosis:
+    """Rank the candidate effects by how much of the residual they explain (see module doc).
+
+    Parameters
+    ----------
+    model : ValveModel
+        The current model, with its free parameters already fitted to ``log``.
+    log : BenchLog
+    library : EffectLibrary
+        The effects to choose from (default: the built-in ones).
+    candidates : iterable of str, optional
+        Names of the library's effects to try; default every one the model lacks.
+    base : LogReplay, optional
+        The model's replay of ``log``, if already computed.
+    steps : int
+        Gauss–Newton steps (one replay each) per candidate after the linear solution.
+    progress : callable, optional
+        Called with a line of text as the work proceeds.
+    workers : int, optional
+        Threads refitting candidates side by side (default
+        :func:`surrogate.parallel.default_workers`); the result does not depend on it.
+    rule : SignificanceRule
+        When a candidate is a discovery (default: the package's :data:`.rule.RULE`).
+    """
+    say = progress or (lambda message: None)
+    base = base or replay_log(model, log)
+    problem = DiagnosisProblem(log, base)
+    floor = noise_floor(base.residual, base.runs, source=base.log.source)
+    own = free_parameters(model)
+    say(f"linearising the replay in the model's {len(own)} free parameter(s)")
+    own_columns = [column for column in map_threads(
+        lambda entry: problem.column_of(model, entry[0]), own, workers=workers) if column.felt]
+    classes = candidate_effects(model, library, candidates)
+    results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers)
+    judge = Judge(model, problem, own_columns, floor, rule)
+    results = [judge.judge(candidate) for candidate in results]
+    split = hysteresis_split(log.frame.loc[problem.ok])
+    median_before, half_before = split.rms(problem.base_evaluation.residual)
+    results = [replace(candidate, **dict(zip(("median_rms", "half_width_rms"),
+                                             split.rms(candidate.linearised[0]))))
+               for candidate in results]
+    for number, candidate in enumerate(results, start=1):
+        say(f"  [{number}/{len(classes)}] {candidate.name}: rms "
+            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, held out "
+            f"{from_si(candidate.heldout_rms, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
+            + ("" if number - 1 in refined else " (not refined)"))
+    # best first by ΔBIC, which weighs the gain against the parameters it took (an offset per
+    # run always fits a little better than one offset; it must fit better by enough)
+    results.sort(key=lambda c: (c.delta_bic, c.rms_after))
+    results = [replace(c, own_view=gains_in_own_view(c, median_before, half_before))
+               for c in results]
+    results = [replace(c, significant=rule.passes(c, problem.rms_before, floor, judge.heldout))
+               for c in results]
+    results = grouped(results, rule)
+    shares = judge.inclusion(results)
+    results = [replace(c, inclusion=shares[c.name]) for c in results]
+    # the last test needs every candidate's share
+    results = [replace(c, stable=rule.stable(sum(shares[name] for name in c.group)))
+               for c in results]
+    results = [replace(c, significant=c.significant and c.stable) for c in results]
+    diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, tuple(results),
+                          residual_correlations(base),
+                          judge.heldout.get(HEADLINE, float("nan")),
+                          judge.expected_rms(base), judge.map_limits(),
+                          sensor_checks(results, judge.schemes), median_before, half_before,
+                          heldout_by_scheme=judge.heldout)
+    return replace(diagnosis, separation=look_alike_separation(diagnosis, log))
+
+
+def residual_correlations(base: LogReplay) -> dict[str, float]:
+    """Pearson correlation of the residual with candidate variables, and of the residual signed
+    by the ramp direction (a hysteresis misfit) with the same variables."""
+    frame = base.log.frame
+    values = {"q": frame["q"], "p_L": frame["p_L"], "p_P": frame["p_P"], "p_B": frame["p_B"],
+              "p_Pe": frame["p_P"] - frame["p_B"], "temperature": frame["temperature"],
+              "|p_L - p_P|": (frame["p_L"] - frame["p_P"]).abs()}
+    ok = np.isfinite(base.residual)
+    signed = base.residual * np.where(frame["direction"].to_numpy() == "up", 1.0, -1.0)
+    result = {}
+    for name, series in values.items():
+        x = np.asarray(series, float)[ok]
+        if np.std(x) == 0:
+            continue
+        result[f"residual~{name}"] = float(np.corrcoef(base.residual[ok], x)[0, 1])
+        result[f"hysteresis~{name}"] = float(np.corrcoef(signed[ok], x)[0, 1])
+    return result
