@@ -73,14 +73,22 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{name:<11}{rows:>10,} rows ({megabytes:6.1f} MB): {seconds:8.1f} s, "
                       f"{rows / seconds:>10,.0f} rows/s, peak {peak:7.0f} MB, exit {code}",
                       flush=True)
-    print("\nratios to the smallest size, measured in this run:")
-    print(f"{'command':<11}{'rows':>10}{'time/row':>10}{'peak':>8}{'peak MB':>9}")
+    print("\nratios to the smallest size, measured in this run (time per row falls while the "
+          "start-up of a few seconds weighs less;\nthe marginal time per row, between one size "
+          "and the next, is what stays level when the time is linear in the rows):")
+    print(f"{'command':<11}{'rows':>10}{'time/row':>10}{'marginal µs/row':>17}{'peak':>8}"
+          f"{'peak MB':>9}")
     for name in args.commands:
         mine = [r for r in results if r[0] == name]
         base = mine[0]
+        previous = None
         for _, rows, _, seconds, peak, _ in mine:
             per_row = (seconds / rows) / (base[3] / base[1])
-            print(f"{name:<11}{rows:>10,}{per_row:>10.2f}{peak / base[4]:>8.2f}{peak:>9.0f}")
+            marginal = ("" if previous is None else
+                        f"{1e6 * (seconds - previous[1]) / (rows - previous[0]):.1f}")
+            print(f"{name:<11}{rows:>10,}{per_row:>10.2f}{marginal:>17}{peak / base[4]:>8.2f}"
+                  f"{peak:>9.0f}")
+            previous = (rows, seconds)
     return 0 if all(r[5] == 0 for r in results) else 1
 
 
