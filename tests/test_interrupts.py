@@ -38,7 +38,7 @@ def _left_behind(folder: Path) -> list[str]:
 def test_a_signal_while_writing_removes_the_staging_folder(signum, code, small_log, tmp_path,
                                                            monkeypatch, capsys):
     """The signal arrives while compare's figures are being written into its staging folder."""
-    from surrogate.workbench import report
+    from surrogate.reporting import report
 
     real = report.figure_png
 
