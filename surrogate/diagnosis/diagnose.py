@@ -33,6 +33,7 @@ import numpy as np
 
 from ..data.loaders import BenchLog
 from ..effects import LIBRARY, Effect, EffectLibrary
+from ..effects.shapes import SHAPE_FREE
 from ..fitting.heldout import HEADLINE
 from ..fitting.hysteresis import hysteresis_split
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
@@ -46,6 +47,7 @@ from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
 from .result import Diagnosis
 from .rule import RULE, SignificanceRule, gains_in_own_view
 from .sensors import sensor_checks
+from .shapes import shape_free_candidates
 
 
 def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
@@ -64,7 +66,7 @@ def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
 def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY, *,
              candidates: Iterable[str] | None = None, base: LogReplay | None = None,
              steps: int = REFINE_STEPS, progress=None, workers: int | None = None,
-             rule: SignificanceRule = RULE) -> Diagnosis:
+             rule: SignificanceRule = RULE, shapes=SHAPE_FREE) -> Diagnosis:
     """Rank the candidate effects by how much of the residual they explain (see module doc).
 
     Parameters
@@ -87,6 +89,10 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
         :func:`surrogate.parallel.default_workers`); the result does not depend on it.
     rule : SignificanceRule
         When a candidate is a discovery (default: the package's :data:`.rule.RULE`).
+    shapes : sequence of ShapeFreeEffect classes
+        The shape-free terms tried beside the library (:mod:`.shapes`; default all of
+        :data:`surrogate.effects.shapes.SHAPE_FREE`, ``()`` for none). They rank behind a
+        library term that fits about as well (:meth:`.rule.SignificanceRule.rank`).
     """
     say = progress or (lambda message: None)
     base = base or replay_log(model, log)
@@ -100,19 +106,24 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers)
     judge = Judge(model, problem, own_columns, floor, rule)
     results = [judge.judge(candidate) for candidate in results]
+    present = {effect.name for effect in model.effects}
+    shapes = [cls for cls in shapes if cls.name not in present]
+    if shapes:
+        results += shape_free_candidates(model, problem, own_columns, judge, shapes,
+                                         steps=steps, workers=workers, say=say)
     split = hysteresis_split(log.frame.loc[problem.ok])
     median_before, half_before = split.rms(problem.base_evaluation.residual)
     results = [replace(candidate, **dict(zip(("median_rms", "half_width_rms"),
                                              split.rms(candidate.linearised[0]))))
                for candidate in results]
     for number, candidate in enumerate(results, start=1):
-        say(f"  [{number}/{len(classes)}] {candidate.name}: rms "
+        say(f"  [{number}/{len(results)}] {candidate.name}: rms "
             f"{from_si(candidate.rms_after, 'bar'):.3f} bar, held out "
             f"{from_si(candidate.heldout_rms, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
-            + ("" if number - 1 in refined else " (not refined)"))
+            + ("" if number - 1 in refined or candidate.shape_free else " (not refined)"))
     # best first by ΔBIC, which weighs the gain against the parameters it took (an offset per
     # run always fits a little better than one offset; it must fit better by enough)
-    results.sort(key=lambda c: (c.delta_bic, c.rms_after))
+    results.sort(key=rule.rank)
     results = [replace(c, own_view=gains_in_own_view(c, median_before, half_before))
                for c in results]
     results = [replace(c, significant=rule.passes(c, problem.rms_before, floor, judge.heldout))

@@ -49,6 +49,7 @@ class Judge:
         own = held_at_bounds(
             np.column_stack([c.change for c in own_columns]) if own_columns
             else np.zeros((int(ok.sum()), 0)), [parameters[c.key] for c in own_columns])
+        self.own = own  # the model's own columns, at the samples the model solves
         self.base = RunBlocks(Linearised(problem.base_evaluation.residual, own),
                               self.discrepancy, self.runs, self.penalty)
         self.ones = np.ones(len(self.base.labels))
@@ -56,12 +57,18 @@ class Judge:
         self.heldout = self.base.heldout_rms(self.schemes)  # per scheme [Pa]
         self.blocks: dict[str, tuple[RunBlocks, float]] = {}
 
-    def judge(self, candidate: Candidate, roughness=None) -> Candidate:
-        """The candidate with its held-out RMS and its ΔBIC against the maps' discrepancy
-        (``roughness``: a shape-free term's penalty, :class:`~surrogate.fitting.heldout.
-        RunBlocks`; its ``extra`` is then its effective number of parameters)."""
+    def judge(self, candidate: Candidate, roughness=None, shape: list[int] | None = None
+              ) -> Candidate:
+        """The candidate with its held-out RMS and its ΔBIC against the maps' discrepancy.
+
+        A shape-free term brings its ``roughness`` penalty (:class:`~surrogate.fitting.heldout.
+        RunBlocks`) and the columns of its coefficients (``shape``); the parameters it counts in
+        ΔBIC are then their effective number (the trace of their block of the hat matrix, the
+        discrepancy refitted with them), not their count."""
         blocks = RunBlocks(Linearised(candidate.linearised[0], candidate.linearised[1]),
                            self.discrepancy, self.runs, self.penalty, roughness)
+        if shape is not None:
+            candidate = replace(candidate, extra=blocks.effective_parameters(shape))
         self.blocks[candidate.name] = (blocks, candidate.extra)
         scores = {}
         if not candidate.per_run:  # a run's own parameter is off for a run it never saw
@@ -85,8 +92,9 @@ class Judge:
             before = self.base.objective(w)
             scores = [delta_bic(self.blocks[c.name][0].objective(w), before, n_eff,
                                 self.blocks[c.name][1]) for c in chosen]
+            ranks = [score + self.rule.handicap(c) for score, c in zip(scores, chosen)]
             if scores and min(scores) < self.rule.bic:
-                counts[chosen[int(np.argmin(scores))].name] += 1
+                counts[chosen[int(np.argmin(ranks))].name] += 1
         return {c.name: counts.get(c.name, 0) / len(weights) for c in candidates}
 
     def expected_rms(self, base: LogReplay) -> float:

@@ -41,8 +41,21 @@ class Candidate:
     change: np.ndarray | None = field(default=None, repr=False)  # prediction change [Pa]
     model: ValveModel | None = field(default=None, repr=False)  # the current model + this effect
     replay: LogReplay | None = field(default=None, repr=False)  # its replay of the log
-    extra: float = 0  # parameters of its own the data inform
+    extra: float = 0  # parameters of its own the data inform (a shape's effective number)
     linearised: tuple | None = field(default=None, repr=False)  # (residual, Jacobian) at its fit
+    #: a shape-free term's fitted shape against its variable, with its band (None otherwise)
+    curve: "ShapeCurve | None" = field(default=None, repr=False)
+
+    @property
+    def shape_free(self) -> bool:
+        """Whether this is a shape-free term (:mod:`surrogate.effects.shapes`), not a library
+        effect with a named shape."""
+        return self.curve is not None
+
+    @property
+    def effect(self):
+        """The candidate's fitted effect (in :attr:`model`)."""
+        return None if self.model is None else self.model.effect(self.name)
 
     def to_json(self) -> dict:
         return {
@@ -59,7 +72,33 @@ class Candidate:
             "delta_bic": round(float(self.delta_bic), 2), "significant": bool(self.significant),
             "per_run": bool(self.per_run), "group": list(self.group),
             "params": {p.name: p.to_record() for p in self.params},
+            **({"shape": self.curve.to_json()} if self.curve is not None else {}),
         }
+
+
+@dataclass(frozen=True)
+class ShapeCurve:
+    """A shape-free term's fitted shape on a grid of its variable, in display units.
+
+    ``band`` is one standard deviation of the shape at each point, from the fit's covariance
+    (penalised as the fit was); ``weight`` the roughness weight the held-out runs chose.
+    """
+
+    variable: str  # the variable's name (surrogate.effects.shapes.VARIABLES)
+    label: str  # what it is, in words
+    unit: str  # its display unit
+    value_unit: str  # the shape's
+    x: np.ndarray
+    value: np.ndarray
+    band: np.ndarray
+    weight: float
+
+    def to_json(self) -> dict:
+        return {"variable": self.variable, "unit": self.unit, "value_unit": self.value_unit,
+                "roughness_weight": self.weight,
+                "x": [round(float(v), 6) for v in self.x],
+                "value": [round(float(v), 6) for v in self.value],
+                "band": [round(float(v), 6) for v in self.band]}
 
 
 @dataclass(frozen=True)

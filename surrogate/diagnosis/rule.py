@@ -19,6 +19,10 @@ A candidate is **significant** when all of these hold (:meth:`SignificanceRule.p
   friction term the runs' half-width, any other term their median line;
 * it, or the group it cannot be told from, is the one added in the majority of bootstrap
   resamples over runs (:data:`INCLUSION_MIN`).
+
+Candidates are ranked by ΔBIC, a shape-free term (:mod:`surrogate.effects.shapes`) with a
+handicap of |:data:`BIC_THRESHOLD`|: a library term that fits about as well comes first, having
+fewer parameters and a name (:meth:`SignificanceRule.rank`).
 """
 
 from __future__ import annotations
@@ -73,6 +77,16 @@ class SignificanceRule:
     def predicts_unseen(self, candidate, heldout_before: dict[str, float]) -> bool:
         """Whether the candidate predicts held-out runs better by :attr:`heldout_gain`."""
         return predicts_unseen(candidate.heldout, heldout_before, self.heldout_gain)
+
+    def handicap(self, candidate) -> float:
+        """What a candidate's ΔBIC is raised by for ranking: |:attr:`bic`| for a shape-free
+        term, nothing for a library effect."""
+        return -self.bic if getattr(candidate, "shape_free", False) else 0.0
+
+    def rank(self, candidate) -> tuple[float, float]:
+        """The sort key of the candidates, best first: ΔBIC with the shape-free handicap, then
+        the RMS after."""
+        return (candidate.delta_bic + self.handicap(candidate), candidate.rms_after)
 
     def stable(self, group_share: float) -> bool:
         """Whether a candidate whose group is chosen in ``group_share`` of the resamples over

@@ -19,19 +19,23 @@ that predicts the left-out runs best (pooled over the schemes) is kept.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 from scipy.optimize import lsq_linear
 
 from ..effects import BalanceState, Effect, FlowState, Parameter
-from ..effects.shapes import PRESSURE_DROP, ShapeFreeEffect
-from ..fitting.heldout import Linearised, RunBlocks
+from ..effects.shapes import NU_REFERENCE, PRESSURE_DROP, SHAPE_FREE, ShapeFreeEffect
+from ..fitting.heldout import Linearised, RunBlocks, held_at_bounds
 from ..fitting.logfit import probe_change
 from ..fitting.residuals import LogReplay
+from ..leastsquares import Minimizer
 from ..model import ValveModel
-from ..units import LPM, to_si
+from ..parallel import map_threads
+from ..units import LPM, from_si, to_si
+from .refit import candidate_of
+from .result import ShapeCurve
 
 #: λ tried, relative to the columns' mean square (so that the choice does not depend on units)
 ROUGHNESS_WEIGHTS = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
@@ -129,8 +133,6 @@ def column_factor(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) -> n
     """What multiplies the basis in the hook's output besides the coefficients (the laminar
     viscosity factor of a leakage, 1 otherwise)."""
     if cls.variable is PRESSURE_DROP:
-        from ..effects.shapes import NU_REFERENCE
-
         return NU_REFERENCE / state["nu"]
     return np.ones(len(state["u"]))
 
@@ -259,3 +261,114 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
             best = RoughnessChoice(weight, heldout, theta[p:] * shape.steps,
                                    float(np.sqrt(np.mean(fitted**2))))
     return best
+
+
+# --- shape-free candidates ------------------------------------------------------------------------
+
+#: points of a shape's curve in the diagnosis (its JSON, its figure)
+CURVE_POINTS = 41
+
+
+def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
+                          classes=SHAPE_FREE, *, steps: int, workers: int | None = None,
+                          say=None) -> list:
+    """Every shape-free effect of ``classes`` fitted beside the model's own parameters and
+    judged like a library candidate (:mod:`surrogate.diagnosis.judge`), with its roughness.
+
+    Each shape's coefficients are linearised from one probe replay of its hook
+    (:func:`sensitivity`; five replays in all), its roughness weight chosen by held-out runs
+    (:func:`choose_roughness`), and only the shapes whose linear fit predicts the runs left out
+    better by the rule's held-out gain are refitted for real (the others cannot pass the rule;
+    they are left out, at no replay). ``problem`` is the diagnosis' :class:`~surrogate.
+    diagnosis.refit.DiagnosisProblem`, ``own_columns`` its model's columns, ``judge`` its
+    :class:`~surrogate.diagnosis.judge.Judge`.
+    """
+    say = say or (lambda message: None)
+    base, ok = problem.base, problem.ok
+    state = state_at_samples(model, base)
+    probes = list(dict.fromkeys(probe_of(cls) for cls in classes))
+    say(f"probing how Δp answers {len(probes)} kind(s) of shape-free term")
+    sensitivities = dict(zip(probes, map_threads(
+        lambda probe: sensitivity(model, probe, base), probes, workers=workers)))
+
+    def linear(cls):
+        columns = shape_columns(cls, state, sensitivities[probe_of(cls)], ok,
+                                base.replay.moving, base.runs)
+        choice = choose_roughness(columns, problem.base_evaluation.residual, judge.own,
+                                  judge.runs, judge.discrepancy, judge.penalty, judge.schemes)
+        return cls, columns, choice
+
+    fits = [fit for fit in map_threads(linear, classes, workers=workers)
+            if judge.rule.predicts_unseen(_Scores(fit[2].heldout), judge.heldout)]
+    say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
+        "better")
+    return list(map_threads(lambda fit: _refitted(model, problem, own_columns, judge, *fit,
+                                                  steps=steps), fits, workers=workers))
+
+
+@dataclass
+class _Scores:
+    """Held-out RMS per scheme, as the rule reads them off a candidate."""
+
+    heldout: dict
+
+
+def _refitted(model, problem, own_columns, judge, cls, columns: ShapeColumns,
+              choice: RoughnessChoice, *, steps: int):
+    """The shape refitted with the model's parameters (Gauss–Newton with Broyden updates, the
+    roughness penalty included), judged, with its curve."""
+    trial = model.copy()
+    effect = columns.effect.copy()
+    trial.effects.append(effect)
+    names = [c.key for c in own_columns] + [f"{cls.name}.{name}"
+                                            for name in effect.coefficient_names()]
+    penalty = np.hstack([np.zeros((columns.roughness.shape[0], len(own_columns))),
+                         columns.penalty(choice.weight)])
+    minimizer = Minimizer(trial, problem, names)
+    minimizer.linearise([c.change for c in own_columns] + list(columns.columns.T),
+                        [c.step for c in own_columns] + list(columns.steps),
+                        problem.base_evaluation, penalty=penalty).refine(1 + steps)
+    candidate = candidate_of(cls, minimizer, len(columns.steps), problem)
+    # the refits of the judgement know no bounds: a coefficient on its bound takes no part
+    jacobian = held_at_bounds(minimizer.refined_jacobian, minimizer.parameters)
+    free = [i for i, parameter in enumerate(minimizer.parameters)
+            if i < len(own_columns) or not parameter.at_bound]
+    scale = np.array([p.value for p in minimizer.parameters])
+    steps_si = np.r_[[c.step for c in own_columns], columns.steps]
+    rough = penalty * steps_si  # in the Jacobian's columns: one step of each parameter
+    roughness = (rough[:, free], penalty @ scale)
+    candidate = replace(candidate, linearised=(candidate.linearised[0], jacobian[:, free]))
+    shape = [k for k, i in enumerate(free) if i >= len(own_columns)]
+    judged = judge.judge(candidate, roughness, shape)
+    fitted = judged.model.effect(cls.name)
+    return replace(judged, curve=shape_curve(fitted, jacobian[:, free], judged.linearised[0],
+                                             rough[:, free], free, len(own_columns),
+                                             problem.n_eff, choice.weight))
+
+
+def shape_curve(effect: ShapeFreeEffect, jacobian: np.ndarray, residual: np.ndarray,
+                rough: np.ndarray, free: list[int], own: int, n_eff: float,
+                weight: float):
+    """The fitted shape on :data:`CURVE_POINTS` points of its variable, with one standard
+    deviation from the penalised fit's covariance (σ² from the residual, widened for the
+    samples' correlation in time, like the fit's standard errors)."""
+    x = np.linspace(effect.knots[0], effect.knots[-1], CURVE_POINTS)
+    basis = effect.basis(x)
+    count, size = jacobian.shape
+    variance = float(residual @ residual) / max(count - size, 1) * count / max(n_eff, 1.0)
+    try:
+        covariance = np.linalg.pinv(jacobian.T @ jacobian + rough.T @ rough) * variance
+    except np.linalg.LinAlgError:
+        covariance = np.full((size, size), np.nan)
+    coefficient = [i - own for i in free if i >= own]
+    shape_rows = [k for k, i in enumerate(free) if i >= own]
+    steps = np.array([float(to_si(1.0, effect.value_unit) - to_si(0.0, effect.value_unit))]
+                     * len(effect.coefficients))
+    scaled = basis[:, coefficient] * steps[coefficient]
+    block = covariance[np.ix_(shape_rows, shape_rows)]
+    std = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", scaled, block, scaled), 0.0, None))
+    variable = effect.variable
+    return ShapeCurve(variable.name, variable.label, variable.unit, effect.value_unit,
+                      from_si(x, variable.unit), from_si(effect.shape(x), effect.value_unit),
+                      from_si(std, effect.value_unit) - from_si(0.0, effect.value_unit),
+                      weight)
