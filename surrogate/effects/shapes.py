@@ -40,7 +40,8 @@ import numpy as np
 from scipy.interpolate import BSpline
 
 from ..parameters import Parameter
-from ..units import CST, from_si, to_si
+from .. import limits
+from ..units import BAR, CST, LPM, from_si, to_si
 from .base import BalanceState, Effect, FlowState
 
 #: knots of a shape (the basis then has KNOTS + 2 cubic B-splines)
@@ -69,6 +70,8 @@ class Variable:
     source : str
         The same as Python source, for the effect file a shape is handed over as
         (:mod:`.handover`).
+    limits : tuple of float
+        The values it can take [SI] (:mod:`surrogate.limits`): a knot's bounds.
     """
 
     name: str
@@ -76,22 +79,29 @@ class Variable:
     unit: str
     of: Callable[[object], np.ndarray]
     source: str
+    limits: tuple[float, float]
 
 
+_PRESSURES = (-limits.PRESSURE_MAX_BAR * BAR, limits.PRESSURE_MAX_BAR * BAR)
 VARIABLES = {variable.name: variable for variable in (
-    Variable("u", "the opening u", "mm", lambda state: state.u, "state.u"),
-    Variable("p_L", "the load pressure p_L", "bar", lambda state: state.p_L, "state.p_L"),
-    Variable("p_P", "the pilot pressure p_P", "bar", lambda state: state.p_P, "state.p_P"),
-    Variable("p_B", "the back pressure p_B", "bar", lambda state: state.p_B, "state.p_B"),
+    Variable("u", "the opening u", "mm", lambda state: state.u, "state.u",
+             (0.0, limits.OPENING.high * 1e-3)),
+    Variable("p_L", "the load pressure p_L", "bar", lambda state: state.p_L, "state.p_L",
+             _PRESSURES),
+    Variable("p_P", "the pilot pressure p_P", "bar", lambda state: state.p_P, "state.p_P",
+             _PRESSURES),
+    Variable("p_B", "the back pressure p_B", "bar", lambda state: state.p_B, "state.p_B",
+             _PRESSURES),
     Variable("p_LP", "the pressure across the pilot seal, p_L − p_P", "bar",
-             lambda state: state.p_L - state.p_P, "(state.p_L - state.p_P)"),
+             lambda state: state.p_L - state.p_P, "(state.p_L - state.p_P)", _PRESSURES),
     Variable("nu", "the oil's viscosity ν", "cSt", lambda state: state.fluid.nu,
-             "state.fluid.nu"),
-    Variable("q", "the flow q", "L/min", lambda state: state.q, "state.q"),
+             "state.fluid.nu", (limits.VISCOSITY.low * CST, limits.VISCOSITY.high * CST)),
+    Variable("q", "the flow q", "L/min", lambda state: state.q, "state.q",
+             (0.0, limits.FLOW.high * LPM)),
 )}
 #: the pressure drop, the variable of a leakage (given to the hook, not part of its state)
 PRESSURE_DROP = Variable("dp", "the pressure drop Δp", "bar", lambda state: state.dp,
-                         "np.maximum(dp, 0.0)")
+                         "np.maximum(dp, 0.0)", (0.0, limits.PRESSURE_MAX_BAR * BAR))
 
 
 def spline_basis(knots: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -160,7 +170,7 @@ class ShapeFreeEffect(Effect):
         unit = self.variable.unit
         for index, knot in enumerate(knots, start=1):
             self.params[f"knot_{index}"] = Parameter(
-                f"knot_{index}", float(knot), unit, vary=False,
+                f"knot_{index}", float(knot), unit, *self.variable.limits, vary=False,
                 description=f"knot {index} of the shape in {self.variable.label}")
         high = float(to_si(self.value_limit, self.value_unit))
         low = 0.0 if self.rising else -high
@@ -196,7 +206,11 @@ class ShapeFreeEffect(Effect):
 
     @property
     def knots(self) -> np.ndarray:
-        return np.array([p.value for name, p in self.params.items() if name.startswith("knot_")])
+        """The knots [SI], increasing (a file's knots that are not, or coincide, are spread by
+        a hair so that the basis stays defined)."""
+        knots = np.sort([p.value for name, p in self.params.items() if name.startswith("knot_")])
+        hair = 1e-9 * max(float(np.max(np.abs(knots))), 1e-12)
+        return knots + hair * np.arange(len(knots)) * (np.diff(knots, prepend=-np.inf) <= 0)
 
     @property
     def coefficients(self) -> np.ndarray:
