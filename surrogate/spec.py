@@ -45,7 +45,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from .effects import LIBRARY, Effect, EffectLibrary
+from .effects import KNOWN, Effect, EffectLibrary
 from .errors import InputError
 from .maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
 from .outputs import atomic_file
@@ -212,7 +212,7 @@ class ModelSpec:
 
     # --- building ---------------------------------------------------------------------------------
 
-    def build(self, library: EffectLibrary = LIBRARY, where: str | None = None):
+    def build(self, library: EffectLibrary = KNOWN, where: str | None = None):
         """The :class:`~surrogate.model.ValveModel` this spec describes.
 
         Raises

@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 from ..data import load_bench_log
-from ..effects import LIBRARY, EffectLibrary, load_effects_file
+from ..effects import KNOWN, EffectLibrary, load_effects_file
 from ..errors import InputError
 from ..maps.registry import (MAP_KINDS, TRAINED, MapsSpec, MapSource, map_kind,
                              refuse_ambiguous_kind)
@@ -184,7 +184,7 @@ def effect_library(args, progress: Progress | None = None) -> EffectLibrary:
     (:func:`surrogate.testing.check_effect`) as it loads."""
     from ..testing import check_effect
 
-    library = LIBRARY
+    library = KNOWN  # the library and the shape-free terms a model file may name
     for path in args.effects_file:
         custom = load_effects_file(path)
         try:

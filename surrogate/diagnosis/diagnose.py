@@ -52,21 +52,35 @@ from .shapes import shape_free_candidates
 
 def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
                       names: Iterable[str] | None = None) -> list[type[Effect]]:
-    """The effects of ``library`` the model does not have (or those of them named).
+    """The effects of ``library`` the model does not have (or those of them named), shape-free
+    ones included only when named (by default the diagnosis tries every shape-free term on its
+    own, :func:`shape_candidates`).
 
     Raises
     ------
     InputError
-        For a name the library does not hold.
+        For a name the library (or the shape-free terms) does not hold.
     """
-    chosen = library if names is None else {name: library.effect(name) for name in names}
+    known = library + EffectLibrary(cls for cls in SHAPE_FREE if cls.name not in library)
+    chosen = ({name: cls for name, cls in library.items()
+               if not getattr(cls, "shape_free", False)} if names is None
+              else {name: known.effect(name) for name in names})
     return [cls for name, cls in chosen.items() if not model.has_effect(name)]
+
+
+def shape_candidates(model: ValveModel, names: Iterable[str] | None = None,
+                     library: EffectLibrary = LIBRARY) -> list[type[Effect]]:
+    """The shape-free terms a diagnosis tries: every one the model lacks, or those named."""
+    if names is None:
+        return [cls for cls in SHAPE_FREE if not model.has_effect(cls.name)]
+    return [cls for cls in candidate_effects(model, library, names)
+            if getattr(cls, "shape_free", False)]
 
 
 def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY, *,
              candidates: Iterable[str] | None = None, base: LogReplay | None = None,
              steps: int = REFINE_STEPS, progress=None, workers: int | None = None,
-             rule: SignificanceRule = RULE, shapes=SHAPE_FREE) -> Diagnosis:
+             rule: SignificanceRule = RULE, shapes: bool = True) -> Diagnosis:
     """Rank the candidate effects by how much of the residual they explain (see module doc).
 
     Parameters
@@ -77,7 +91,8 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     library : EffectLibrary
         The effects to choose from (default: the built-in ones).
     candidates : iterable of str, optional
-        Names of the library's effects to try; default every one the model lacks.
+        Names of the library's effects (or shape-free terms) to try; default every one the
+        model lacks.
     base : LogReplay, optional
         The model's replay of ``log``, if already computed.
     steps : int
@@ -89,10 +104,10 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
         :func:`surrogate.parallel.default_workers`); the result does not depend on it.
     rule : SignificanceRule
         When a candidate is a discovery (default: the package's :data:`.rule.RULE`).
-    shapes : sequence of ShapeFreeEffect classes
-        The shape-free terms tried beside the library (:mod:`.shapes`; default all of
-        :data:`surrogate.effects.shapes.SHAPE_FREE`, ``()`` for none). They rank behind a
-        library term that fits about as well (:meth:`.rule.SignificanceRule.rank`).
+    shapes : bool
+        Whether to try the shape-free terms beside the library (:mod:`.shapes`; those named in
+        ``candidates``, or all of :data:`surrogate.effects.shapes.SHAPE_FREE`). They rank behind
+        a library term that fits about as well (:meth:`.rule.SignificanceRule.rank`).
     """
     say = progress or (lambda message: None)
     base = base or replay_log(model, log)
@@ -102,14 +117,14 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     say(f"linearising the replay in the model's {len(own)} free parameter(s)")
     own_columns = [column for column in map_threads(
         lambda entry: problem.column_of(model, entry[0]), own, workers=workers) if column.felt]
-    classes = candidate_effects(model, library, candidates)
+    classes = [cls for cls in candidate_effects(model, library, candidates)
+               if not getattr(cls, "shape_free", False)]
     results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers)
     judge = Judge(model, problem, own_columns, floor, rule)
     results = [judge.judge(candidate) for candidate in results]
-    present = {effect.name for effect in model.effects}
-    shapes = [cls for cls in shapes if cls.name not in present]
-    if shapes:
-        results += shape_free_candidates(model, problem, own_columns, judge, shapes,
+    shaped = shape_candidates(model, candidates, library) if shapes else []
+    if shaped:
+        results += shape_free_candidates(model, problem, own_columns, judge, shaped,
                                          steps=steps, workers=workers, say=say)
     split = hysteresis_split(log.frame.loc[problem.ok])
     median_before, half_before = split.rms(problem.base_evaluation.residual)

@@ -263,7 +263,7 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
     return best
 
 
-# --- shape-free candidates ------------------------------------------------------------------------
+# --- shape-free candidates -----------------------------------------------------------------------
 
 #: points of a shape's curve in the diagnosis (its JSON, its figure)
 CURVE_POINTS = 41

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..diagnosis.naming import library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..diagnosis.rule import RULE
 from ..planning.bench_runs import Separation, search_range
@@ -136,6 +137,8 @@ def summarise(diagnosis: Diagnosis) -> str:
                          f"it is chosen in only {100 * share:.0f} % of resamples "
                          "over runs: which runs the log holds decides it, so it is not a "
                          "finding; more runs where it acts would settle it.")
+    elif best.shape_free:
+        sentence = shape_sentence(diagnosis, best)
     else:
         params = ", ".join(str(p) for p in best.params if p.vary)
         sentence = (f"The most likely missing effect is {best.title} ({best.name}, "
@@ -161,3 +164,54 @@ def summarise(diagnosis: Diagnosis) -> str:
         sentence += (" Sensor check (never part of the model): "
                      + "; ".join(map(sensor_check_text, diagnosis.sensor_checks[:3])) + ".")
     return sentence
+
+
+def shape_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
+    """What a shape-free find says: what it is, what it gains, its shape, whether a library
+    term has that shape, and how to take it over (its effects file)."""
+    curve = best.curve
+    effect = best.effect
+    before = from_si(diagnosis.rms_before, "bar")
+    sentence = (f"The log holds a {effect.quantity} that depends on {curve.label} with a shape of "
+                f"its own ({best.name}, {best.category}): a term of free shape lowers the "
+                f"residual RMS from {before:.2f} to {from_si(best.rms_after, 'bar'):.2f} bar and "
+                f"the RMS on held-out runs from {from_si(diagnosis.heldout_before, 'bar'):.2f} to "
+                f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor "
+                f"{from_si(diagnosis.noise_floor, 'bar'):.2f} bar, ΔBIC {best.delta_bic:.0f} "
+                f"against the maps' own error with {best.extra:.1f} effective parameters, chosen "
+                f"in {100 * best.inclusion:.0f} % of resamples over runs). ")
+    sentence += shape_words(best) + " " + naming_words(best)
+    sentence += (" `diagnose --out DIR` writes it as an effects file to read, edit and add with "
+                 "--effects-file.")
+    return sentence + hysteresis_sentence(diagnosis, best)
+
+
+def shape_words(candidate: Candidate) -> str:
+    """The found shape in a sentence: its range, and where it bends, rises or falls."""
+    curve = candidate.curve
+    features = shape_features(curve)
+    unit, x_unit = curve.value_unit, curve.unit
+    words = (f"Its {candidate.effect.quantity} runs from {features.low:+.3g} {unit} (at "
+             f"{features.low_at:.3g} {x_unit}) to {features.high:+.3g} {unit} (at "
+             f"{features.high_at:.3g} {x_unit})")
+    if features.rising:
+        return words + ", rising with it."
+    if features.falling:
+        return words + ", falling with it."
+    kind = "bump" if features.bend > 0 else "dip"
+    return (words + f", with a {kind} of {abs(features.bend):.3g} {unit} at "
+                    f"{features.bend_at:.3g} {x_unit} against the line between its ends.")
+
+
+def naming_words(candidate: Candidate) -> str:
+    """Whether a library term has the found shape, and if not, what tells them apart."""
+    matches = library_matches(candidate.name, candidate.curve)
+    if not matches:
+        return "No library term acts on this variable in this way."
+    closest = matches[0]
+    if closest.fits:
+        return (f"The library's {closest.name} fits this shape within {2:g} standard "
+                "deviations of it: prefer that term, which says the same with a name.")
+    return (f"No library term has this shape: the closest, {closest.name}, departs from it by "
+            f"{closest.worst:.1f} standard deviations at {closest.worst_at:.3g} "
+            f"{candidate.curve.unit}.")
