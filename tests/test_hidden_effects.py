@@ -29,10 +29,11 @@ def sequence(bench_log):
     return noise_free_sequence(bench_log, every=EVERY)
 
 
-def find(case, library=LIBRARY):
-    """Fit the starting model, diagnose it over ``library``; return the diagnosis."""
+def find(case, library=LIBRARY, shapes=True):
+    """Fit the starting model, diagnose it over ``library`` (and the shape-free terms, unless
+    ``shapes`` is false); return the diagnosis."""
     fitted = fit_to_log(case.start, case.log).model
-    return diagnose(fitted, case.log, library)
+    return diagnose(fitted, case.log, library, shapes=shapes)
 
 
 @pytest.mark.parametrize("hidden", sorted(REALISTIC_MAGNITUDES))
@@ -95,8 +96,14 @@ def test_a_custom_effect_explains_what_the_library_cannot(sequence, custom_libra
     (name,) = custom_library
     library = LIBRARY + custom_library
     case = hidden_effect_case(name, {"k": 8.0}, sequence=sequence, seed=5, library=library)
-    without = find(case, LIBRARY)
+    without = find(case, LIBRARY, shapes=False)
     assert without.candidates[0].rms_after > RATIO * without.noise_floor
+
+    # beside the library, the friction of free shape in the flow finds it without being told
+    shaped = find(case, LIBRARY)
+    assert shaped.best is not None and shaped.best.name == "shape_friction_of_q", \
+        summarise(shaped)
+    assert shaped.best.rms_after < without.candidates[0].rms_after
 
     with_custom = find(case, library)
     assert identified(with_custom, name), summarise(with_custom)

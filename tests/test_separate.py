@@ -10,7 +10,7 @@ from surrogate.effects import LIBRARY
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.planning.bench_runs import candidate_runs, separating_run
 from surrogate.presets import cfda
-from surrogate.reporting.prose import summarise
+from surrogate.reporting.prose import diagnosis_document, summarise
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 from surrogate.units import from_si
 
@@ -77,4 +77,4 @@ def test_diagnose_says_which_run_would_decide_between_look_alikes(sequence):
     assert separation is not None and not separation.decides
     assert np.isfinite(separation.difference)
     assert "no bench run" in summarise(diagnosis) and "dedicated test" in summarise(diagnosis)
-    assert diagnosis.to_json()["separating_run"]["decides"] is False
+    assert diagnosis_document(diagnosis)["separating_run"]["decides"] is False

@@ -10,7 +10,8 @@ from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUS
 from ..errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..outputs import Output, atomic_directory
-from ..reporting.prose import diagnosis_document, summarise
+from ..effects.handover import hand_over
+from ..reporting.prose import diagnosis_document, naming_words, shape_words, summarise
 from ..reporting.report import (comparison_section, diagnosis_figure, diagnosis_section,
                                 diagnosis_table, figure_png, write_html)
 from ..units import from_si
@@ -42,7 +43,9 @@ def register(subparsers) -> None:
                     "never added. Candidates the data cannot tell apart are reported as a "
                     "group.")
     add_data_options(parser, out_help="write diagnosis.json, candidates.csv, a figure and "
-                                      "report.html into this folder")
+                                      "report.html into this folder, and, when the best "
+                                      "candidate is a shape-free term, its shape as an "
+                                      "effects file (found_*.py)")
     parser.add_argument("--candidates", nargs="+", metavar="NAME",
                         help="only these effects (default: every effect the model lacks)")
     parser.set_defaults(func=run)
@@ -62,10 +65,15 @@ def run(args) -> int:
     diagnosis = diagnose(model, log, library, base=comparison.played,
                          candidates=args.candidates, progress=progress)
     progress(f"done in {progress.elapsed:.1f} s")
+    document = diagnosis_document(diagnosis)
+    best = diagnosis.best
     if args.out:
         with atomic_directory(args.out) as staging:
-            (staging / "diagnosis.json").write_text(json.dumps(diagnosis_document(diagnosis),
-                                                               indent=2))
+            if best is not None and best.shape_free:  # a shape without a name: hand it over
+                document["effects_files"] = hand_over(
+                    [best.effect], staging, origin=log.source,
+                    notes={best.name: shape_words(best) + " " + naming_words(best)})
+            (staging / "diagnosis.json").write_text(json.dumps(document, indent=2))
             diagnosis_table(diagnosis).to_csv(staging / "candidates.csv", index=False)
             (staging / "diagnosis.png").write_bytes(figure_png(diagnosis_figure(diagnosis)))
             write_html(staging / "report.html", f"Diagnosis: {model.name}",
@@ -73,7 +81,7 @@ def run(args) -> int:
                         comparison_section(comparison, "The fitted model against the data")])
         progress(f"wrote {args.out}/report.html")
     if args.json:
-        print_json(diagnosis_document(diagnosis))
+        print_json(document)
     else:
         print(format_diagnosis(diagnosis))
     return 0

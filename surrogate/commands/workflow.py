@@ -7,11 +7,12 @@ import json
 import numpy as np
 
 from ..crossval import most_accurate_kind
+from ..effects.handover import hand_over
 from ..maps.registry import MAP_KINDS
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
-from ..reporting.prose import summarise
+from ..reporting.prose import naming_words, shape_words, summarise
 from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
                                 staircase_figure, staircase_section, staircase_table,
                                 staircases_section, write_html)
@@ -50,6 +51,15 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+def hand_over_shapes(workflow, folder) -> dict[str, str]:
+    """Write the final model's shape-free terms as effects files into ``folder``; return
+    {effect name: file name}."""
+    found = {step.added[0]: step.diagnosis.best for step in workflow.steps if step.shape_free}
+    effects = [effect for effect in workflow.final.model.effects if effect.name in found]
+    notes = {name: shape_words(best) + " " + naming_words(best) for name, best in found.items()}
+    return hand_over(effects, folder, origin=workflow.log.source, notes=notes)
+
+
 def run(args) -> int:
     out = args.out or DEFAULT_OUT
     guard_outputs(args, Output("--out", out, "folder"))
@@ -82,6 +92,7 @@ def run(args) -> int:
                         for kind, score in scores.items()},
                     "other_kinds": {kind: other.to_json() for kind, other in workflows.items()
                                     if kind != main}}
+        document["effects_files"] = hand_over_shapes(workflow, staging)
         (staging / "workflow.json").write_text(json.dumps(document, indent=2) + "\n")
         staircase_table(workflow.steps).to_csv(staging / "staircase.csv", index=False)
         (staging / "staircase.png").write_bytes(

@@ -80,9 +80,9 @@ class Judge:
 
     def inclusion(self, candidates: list[Candidate]) -> dict[str, float]:
         """Each candidate's share of bootstrap resamples over runs in which it would be added:
-        the best by ΔBIC against the discrepancy, and below the threshold, among those that
-        predict held-out runs better and narrow their own view of the hysteresis (a candidate
-        that fails either test is never added)."""
+        the best by ΔBIC against the discrepancy (with a shape-free term's handicap), and below
+        the threshold, among those that predict held-out runs better and narrow their own view
+        of the hysteresis (a candidate that fails either test is never added)."""
         weights = bootstrap_weights(len(self.base.labels), RESAMPLES)
         chosen = [c for c in candidates if not c.per_run and c.own_view
                   and self.rule.predicts_unseen(c, self.heldout)]
@@ -93,7 +93,7 @@ class Judge:
             scores = [delta_bic(self.blocks[c.name][0].objective(w), before, n_eff,
                                 self.blocks[c.name][1]) for c in chosen]
             ranks = [score + self.rule.handicap(c) for score, c in zip(scores, chosen)]
-            if scores and min(scores) < self.rule.bic:
+            if ranks and min(ranks) < self.rule.bic:
                 counts[chosen[int(np.argmin(ranks))].name] += 1
         return {c.name: counts.get(c.name, 0) / len(weights) for c in candidates}
 

@@ -109,6 +109,23 @@ def write_effect_file(effect: ShapeFreeEffect, path: str | Path, **options) -> P
     return path
 
 
+def hand_over(effects, folder: str | Path, *, origin: str = "",
+              notes: dict[str, str] | None = None) -> dict[str, str]:
+    """Write one effects file per shape-free effect of ``effects`` into ``folder`` (a staging
+    folder: the caller publishes it whole); return {effect name: file name}. Other effects are
+    skipped: a library or custom effect already has its code."""
+    notes = notes or {}
+    written = {}
+    for effect in effects:
+        if not isinstance(effect, ShapeFreeEffect):
+            continue
+        name = effect_name(effect)
+        write_effect_file(effect, Path(folder) / f"{name}.py", origin=origin,
+                          note=notes.get(effect.name, ""))
+        written[effect.name] = f"{name}.py"
+    return written
+
+
 def _numbers(values: np.ndarray) -> str:
     """A list literal of ``values``, eight to a line, with six significant digits."""
     items = [f"{float(value):.6g}" for value in values]
@@ -116,4 +133,4 @@ def _numbers(values: np.ndarray) -> str:
     return "[" + ",\n    ".join(lines) + "]"
 
 
-__all__ = ["effect_name", "effect_source", "write_effect_file"]
+__all__ = ["effect_name", "effect_source", "hand_over", "write_effect_file"]

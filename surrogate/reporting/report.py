@@ -306,7 +306,8 @@ def staircase_table(steps) -> pd.DataFrame:
     for number, step in enumerate(steps, start=1):
         parameters = "; ".join(str(p) for p in step.model.parameters().values() if p.vary)
         rows.append({"step": number, "added": ", ".join(step.added) or step.model.name,
-                     "category": step.category or "—",
+                     "category": (step.category or "—")
+                     + (", free shape" if getattr(step, "shape_free", False) else ""),
                      "rms [bar]": from_si(step.rms, "bar"),
                      "held out [bar]": from_si(step.heldout_rms, "bar"),
                      "parameters": parameters})
@@ -356,7 +357,8 @@ def staircase_section(workflow) -> str:
         "predicted by a refit to the others): an added effect must lower it, and the RMS with "
         "one temperature or one pilot pressure left out too. "
         "<i>category</i> says what the step added: valve physics, a correction of the CFD maps, "
-        "or a sensor error.</p>",
+        "or a sensor error; <i>free shape</i> marks a term whose shape the data drew, which "
+        "no library effect has (its effects file, found_*.py, is in the output folder).</p>",
         _category_story(workflow),
         _table(staircase_table(workflow.steps).drop(columns="parameters").assign(
             **{"× noise floor": [step.rms / workflow.noise_floor for step in workflow.steps]}),

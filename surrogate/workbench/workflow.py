@@ -80,9 +80,17 @@ class Step:
     category: str = ""
     heldout_rms: float = float("nan")
 
+    @property
+    def shape_free(self) -> bool:
+        """Whether the step added a shape-free term (:mod:`surrogate.effects.shapes`): a shape
+        the data drew, without a name; its effects file is what the user takes over."""
+        best = None if self.diagnosis is None else self.diagnosis.best
+        return best is not None and best.shape_free and best.name in self.added
+
     def to_json(self) -> dict:
         parameters = self.model.parameters().to_records(free_only=True)
         return {"model": self.model.name, "added": self.added, "category": self.category,
+                "shape_free": self.shape_free,
                 "rms_bar": round(float(from_si(self.rms, "bar")), 4),
                 "heldout_rms_bar": round(float(from_si(self.heldout_rms, "bar")), 4),
                 "reason": self.reason, "parameters": parameters}
