@@ -57,7 +57,7 @@ def test_indistinguishable_candidates_are_reported_as_one_group(sequence):
     diagnosis = find(case)
     best = diagnosis.candidates[0]
     assert set(best.group) >= {"pilot_transducer_offset", "spring_preload_offset"}
-    assert "cannot tell it apart" in summarise(diagnosis)
+    assert "cannot tell apart" in summarise(diagnosis)
 
 
 def test_nothing_is_discovered_when_nothing_is_hidden(sequence):

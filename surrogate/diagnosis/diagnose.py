@@ -143,7 +143,9 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
                for c in results]
     results = [replace(c, significant=rule.passes(c, problem.rms_before, floor, judge.heldout))
                for c in results]
-    results = grouped(results, rule)
+    own = (np.column_stack([c.change / c.step for c in own_columns]) if own_columns
+           else np.zeros((int(problem.ok.sum()), 0)))
+    results = grouped(results, rule, own)
     shares = judge.inclusion(results)
     results = [replace(c, inclusion=shares[c.name]) for c in results]
     # the last test needs every candidate's share

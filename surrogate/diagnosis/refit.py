@@ -44,7 +44,7 @@ def refit_candidates(model: ValveModel, classes: list[type[Effect]],
     its linear solution evaluated for real; only the front runners are refined further, the
     others keep that first real RMS (an upper bound: refining only lowers it)."""
 
-    def linearise(cls: type[Effect]) -> tuple[Minimizer, int]:
+    def linearise(cls: type[Effect]) -> tuple[Minimizer, list[Column]]:
         trial = model.copy()
         trial.effects.append(cls.for_runs(problem.log.run_ids))
         columns = [problem.column_of(trial, f"{cls.name}.{name}")
@@ -56,21 +56,25 @@ def refit_candidates(model: ValveModel, classes: list[type[Effect]],
         minimizer = Minimizer(trial, problem, [c.key for c in every])
         minimizer.linearise([c.change for c in every], [c.step for c in every],
                             problem.base_evaluation).refine(1)
-        return minimizer, len(columns)
+        return minimizer, columns
 
     refits = list(map_threads(linearise, classes, workers=workers))
-    first = [candidate_of(cls, *refit, problem) for cls, refit in zip(classes, refits)]
+    probes = [np.column_stack([c.change / c.step for c in columns]) if columns else None
+              for _, columns in refits]
+    first = [candidate_of(cls, minimizer, len(columns), problem, probe)
+             for cls, (minimizer, columns), probe in zip(classes, refits, probes)]
     chosen = front_runners(first)
     refined = dict(zip(chosen, map_threads(
-        lambda i: candidate_of(classes[i], refits[i][0].refine(steps), refits[i][1], problem),
-        chosen, workers=workers)))
+        lambda i: candidate_of(classes[i], refits[i][0].refine(steps), len(refits[i][1]),
+                               problem, probes[i]), chosen, workers=workers)))
     return [refined.get(i, candidate) for i, candidate in enumerate(first)], set(refined)
 
 
 def candidate_of(cls: type[Effect], minimizer: Minimizer, extra: int,
-                 problem: "DiagnosisProblem") -> Candidate:
+                 problem: "DiagnosisProblem", probe: np.ndarray | None = None) -> Candidate:
     """The candidate at its refinement's best point, with standard errors; ``extra`` of its
-    parameters are the candidate's own (the data inform them)."""
+    parameters are the candidate's own (the data inform them), ``probe`` their columns at the
+    model's point (:attr:`.result.Candidate.probe`)."""
     evaluation, rss = minimizer.refined
     minimizer.refinement_errors()
     linearised = (evaluation.residual,
@@ -85,7 +89,7 @@ def candidate_of(cls: type[Effect], minimizer: Minimizer, extra: int,
                      model=trial, replay=evaluation.payload,
                      per_run=issubclass(cls, PerRunEffect), extra=extra,
                      check_threshold=getattr(cls, "check_threshold", 0.0),
-                     linearised=linearised)
+                     linearised=linearised, probe=probe)
 
 
 @dataclass

@@ -43,6 +43,9 @@ class Candidate:
     replay: LogReplay | None = field(default=None, repr=False)  # its replay of the log
     extra: float = 0  # parameters of its own the data inform (a shape's effective number)
     linearised: tuple | None = field(default=None, repr=False)  # (residual, Jacobian) at its fit
+    #: ∂Δp/∂(own parameter) at the model's point, per solved sample [Pa per unit], by forward
+    #: differences (the refits' Broyden-corrected Jacobian no longer has true columns)
+    probe: np.ndarray | None = field(default=None, repr=False)
     #: a shape-free term's fitted shape against its variable, with its band (None otherwise)
     curve: "ShapeCurve | None" = field(default=None, repr=False)
 

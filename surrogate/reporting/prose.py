@@ -139,6 +139,8 @@ def summarise(diagnosis: Diagnosis) -> str:
                          "finding; more runs where it acts would settle it.")
     elif best.shape_free:
         sentence = shape_sentence(diagnosis, best)
+    elif len(best.group) > 1:
+        sentence = look_alike_sentence(diagnosis, best)
     else:
         params = ", ".join(str(p) for p in best.params if p.vary)
         sentence = (f"The most likely missing effect is {best.title} ({best.name}, "
@@ -152,11 +154,6 @@ def summarise(diagnosis: Diagnosis) -> str:
         if best.category == "map correction":
             sentence += (" It patches the CFD maps rather than adding valve physics: "
                          "more CFD where the bench operates would replace it.")
-        if len(best.group) > 1:
-            others = [name for name in best.group if name != best.name]
-            sentence += (f" These data cannot tell it apart from {', '.join(others)}, which "
-                         "changes the prediction the same way; "
-                         + separation_advice(diagnosis.separation))
     if diagnosis.map_limits:
         sentence += (" The maps' error shows most " + "; ".join(map_limit_texts(diagnosis))
                      + ": `suggest-cfd` lists the CFD runs that would settle it.")
@@ -164,6 +161,37 @@ def summarise(diagnosis: Diagnosis) -> str:
         sentence += (" Sensor check (never part of the model): "
                      + "; ".join(map(sensor_check_text, diagnosis.sensor_checks[:3])) + ".")
     return sentence
+
+
+def explanation(candidate: Candidate) -> str:
+    """One explanation of a finding: what it is, its category and its fitted size."""
+    params = ", ".join(str(p) for p in candidate.params if p.vary)
+    return f"{candidate.title} ({candidate.name}, {candidate.category}: {params})"
+
+
+def look_alike_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
+    """A finding the log cannot attribute: every explanation with its category and size, none
+    preferred, and what would decide."""
+    members = [c for c in diagnosis.candidates if c.name in best.group]
+    categories = sorted({c.category for c in members})
+    sentence = (f"The log holds one finding with {len(members)} explanations it cannot tell "
+                f"apart: " + ", or ".join(map(explanation, members)) + ". On this log they "
+                "are the same term of the force balance (their effects are collinear), so "
+                "neither is preferred: either lowers the residual RMS from "
+                f"{from_si(diagnosis.rms_before, 'bar'):.2f} to about "
+                f"{from_si(best.rms_after, 'bar'):.2f} bar and the RMS on held-out runs from "
+                f"{from_si(diagnosis.heldout_before, 'bar'):.2f} to about "
+                f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor "
+                f"{from_si(diagnosis.noise_floor, 'bar'):.2f} bar, ΔBIC {best.delta_bic:.0f}, "
+                f"one of them chosen in {100 * diagnosis.group_inclusion(best):.0f} % of "
+                "resamples over runs).")
+    advice = separation_advice(diagnosis.separation)
+    if len(categories) > 1:
+        sentence += (f" The explanations differ in kind ({' and '.join(categories)}): "
+                     f"check the cheaper one before changing the model; {advice}")
+    else:
+        sentence += f" {advice[0].upper()}{advice[1:]}"
+    return sentence + hysteresis_sentence(diagnosis, best)
 
 
 def shape_sentence(diagnosis: Diagnosis, best: Candidate) -> str:

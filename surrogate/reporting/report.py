@@ -387,6 +387,14 @@ def _category_story(workflow) -> str:
                      "them; see the diagnosis' map limits and <code>suggest-cfd</code>).")
     if found.get("sensor"):
         lines.append(f"<b>Sensor errors</b>: {', '.join(found['sensor'])}: check the bench.")
+    for category, names in found.items():
+        if " or " in category:  # look-alikes: one finding, explanations of different kinds
+            lines.append(f"<b>One finding, {html.escape(category)}</b>: {', '.join(names)} "
+                         "stands for look-alikes this log cannot tell apart (see its step's "
+                         "reason); check the cheaper explanation.")
+    lines += _identifiability_lines(workflow)
+    if workflow.dropped:
+        lines.append(f"<b>Refused step</b>: {html.escape(workflow.dropped)}.")
     checks = workflow.final_diagnosis.sensor_checks
     if checks:
         lines.append("<b>Sensor checks</b> (per-run readings, never part of the model): "
@@ -394,6 +402,24 @@ def _category_story(workflow) -> str:
     if not lines:
         lines.append("The diagnosis added nothing beyond the paper's steps.")
     return "<p>" + "<br>".join(lines) + "</p>"
+
+
+def _identifiability_lines(workflow) -> list[str]:
+    """What the steps pushed to a bound, and which of the final model's parameters the log
+    cannot separate (:mod:`surrogate.fitting.identifiability`)."""
+    lines = []
+    for number, step in enumerate(workflow.steps, start=1):
+        for moved in step.pushed:
+            lines.append(f"<b>Driven to a bound</b> at step {number}: "
+                         f"{html.escape(moved.parameter)} went from {moved.before:.4g} to {moved.after:.4g} "
+                         f"{html.escape(label(moved.unit))} when "
+                         f"{html.escape(', '.join(moved.by))} was added: that term took over "
+                         "what it carried, and the bound, not the data, now holds it.")
+    for pair in workflow.final.entangled:
+        lines.append(f"<b>Not separable on this log</b>: {html.escape(pair.first)} and "
+                     f"{html.escape(pair.second)} (their estimates correlate at "
+                     f"{pair.correlation:+.2f}): the log fixes their combination, not each.")
+    return lines
 
 
 def staircases_figure(workflows: dict) -> Figure:
