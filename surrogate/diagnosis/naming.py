@@ -86,6 +86,7 @@ class ShapeFeatures:
     falling: bool
     bend: float  # the largest departure from the line through its ends, signed
     bend_at: float
+    steepest_at: float  # where it changes fastest with the variable
 
 
 def shape_features(curve: ShapeCurve) -> ShapeFeatures:
@@ -96,7 +97,8 @@ def shape_features(curve: ShapeCurve) -> ShapeFeatures:
     slack = np.minimum(band[1:], band[:-1])
     line = value[0] + (value[-1] - value[0]) * (x - x[0]) / max(x[-1] - x[0], 1e-300)
     bend = int(np.argmax(np.abs(value - line)))
+    steepest = int(np.argmax(np.abs(steps) / np.maximum(np.diff(x), 1e-300)))
     return ShapeFeatures(float(value.min()), float(x[np.argmin(value)]), float(value.max()),
                          float(x[np.argmax(value)]), bool(np.all(steps >= -slack)),
                          bool(np.all(steps <= slack)), float(value[bend] - line[bend]),
-                         float(x[bend]))
+                         float(x[bend]), float(0.5 * (x[steepest] + x[steepest + 1])))

@@ -127,9 +127,9 @@ def hand_over(effects, folder: str | Path, *, origin: str = "",
 
 
 def _numbers(values: np.ndarray) -> str:
-    """A list literal of ``values``, eight to a line, with six significant digits."""
+    """A list literal of ``values``, seven to a line, with six significant digits."""
     items = [f"{float(value):.6g}" for value in values]
-    lines = [", ".join(items[i:i + 8]) for i in range(0, len(items), 8)]
+    lines = [", ".join(items[i:i + 7]) for i in range(0, len(items), 7)]
     return "[" + ",\n    ".join(lines) + "]"
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..diagnosis.naming import library_matches, shape_features
+from ..diagnosis.naming import WITHIN, library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..diagnosis.rule import RULE
 from ..planning.bench_runs import Separation, search_range
@@ -222,10 +222,11 @@ def shape_words(candidate: Candidate) -> str:
     words = (f"Its {candidate.effect.quantity} runs from {features.low:+.3g} {unit} (at "
              f"{features.low_at:.3g} {x_unit}) to {features.high:+.3g} {unit} (at "
              f"{features.high_at:.3g} {x_unit})")
+    steepest = f", most steeply near {features.steepest_at:.3g} {x_unit}."
     if features.rising:
-        return words + ", rising with it."
+        return words + ", rising with it" + steepest
     if features.falling:
-        return words + ", falling with it."
+        return words + ", falling with it" + steepest
     kind = "bump" if features.bend > 0 else "dip"
     return (words + f", with a {kind} of {abs(features.bend):.3g} {unit} at "
                     f"{features.bend_at:.3g} {x_unit} against the line between its ends.")
@@ -238,7 +239,7 @@ def naming_words(candidate: Candidate) -> str:
         return "No library term acts on this variable in this way."
     closest = matches[0]
     if closest.fits:
-        return (f"The library's {closest.name} fits this shape within {2:g} standard "
+        return (f"The library's {closest.name} fits this shape within {WITHIN:g} standard "
                 "deviations of it: prefer that term, which says the same with a name.")
     return (f"No library term has this shape: the closest, {closest.name}, departs from it by "
             f"{closest.worst:.1f} standard deviations at {closest.worst_at:.3g} "

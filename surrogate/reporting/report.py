@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from ..diagnosis.naming import WITHIN, library_matches
 from ..diagnosis.result import Diagnosis
 from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
                               NOISE_MARGIN)
@@ -253,6 +254,29 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
     return figure
 
 
+def shape_figure(candidate) -> Figure:
+    """A shape-free find against its variable with its one-σ band, and the closest library
+    terms of its kind fitted to it (:mod:`surrogate.diagnosis.naming`)."""
+    curve = candidate.curve
+    figure = Figure(figsize=(7.5, 4.0), layout="constrained")
+    axes = figure.subplots()
+    axes.fill_between(curve.x, curve.value - WITHIN * curve.band,
+                      curve.value + WITHIN * curve.band, color="tab:blue", alpha=0.15,
+                      label=f"±{WITHIN:g}σ band")
+    axes.plot(curve.x, curve.value, color="tab:blue", linewidth=2.0,
+              label=f"found: {candidate.name}")
+    for match, style in zip(library_matches(candidate.name, curve)[:2], ("--", ":")):
+        verdict = "fits" if match.fits else f"departs by {match.worst:.1f}σ"
+        axes.plot(curve.x, match.fitted, color="tab:orange", linestyle=style,
+                  label=f"closest library term: {match.name} ({verdict})")
+    axes.axhline(0.0, color="k", linewidth=0.5)
+    axes.set_xlabel(f"{curve.label} [{label(curve.unit)}]")
+    axes.set_ylabel(f"{candidate.effect.quantity} [{label(curve.value_unit)}]")
+    axes.set_title(f"The shape the log drew: {candidate.effect.quantity} of {curve.variable}")
+    axes.legend(fontsize=8)
+    return figure
+
+
 def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
     rule = (f"A candidate is significant when it explains more than the maps' own error could "
             f"(ΔBIC &lt; {BIC_THRESHOLD:g} once smooth map-discrepancy terms of the maps' "
@@ -292,6 +316,12 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         _figure(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
                 f"Diagnosis of {readable(diagnosis.model.name)}: each candidate's line runs from "
                 "the current RMS to the RMS after refitting with it."),
+        *([_figure(figure_png(shape_figure(diagnosis.best)), "shape",
+                   f"The shape-free term {diagnosis.best.name} as fitted, with its band "
+                   f"({WITHIN:g} standard deviations from the fit's covariance), and the "
+                   "library terms of its kind fitted to it: one inside the band says the same "
+                   "with a name.")]
+          if diagnosis.best is not None and diagnosis.best.shape_free else []),
         "<h3>Correlation of the residual with candidate variables</h3><p><i>residual</i>: the "
         "residual itself; <i>hysteresis</i>: the residual signed by the ramp direction (a misfit "
         "of the hysteresis width).</p>",

@@ -26,6 +26,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..effects import BalanceState, Effect, EffectLibrary, FlowState, Parameter
+from ..effects.shapes import ShapeFreeEffect
 from ..units import BAR, CST, LPM
 
 
@@ -170,3 +171,68 @@ def off_library_suite(cases: int = 20, controls: int = 10, seed: int = 4242
     suite = [OffLibraryCase(names[i % len(names)], OFF_LIBRARY[names[i % len(names)]].draw(rng),
                             seed + 1 + i) for i in range(cases)]
     return suite + [OffLibraryCase(None, None, seed + 501 + i) for i in range(controls)]
+
+
+def term_shape(name: str, model) -> tuple[str, str] | None:
+    """The (kind, variable) of valve physics ``name`` in ``model``: a library effect's from
+    :data:`LIBRARY_SHAPES`, a shape-free term's its own; None for a map correction, a sensor,
+    or a term of no single variable."""
+    if name in LIBRARY_SHAPES:
+        return LIBRARY_SHAPES[name]
+    effect = model.effect(name) if model.has_effect(name) else None
+    if isinstance(effect, ShapeFreeEffect) and effect.category == "physics":
+        return effect.kind, effect.variable.name
+    return None
+
+
+@dataclass(frozen=True)
+class OffLibraryOutcome:
+    """How a workflow did on one off-library case."""
+
+    hidden: str | None
+    added: tuple[str, ...]  # every term the diagnosed steps added
+    matching: tuple[str, ...]  # of those, physics of the hidden effect's kind and variable
+    invented: tuple[str, ...]  # physics or sensor terms beyond those (map corrections allowed)
+    rms_over_floor: float
+
+    @property
+    def found(self) -> bool:
+        """The hidden effect found: a term of its kind on its variable, nothing invented, and
+        the final RMS within :data:`RMS_RATIO` of the noise floor (with nothing hidden: nothing
+        invented)."""
+        if self.hidden is None:
+            return not self.invented
+        return bool(self.matching) and not self.invented and self.rms_over_floor <= RMS_RATIO
+
+    def to_json(self) -> dict:
+        return {"hidden": self.hidden, "added": list(self.added), "matching": list(self.matching),
+                "invented": list(self.invented), "rms_over_floor": round(self.rms_over_floor, 3),
+                "found": self.found}
+
+
+#: the final RMS over the noise floor within which an off-library case counts as explained
+RMS_RATIO = 1.3
+
+
+def off_library_outcome(workflow, hidden: str | None) -> OffLibraryOutcome:
+    """Judge a workflow run on a log with off-library effect ``hidden`` (None: nothing hidden)."""
+    model = workflow.final.model
+    target = None if hidden is None else (OFF_LIBRARY[hidden].kind, OFF_LIBRARY[hidden].variable)
+    added, matching, invented = [], [], []
+    for step in workflow.steps[1:]:
+        if step.diagnosis is None:  # a paper step
+            continue
+        for name in step.added:
+            added.append(name)
+            shape = term_shape(name, model)
+            if target is not None and shape == target:
+                matching.append(name)
+            elif _category(name, model) != "map correction":
+                invented.append(name)
+    return OffLibraryOutcome(hidden, tuple(added), tuple(matching), tuple(invented),
+                             float(workflow.final.rms / workflow.noise_floor))
+
+
+def _category(name: str, model) -> str:
+    """The category of the model's effect ``name`` (physics, map correction, sensor)."""
+    return model.effect(name).category if model.has_effect(name) else "physics"
