@@ -33,8 +33,9 @@ from surrogate.workbench.workflow import run_workflow
 
 EVERY = 8
 #: the first settings seed of the stress suite (:func:`.simulate.stress_suite`): 20 randomised
-#: cases and 5 nothing-hidden logs, on grid maps and on GP maps (a GP case takes 20 s, so CI
-#: runs one setting; `python eval/workbench.py --only-mismatch [--mismatch-maps gp]` runs both)
+#: cases and 5 nothing-hidden logs, on grid maps and on GP maps (`pytest -m stress`; a GP case
+#: takes 20 s, so CI runs a slice; `python eval/workbench.py --only-mismatch [--mismatch-maps
+#: gp]` runs both settings)
 SETTINGS = (2026,)
 CASES = 20
 CONTROLS = 5
@@ -48,6 +49,8 @@ CLEAN_SHARE = 0.9
 #: at most this many effects added per case: a clean run adds one or two (the hidden effect
 #: and perhaps a map correction); more would only cost time
 ADDITIONS = 3
+#: the hidden-effect cases of CI's slice (`pytest -m stress` runs the whole suite)
+SLICE_CASES = 3
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +110,22 @@ def test_the_cavitation_term_keeps_the_effect_contract():
 
 
 @pytest.mark.slow
+def test_a_slice_of_the_stress_suite_is_found_cleanly(sequence):
+    """CI's slice of the suite below: its first hidden-effect cases (a spring, a flow-force
+    scale, a discharge scale) and its first control, on grid maps."""
+    suite = stress_suite(CASES, CONTROLS, settings=SETTINGS)
+    cases = ([case for case in suite if case.hidden][:SLICE_CASES]
+             + [case for case in suite if case.hidden is None][:1])
+    outcomes = []
+    for case in cases:
+        workflow = run_case(case.hidden, case.values, sequence, seed=case.seed)
+        added = [name for step in workflow.steps[1:] for name in step.added]
+        outcomes.append((case.hidden, added, cleanly_identified(workflow, case.hidden)))
+    assert all(ok for *_, ok in outcomes), outcomes
+
+
+@pytest.mark.slow
+@pytest.mark.stress
 @pytest.mark.parametrize("kind", ["grid", "gp"])  # gp: the workflow's default maps
 def test_nothing_hidden_adds_no_physics_or_sensor_effect(sequence, kind):
     invented = {}
@@ -123,6 +142,7 @@ def test_nothing_hidden_adds_no_physics_or_sensor_effect(sequence, kind):
 
 
 @pytest.mark.slow
+@pytest.mark.stress
 @pytest.mark.parametrize("kind", ["grid", "gp"])
 def test_hidden_effects_are_found_cleanly_under_map_mismatch(sequence, kind):
     outcomes = []

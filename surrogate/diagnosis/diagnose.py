@@ -16,7 +16,10 @@ Procedure
    median line.
 5. Group the candidates the data cannot tell apart (:mod:`.lookalikes`), apply the significance
    rule (:mod:`.rule`), and flag per-run readings that look like a sensor fault (:mod:`.sensors`).
-6. When the best candidate has a look-alike, replay both over the runs the bench could make
+6. Only when no library term is significant, fit the shape-free terms (:mod:`.shapes`), judge
+   them the same way, and rank and group them with the library's, the bootstrap over runs
+   choosing among all of them.
+7. When the best candidate has a look-alike, replay both over the runs the bench could make
    next and name the one where they differ most, or say that none within reach decides
    (:mod:`~surrogate.planning.bench_runs`).
 
@@ -44,7 +47,7 @@ from ..units import from_si
 from .judge import Judge
 from .lookalikes import grouped, look_alike_separation
 from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
-from .result import Diagnosis
+from .result import Candidate, Diagnosis
 from .rule import RULE, SignificanceRule, gains_in_own_view
 from .sensors import sensor_checks
 from .shapes import shape_free_candidates
@@ -105,9 +108,10 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     rule : SignificanceRule
         When a candidate is a discovery (default: the package's :data:`.rule.RULE`).
     shapes : bool
-        Whether to try the shape-free terms beside the library (:mod:`.shapes`; those named in
-        ``candidates``, or all of :data:`surrogate.effects.shapes.SHAPE_FREE`). They rank behind
-        a library term that fits about as well (:meth:`.rule.SignificanceRule.rank`).
+        Whether to try the shape-free terms (:mod:`.shapes`; those named in ``candidates``, or
+        all of :data:`surrogate.effects.shapes.SHAPE_FREE`) when no library term is
+        significant. They then compete with the library's, ranked behind a library term that
+        fits about as well (:meth:`.rule.SignificanceRule.rank`).
     """
     say = progress or (lambda message: None)
     base = base or replay_log(model, log)
@@ -121,37 +125,47 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
                if not getattr(cls, "shape_free", False)]
     results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers)
     judge = Judge(model, problem, own_columns, floor, rule)
-    results = [judge.judge(candidate) for candidate in results]
-    shaped = shape_candidates(model, candidates, library) if shapes else []
-    if shaped:
-        results += shape_free_candidates(model, problem, own_columns, judge, shaped,
-                                         steps=steps, workers=workers, say=say)
     split = hysteresis_split(log.frame.loc[problem.ok])
     median_before, half_before = split.rms(problem.base_evaluation.residual)
-    results = [replace(candidate, **dict(zip(("median_rms", "half_width_rms"),
-                                             split.rms(candidate.linearised[0]))))
-               for candidate in results]
-    for number, candidate in enumerate(results, start=1):
-        say(f"  [{number}/{len(results)}] {candidate.name}: rms "
-            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, held out "
-            f"{from_si(candidate.heldout_rms, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
-            + ("" if number - 1 in refined or candidate.shape_free else " (not refined)"))
-    # best first by ΔBIC, which weighs the gain against the parameters it took (an offset per
-    # run always fits a little better than one offset; it must fit better by enough)
-    results.sort(key=rule.rank)
-    results = [replace(c, own_view=gains_in_own_view(c, median_before, half_before))
-               for c in results]
-    results = [replace(c, significant=rule.passes(c, problem.rms_before, floor, judge.heldout))
-               for c in results]
-    own = (np.column_stack([c.change / c.step for c in own_columns]) if own_columns
-           else np.zeros((int(problem.ok.sum()), 0)))
-    results = grouped(results, rule, own)
-    shares = judge.inclusion(results)
-    results = [replace(c, inclusion=shares[c.name]) for c in results]
-    # the last test needs every candidate's share
-    results = [replace(c, stable=rule.stable(sum(shares[name] for name in c.group)))
-               for c in results]
-    results = [replace(c, significant=c.significant and c.stable) for c in results]
+    own_matrix = (np.column_stack([c.change / c.step for c in own_columns]) if own_columns
+                  else np.zeros((int(problem.ok.sum()), 0)))
+
+    def with_views(found: list[Candidate]) -> list[Candidate]:
+        """The candidates with the RMS of the runs' median line and half-width after each."""
+        return [replace(c, **dict(zip(("median_rms", "half_width_rms"),
+                                      split.rms(c.linearised[0])))) for c in found]
+
+    def ranked(found: list[Candidate]) -> list[Candidate]:
+        """The candidates best first, grouped with their look-alikes, and the significance rule
+        applied, its last test (the bootstrap over runs) among these candidates."""
+        # best first by ΔBIC, which weighs the gain against the parameters it took (an offset
+        # per run always fits a little better than one offset; it must fit better by enough)
+        found = sorted(found, key=rule.rank)
+        found = [replace(c, own_view=gains_in_own_view(c, median_before, half_before),
+                         significant=False, stable=True, inclusion=0.0) for c in found]
+        found = [replace(c, significant=rule.passes(c, problem.rms_before, floor, judge.heldout))
+                 for c in found]
+        found = grouped(found, rule, own_matrix)
+        shares = judge.inclusion(found)
+        # the last test needs every candidate's share
+        found = [replace(c, inclusion=shares[c.name],
+                         stable=rule.stable(sum(shares[name] for name in c.group)))
+                 for c in found]
+        return [replace(c, significant=c.significant and c.stable) for c in found]
+
+    results = with_views([judge.judge(candidate) for candidate in results])
+    _say_scores(say, results, refined)
+    results = ranked(results)
+    # shape-free terms only after the library: a library term that explains the log says it
+    # with fewer parameters and a name (and the shapes, which soak up part of any effect, would
+    # split the bootstrap's votes with it)
+    shaped = (shape_candidates(model, candidates, library)
+              if shapes and not any(c.significant for c in results) else [])
+    if shaped:
+        found = with_views(shape_free_candidates(model, problem, own_columns, judge, shaped,
+                                                 steps=steps, workers=workers, say=say))
+        _say_scores(say, found, set(range(len(found))))
+        results = ranked(results + found)
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, tuple(results),
                           residual_correlations(base),
                           judge.heldout.get(HEADLINE, float("nan")),
@@ -159,6 +173,15 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
                           sensor_checks(results, judge.schemes), median_before, half_before,
                           heldout_by_scheme=judge.heldout)
     return replace(diagnosis, separation=look_alike_separation(diagnosis, log))
+
+
+def _say_scores(say, candidates: list[Candidate], refined: set[int]) -> None:
+    """One progress line per candidate: its RMS, held-out RMS and ΔBIC."""
+    for number, candidate in enumerate(candidates, start=1):
+        say(f"  [{number}/{len(candidates)}] {candidate.name}: rms "
+            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, held out "
+            f"{from_si(candidate.heldout_rms, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
+            + ("" if number - 1 in refined else " (not refined)"))
 
 
 def residual_correlations(base: LogReplay) -> dict[str, float]:
