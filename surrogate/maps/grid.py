@@ -46,10 +46,10 @@ import numpy as np
 
 from ..data.loaders import CfdSamples
 from ..errors import InputError
-from ..fluid import FluidState
+from ..fluid import FluidState, broadcast_query
 from ..units import BAR, from_si
 from ..valve import ValveParameters
-from .base import FlowMap, ForceMap, broadcast_query
+from .base import FlowMap, ForceMap
 from .coverage import DP_OUTSIDE, Coverage
 from .curves import CurveSet
 

@@ -28,9 +28,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..features import FeatureSpec
-from ..fluid import FluidState
+from ..fluid import FluidState, broadcast_query
 from . import package
-from .base import FlowMap, ForceMap, broadcast_query
+from .base import FlowMap, ForceMap
 from .calibration import Calibration
 from .coverage import DP_OUTSIDE, FEATURES_SPARSE, Coverage
 from .domain import FeatureDomain

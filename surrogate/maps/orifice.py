@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fluid import FluidState
+from ..fluid import FluidState, broadcast_query
 from ..valve import ValveParameters
-from .base import FlowMap, ForceMap, broadcast_query
+from .base import FlowMap, ForceMap
 
 
 class OrificeFlowMap(FlowMap):
