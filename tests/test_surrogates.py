@@ -13,13 +13,13 @@ from hypothesis import strategies as st
 from surrogate.data.loaders import CfdSamples
 from surrogate.errors import InputError
 from surrogate.features import FeatureSpec, targets
-from surrogate.crossval import SCHEMES, cross_validate, folds, summary
 from surrogate.learn.gaussian_process import fit_gp
 from surrogate.learn.monotone_nn import SignConstrainedNet, state_arrays
 from surrogate.learn.monotonicity import random_states, violations
 from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_one_ulp,
                                              prediction_difference)
 from surrogate.maps.calibration import Calibration
+from surrogate.maps.crossval import SCHEMES, cross_validate, folds, summary
 from surrogate.maps.domain import FeatureDomain
 from surrogate.maps.gp import BRIDGE, NumpyGP
 from surrogate.maps.learned import load_learned_maps, read_manifest
@@ -91,7 +91,7 @@ def test_the_gp_cross_validation_is_what_the_manifest_records(cfd_samples, valve
     recorded = read_manifest(trained_folder("gp"))
     scheme = "back-pressure set out"
     chosen = [fold for fold in folds(cfd_samples.frame) if fold.scheme == scheme]
-    import surrogate.crossval as crossval
+    import surrogate.maps.crossval as crossval
 
     original = crossval.folds
     crossval.folds = lambda frame: chosen

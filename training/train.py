@@ -4,7 +4,7 @@
                              [--workers 2]
 
 Each kind is trained on **every** CFD sample: a user's CFD runs are too expensive to hold any
-back. How accurate the result is comes from cross-validation (``surrogate.crossval``): the same
+back. How accurate the result is comes from cross-validation (``surrogate.maps.crossval``): the same
 training repeated with sweeps, an opening, a temperature or the back-pressure set left out, and
 asked about what it did not see. Those errors calibrate the maps' standard deviations, and go
 into each folder: the summary per scheme in ``surrogate.json`` (with the SHA-256 of the sample
@@ -25,10 +25,10 @@ from functools import partial
 from pathlib import Path
 
 from surrogate import load_valve
-from surrogate.crossval import calibrate, cross_validate, summary
 from surrogate.data import load_cfd_samples
 from surrogate.learn.reproducibility import environment
 from surrogate.learn.training import KINDS, learned_maps_on, train_surrogate
+from surrogate.maps.crossval import calibrate, cross_validate, summary
 from surrogate.maps.registry import TRAINED, file_hash
 from surrogate.errors import InputError
 from surrogate.outputs import Output, check_outputs

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from ..crossval import most_accurate_kind
+from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MAP_KINDS
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory

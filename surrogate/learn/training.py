@@ -69,7 +69,7 @@ class TrainedSurrogate:
     details: dict = field(default_factory=dict)
 
     def calibrate(self, flow: Calibration, force: Calibration) -> None:
-        """Attach the calibrations found by cross-validation (:mod:`surrogate.crossval`)."""
+        """Attach the calibrations found by cross-validation (:mod:`surrogate.maps.crossval`)."""
         self.flow_map.calibration, self.force_map.calibration = flow, force
 
     def save(self, folder: str | Path, training: dict, metrics: dict,

@@ -391,7 +391,7 @@ class GridUncertainty:
     relative) grows with the distances it interpolates over, from the nearest sampled opening and
     fluid state (:meth:`_SweepGrid.sweep_distances`), and with the distance of the back pressure
     from the sampled one (:mod:`.calibration`). The constants come from the grid's own errors on
-    samples left out of it (:mod:`surrogate.crossval`); rebuilding the grid for every fold takes
+    samples left out of it (:mod:`.crossval`); rebuilding the grid for every fold takes
     a second, so that runs when a standard deviation is first asked for.
     """
 
@@ -410,12 +410,12 @@ class GridUncertainty:
 
     @property
     def errors(self):
-        """The grid's cross-validated errors (:func:`surrogate.crossval.cross_validate`),
+        """The grid's cross-validated errors (:func:`.crossval.cross_validate`),
         computed on first use."""
         if self._errors is None:
             from functools import partial
 
-            from ..crossval import cross_validate
+            from .crossval import cross_validate
 
             self._errors = cross_validate(self.samples, self.valve,
                                           partial(grid_maps_on, self.samples, self.valve))
@@ -425,15 +425,15 @@ class GridUncertainty:
     def calibrations(self) -> dict:
         """{"flow": ..., "force": ...} :class:`~.calibration.Calibration`, fitted on first use."""
         if self._calibrations is None:
-            from ..crossval import calibrate
+            from .crossval import calibrate
 
             flow, force = calibrate(self.errors, use_spread=False)
             self._calibrations = {"flow": flow, "force": force}
         return self._calibrations
 
     def summary(self) -> dict:
-        """The cross-validation summary per scheme (:func:`surrogate.crossval.summary`)."""
-        from ..crossval import summary
+        """The cross-validation summary per scheme (:func:`.crossval.summary`)."""
+        from .crossval import summary
 
         return summary(self.errors, self.calibrations["flow"], self.calibrations["force"])
 

@@ -102,7 +102,7 @@ class MapKind:
         and its hash; None for kinds that need no data.
     accuracy : callable or None
         ``accuracy(options, valve, base)`` -> the maps' cross-validation summary per scheme
-        (:func:`surrogate.crossval.summary`); None for kinds without data.
+        (:func:`.crossval.summary`); None for kinds without data.
     """
 
     name: str
@@ -397,7 +397,7 @@ def _grid_accuracy(options, valve, base):
 def cross_validation_summary(source: MapSource, valve: ValveParameters,
                              base: str | Path = ".") -> dict | None:
     """How accurate the maps of ``source`` are by cross-validation, per scheme
-    (:func:`surrogate.crossval.summary`); None for kinds without data."""
+    (:func:`.crossval.summary`); None for kinds without data."""
     kind = map_kind(source.kind)
     return None if kind.accuracy is None else kind.accuracy(source.settings, valve, Path(base))
 
