@@ -14,7 +14,8 @@ from pathlib import Path
 
 from .effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
 from .errors import InputError
-from .maps.registry import BASIC_DISCHARGE_COEFFICIENT, MAP_KINDS, MapsSpec, map_kind
+from .maps.orifice import BASIC_DISCHARGE_COEFFICIENT
+from .maps.registry import MAP_KINDS, MapsSpec, map_kind
 from .spec import EffectSpec, ModelSpec, ValveSource
 
 #: the paper's CFDA starting values: flow-force scale, K1 [N], K2 [N/bar]

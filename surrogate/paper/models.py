@@ -23,7 +23,8 @@ import pandas as pd
 
 from ..effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
 from ..leastsquares import fit
-from ..maps.registry import BASIC_DISCHARGE_COEFFICIENT, MapsSpec
+from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
+from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..presets import basic_maps, bmbe
 from ..solver import solve_steady
