@@ -80,7 +80,7 @@ def main() -> None:
 
     valve = load_valve()
     with_friction = cfda().build()  # the paper's CFDA: scale 0.9, K1 6.5 N, K2 0.05 N/bar
-    model = ModelSpec("CFDA", maps=with_friction.to_spec().maps,
+    model = ModelSpec("CFDA", maps=ModelSpec.of(with_friction).maps,
                       effects=(EffectSpec.start(FlowForceScale, scale=0.9),)).build()
     points = random_points(args.points)
 

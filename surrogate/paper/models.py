@@ -57,7 +57,7 @@ class PaperModels:
 
     def cfda_with_friction(self, K1: float, K2: float) -> ValveModel:
         """CFDA plus Coulomb friction s·(K1 + K2·p_L), K1 [N], K2 [N/bar]."""
-        spec = self.cfda.to_spec().adding(EffectSpec.start(ConstantFriction, K1=K1),
+        spec = ModelSpec.of(self.cfda).adding(EffectSpec.start(ConstantFriction, K1=K1),
                                           EffectSpec.start(LoadPressureFriction, K2=K2),
                                           name="CFDA with friction")
         return spec.build()
