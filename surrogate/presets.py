@@ -22,10 +22,11 @@ from .spec import EffectSpec, ModelSpec, ValveSource
 CFDA_START = {"scale": 0.9, "K1": 6.5, "K2": 0.05}
 
 
-def maps(kind: str = "grid", cfd: str | Path | None = None) -> MapsSpec:
-    """Both maps of ``kind``; maps built from CFD samples record the file (default: the shipped
-    one) and its SHA-256, so that a model built on them names the data it needs."""
-    source = map_kind(kind).source(cfd)
+def maps(kind: str = "grid", cfd: str | Path | None = None, **options) -> MapsSpec:
+    """Both maps of ``kind``, with its ``options`` (a learned kind's ``folder``, say); maps built
+    from CFD samples record the file (default: the shipped one) and its SHA-256, so that a model
+    built on them names the data it needs."""
+    source = map_kind(kind).source(cfd, **options)
     return MapsSpec(source, source)
 
 

@@ -11,11 +11,12 @@ from pathlib import Path
 from ..data import load_bench_log
 from ..effects import LIBRARY, EffectLibrary, load_effects_file
 from ..errors import InputError
-from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, map_kind, refuse_ambiguous_kind
+from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, refuse_ambiguous_kind
 from ..model import ValveModel
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, check_outputs
 from ..paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES, shipped
+from ..presets import maps
 from ..progress import Progress
 from ..valve import shipped_valve_path
 
@@ -137,11 +138,10 @@ def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
     """
     refuse_ambiguous_kind(kind, Path.cwd(), "--maps")
     if kind in MAP_KINDS:
-        source = map_kind(kind).source(cfd)
-    else:  # the folder of a trained surrogate: its kind, with the folder and its hash recorded
-        folder = MapSource.from_dict(kind, "--maps", Path.cwd())
-        source = map_kind(folder.kind).source(cfd, folder=folder.settings["folder"])
-    return MapsSpec(source, source)
+        return maps(kind, cfd)
+    # the folder of a trained surrogate: its kind, with the folder and its hash recorded
+    folder = MapSource.from_dict(kind, "--maps", Path.cwd())
+    return maps(folder.kind, cfd, folder=folder.settings["folder"])
 
 
 def guard_outputs(args, *outputs: Output) -> None:
