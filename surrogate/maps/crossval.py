@@ -27,8 +27,8 @@ import pandas as pd
 from ..data.loaders import CfdSamples
 from ..features import FeatureSpec
 from ..fluid import FluidState
-from ..learn import splits
 from ..valve import ValveParameters
+from . import splits
 from .calibration import Calibration, coverage_of
 from .registry import MAP_KINDS, cross_validation_summary, map_kind
 
