@@ -40,7 +40,7 @@ from surrogate.maps.package import read_manifest
 from surrogate.maps.registry import build_maps, cross_validation_summary, learned_kinds, map_kind
 from surrogate.outputs import atomic_directory
 from surrogate.paths import SHIPPED_CFD_SAMPLES
-from surrogate.workbench.report import figure_png
+from surrogate.reporting.report import figure_png
 
 KINDS = ("grid", "nn", "gp")
 LABELS = {"grid": "grid", "nn": "NN", "gp": "GP"}

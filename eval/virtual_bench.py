@@ -27,11 +27,12 @@ from pathlib import Path
 from surrogate.data import load_bench_log
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.presets import maps
-from surrogate.units import from_si
-from surrogate.workbench.mismatch import MapMismatch
-from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case,
+from surrogate.reporting.prose import sensor_check_text
+from surrogate.synthetic.mismatch import MapMismatch
+from surrogate.synthetic.simulate import (cleanly_identified, hidden_effect_case,
                                           noise_free_sequence, reference_spec,
                                           unexplained_additions)
+from surrogate.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
 #: one effect of each kind the library holds (friction, spring, leakage, flow force, sensor),
@@ -68,7 +69,8 @@ def main() -> None:
             records.append({
                 "hidden": name, "seed": seed, "clean": clean, "added": added,
                 "invented": unexplained_additions(workflow, hidden),
-                "sensor_checks": [str(c) for c in workflow.final_diagnosis.sensor_checks],
+                "sensor_checks": [sensor_check_text(c)
+                                  for c in workflow.final_diagnosis.sensor_checks],
                 "final_rms_bar": round(float(from_si(workflow.final.rms, "bar")), 3),
                 "noise_floor_bar": round(float(from_si(workflow.noise_floor, "bar")), 3),
                 "seconds": round(seconds, 1)})

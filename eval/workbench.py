@@ -14,7 +14,7 @@ Measures, in one run on this machine:
   mismatch`; the model under test on the shipped maps): the share of randomised hidden-effect
   cases the workflow finds cleanly (the hidden effect or its group, no other physics or sensor
   effect) and the physics or sensor effects it adds where nothing is hidden, over the stress
-  suite of :func:`surrogate.workbench.simulate.stress_suite` (``--mismatch-cases`` cases and
+  suite of :func:`surrogate.synthetic.simulate.stress_suite` (``--mismatch-cases`` cases and
   ``--controls`` controls for each of its two settings seeds).
 
 Writes results/workbench/benchmark.json and prints a summary. Run:
@@ -34,19 +34,21 @@ import numpy as np
 
 from surrogate import parallel
 from surrogate.data import load_bench_log
+from surrogate.diagnosis.diagnose import diagnose
+from surrogate.diagnosis.result import Diagnosis
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.fitting.residuals import (measured_dp, noise_floor, replay_log,
+                                         state_smoothing_samples)
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
-from surrogate.solver import replay
-from surrogate.units import from_si
-from surrogate.workbench.diagnose import Diagnosis, diagnose
-from surrogate.workbench.logfit import fit_to_log
-from surrogate.workbench.residuals import (measured_dp, noise_floor, replay_log,
-                                           state_smoothing_samples)
 from surrogate.presets import cfda, maps
-from surrogate.workbench.mismatch import MapMismatch
-from surrogate.workbench.simulate import (STRESS_SETTINGS, cleanly_identified,
-                                          hidden_effect_case, identified, noise_free_sequence,
-                                          random_settings, stress_suite, unexplained_additions)
+from surrogate.reporting.prose import summarise
+from surrogate.solver import replay
+from surrogate.synthetic.mismatch import MapMismatch
+from surrogate.synthetic.simulate import (STRESS_SETTINGS, cleanly_identified, hidden_effect_case,
+                                          identified, noise_free_sequence, random_settings,
+                                          stress_suite, unexplained_additions)
+from surrogate.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
 
@@ -117,7 +119,7 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
             extra = unexplained_additions(workflow, None)
             record["controls"].append({"seed": case.seed, "added": added, "invented": extra,
                                        "chosen_in": chosen_in,
-                                       "final_summary": workflow.final_diagnosis.summary,
+                                       "final_summary": summarise(workflow.final_diagnosis),
                                        "seconds": round(seconds, 1)})
             print(f"  nothing hidden, seed {case.seed}: added {', '.join(added) or 'nothing'}"
                   f" {chosen_in or ''}")
@@ -125,7 +127,7 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
         ok = cleanly_identified(workflow, case.hidden)
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
                                 "seed": case.seed, "added": added, "chosen_in": chosen_in,
-                                "final_summary": workflow.final_diagnosis.summary,
+                                "final_summary": summarise(workflow.final_diagnosis),
                                 "clean": ok, "seconds": round(seconds, 1)})
         print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
               f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'} "

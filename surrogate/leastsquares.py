@@ -313,14 +313,19 @@ class Minimizer:
     # --- Gauss–Newton refinement with Broyden updates -----------------------------------------------
 
     def linearise(self, changes: Sequence[np.ndarray], steps: Sequence[float],
-                  evaluation: Evaluation) -> "Minimizer":
+                  evaluation: Evaluation, penalty: np.ndarray | None = None) -> "Minimizer":
         """Start a refinement at the current parameters, whose evaluation is ``evaluation``:
         ``changes[j]`` is how the residual changes when parameter j moves by ``steps[j]`` [SI]
         (a forward-difference Jacobian the caller already has). Without parameters (none the data
-        feel) the refinement stays where it starts."""
+        feel) the refinement stays where it starts.
+
+        ``penalty``: a matrix L over the parameters' SI values v; the refinement then minimises
+        the sum of squares plus ‖L·v‖² (a roughness penalty on a shape's coefficients,
+        :mod:`surrogate.effects.shapes`)."""
         jacobian = (np.column_stack(changes) if len(changes)
                     else np.zeros((len(evaluation.residual), 0)))
-        self._refinement = _Refinement(self, jacobian, np.asarray(steps, float), evaluation)
+        self._refinement = _Refinement(self, jacobian, np.asarray(steps, float), evaluation,
+                                       penalty)
         if not len(changes):
             self._refinement.settled = True
         return self
@@ -334,11 +339,11 @@ class Minimizer:
 
     @property
     def refined(self) -> tuple[Evaluation, float]:
-        """The best evaluation of the refinement so far and its sum of squares (the parameters
-        are set to it)."""
+        """The best evaluation of the refinement so far and its sum of squares, the penalty
+        left out (the parameters are set to it)."""
         refinement = self._refinement
         refinement.assign(refinement.best_z)
-        return refinement.best, refinement.best_rss
+        return refinement.best, refinement.best_rss - refinement._penalty_at(refinement.best_z)
 
     @property
     def refined_jacobian(self) -> np.ndarray:
@@ -408,7 +413,7 @@ class _Refinement:
     Jacobian's columns are of comparable size."""
 
     def __init__(self, minimizer: Minimizer, jacobian: np.ndarray, steps: np.ndarray,
-                 evaluation: Evaluation):
+                 evaluation: Evaluation, penalty: np.ndarray | None = None):
         self.minimizer = minimizer
         parameters = minimizer.parameters
         self.start = np.array([p.value for p in parameters])
@@ -417,9 +422,11 @@ class _Refinement:
         upper = np.array([(p.max - p.value) / s for p, s in zip(parameters, steps)])
         self.lower, self.upper = np.minimum(lower, upper), np.maximum(lower, upper)
         self.jacobian = jacobian
+        # the penalty ‖L·v‖² in z, v = start + scale·z: ‖L_z·z + offset‖²
+        self.penalty = None if penalty is None else (penalty * steps, penalty @ self.start)
         self.best_z = np.zeros(len(parameters))
         self.best = evaluation
-        self.best_rss = float(np.sum(evaluation.residual**2))
+        self.best_rss = float(np.sum(evaluation.residual**2)) + self._penalty_at(self.best_z)
         self.z, self.r = self.best_z, evaluation.residual
         self.replays = 0
         self.settled = False
@@ -437,9 +444,19 @@ class _Refinement:
                 break
             self._step()
 
+    def _penalty_at(self, z: np.ndarray) -> float:
+        """‖L·v‖² at ``z`` (0 without a penalty)."""
+        if self.penalty is None:
+            return 0.0
+        matrix, offset = self.penalty
+        return float(np.sum((matrix @ z + offset) ** 2))
+
     def _step(self) -> None:
-        target = lsq_linear(self.jacobian, -self.r + self.jacobian @ self.z,
-                            bounds=(self.lower, self.upper)).x
+        matrix, target_values = self.jacobian, -self.r + self.jacobian @ self.z
+        if self.penalty is not None:
+            matrix = np.vstack([matrix, self.penalty[0]])
+            target_values = np.r_[target_values, -self.penalty[1]]
+        target = lsq_linear(matrix, target_values, bounds=(self.lower, self.upper)).x
         if np.allclose(target, self.z, rtol=0, atol=1e-4):
             self.settled = True
             return
@@ -453,7 +470,7 @@ class _Refinement:
         dz = target - self.z
         self.jacobian = self.jacobian + np.outer((new - self.r) - self.jacobian @ dz,
                                                  dz) / float(dz @ dz)
-        rss = float(np.sum(new**2))
+        rss = float(np.sum(new**2)) + self._penalty_at(target)
         # the first replay is the linear solution, judged against the starting point; after
         # that, a step that gains (almost) nothing means the refinement is done
         if self.replays > 1 and rss > (1.0 - SETTLED_GAIN) * self.best_rss:

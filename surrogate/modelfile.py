@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .effects import LIBRARY, EffectLibrary
+from .effects import KNOWN, EffectLibrary
 from .errors import InputError
 from .model import ValveModel
 from .presets import PRESETS, preset
@@ -35,7 +35,7 @@ def load_spec(name_or_path: str, valve_path: str | None = None) -> ModelSpec:
 
 
 def load_model(name_or_path: str, valve_path: str | None = None,
-               library: EffectLibrary = LIBRARY) -> ValveModel:
+               library: EffectLibrary = KNOWN) -> ValveModel:
     """A preset by name, or a model file by path, built with the effects of ``library``."""
     spec = load_spec(name_or_path, valve_path)
     where = name_or_path if name_or_path not in PRESETS else f"preset {name_or_path!r}"

@@ -45,7 +45,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from .effects import LIBRARY, Effect, EffectLibrary
+from .effects import KNOWN, Effect, EffectLibrary
 from .errors import InputError
 from .maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
 from .model import ValveModel
@@ -104,10 +104,18 @@ class ValveSource:
 
     @classmethod
     def _from_file(cls, reference: str, where: str, base: Path) -> "ValveSource":
+        """The valve of the file a model file names. Its errors quote nothing of it (keys,
+        values, lines): the user named the model file, not this one, which could be any file
+        on the machine; ``--valve FILE`` shows what is wrong in full."""
+        path = reference if reference == SHIPPED else _absolute(reference, base)
         try:
-            return cls.read(reference if reference == SHIPPED else _absolute(reference, base))
+            return cls.read(path)
         except InputError as error:
-            raise InputError(f"{where} = {reference!r}: {error}") from None
+            if path == SHIPPED or "cannot read valve file" in str(error):
+                raise InputError(f"{where} = {reference!r}: {error}") from None
+            raise InputError(f"{where} = {reference!r}: {path} is not a valid valve file (its "
+                             "content is not shown: the model file named it; give it with "
+                             f"--valve {path} to see what is wrong)") from None
 
 
 @dataclass(frozen=True)
@@ -223,7 +231,7 @@ class ModelSpec:
         return cls(model.name, valve, maps, tuple(EffectSpec.of(e) for e in model.effects),
                    description)
 
-    def build(self, library: EffectLibrary = LIBRARY, where: str | None = None) -> ValveModel:
+    def build(self, library: EffectLibrary = KNOWN, where: str | None = None) -> ValveModel:
         """The :class:`~surrogate.model.ValveModel` this spec describes.
 
         Raises

@@ -3,12 +3,14 @@
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from surrogate.data import BenchLog
+from surrogate.modelfile import load_model
+from surrogate.reporting.figures import write_figures
 from surrogate.units import from_si, to_si
 from surrogate.workbench.compare import compare, hysteresis_width
-from surrogate.workbench.figures import write_figures
 
 RUNS = ["R01", "R04", "R06", "R11"]  # 20, 40 and 60 °C; set points 50, 65, 80 and 120 bar
 
@@ -132,3 +134,31 @@ def test_figures_are_written(comparison, tmp_path):
     for path in paths.values():
         data = path.read_bytes()
         assert data.startswith(b"\x89PNG") and 10_000 < len(data) < 2_000_000
+
+
+def test_text_tables_never_merge_columns_and_say_what_is_not_measured(bench_log, tmp_path):
+    """A log with only up-ramps has no hysteresis width: the text says "not measured", not
+    "nan"; a long run id and a huge residual widen their columns instead of running into the
+    next one."""
+    frame = bench_log.frame[(bench_log.frame["run"].isin(["R01", "R06"]))
+                            & (bench_log.frame["direction"] == "up")].copy()
+    frame["run"] = frame["run"].replace({"R01": "R01-a-very-long-run-identifier"})
+    log = BenchLog(frame.iloc[::4].reset_index(drop=True), "up-only.csv")
+    text = compare(load_model("cfda"), log).format_text()
+    assert "nan" not in text and "not measured" in text
+    header = next(line for line in text.splitlines() if line.strip().startswith("run"))
+    row = next(line for line in text.splitlines() if "very-long" in line)
+    # every heading ends where its column's values end: right-aligned numbers line up
+    for heading in ("samples", "RMS", "extrap."):
+        end = header.index(heading) + len(heading)
+        assert row[end - 1] != " " and (end == len(row) or row[end] == " "), (header, row)
+
+
+def test_a_big_log_lists_its_worst_runs_in_the_text(bench_log):
+    from surrogate.workbench.compare import TEXT_RUNS
+
+    frames = [bench_log.frame.iloc[::40].assign(run=bench_log.frame["run"].iloc[::40] + f"-{k}")
+              for k in range(3)]
+    log = BenchLog(pd.concat(frames, ignore_index=True), "many.csv")
+    text = compare(load_model("cfda"), log).format_text()
+    assert f"The {TEXT_RUNS} runs of largest RMS (of 36" in text

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surrogate.fitting.discrepancy import hat_weights, knots
 from surrogate.presets import cfda
-from surrogate.workbench.discrepancy import hat_weights, knots
 
 KNOTS = np.array([0.05, 0.1, 0.2, 0.63]) * 1e-3
 

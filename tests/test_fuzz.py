@@ -275,6 +275,12 @@ CASES = [
           words=("line 6", "10 comma-separated fields"), id="cfd: short row"),
     Case("cfd: binary file", ("check-data", "bad.csv"), ("bad.csv", "binary"),
          {"bad.csv": b"\x89PNG\r\n\x1a\n\x00\x00\x00"}),
+    Case("cfd: UTF-16 with a byte-order mark", ("check-data", "bad.csv"),
+         ("bad.csv", "UTF-16", "CSV UTF-8"), {"bad.csv": CFD.encode("utf-16")}),
+    Case("log: UTF-16 without a byte-order mark", ("check-data", "bad.csv"),
+         ("bad.csv", "UTF-16"), {"bad.csv": LOG.encode("utf-16-le")}),
+    check("\n\n\n" + replace(CFD, "q_lpm", "Q_lpm"), words=("line 4", "did you mean 'q_lpm'"),
+          id="cfd: misspelt header after blank lines"),
     Case("cfd: not UTF-8", ("check-data", "bad.csv"), ("bad.csv", "UTF-8"),
          {"bad.csv": CFD.replace("ISO VG46 HV", "ISO VG46 HV\xe9", 1).encode("latin-1")}),
     Case("cfd: broken file for grid maps", ("predict", "--maps", "grid", "--cfd", "bad.csv",
@@ -784,6 +790,16 @@ CASES = [
          ("bad.csv", "line 7", "'q_lpm'", "flow, 0 to 5000"),
          {"model.toml": model_on_cfd("bad.csv"),
           "bad.csv": set_cell(CFD, 7, "q_lpm", SECRET)}),
+    Case("leak: a model's valve naming a file with keys of its own",
+         ("compare", "--model", "model.toml", "--data", "log.csv"),
+         ("secret.toml", "not a valid valve file", "--valve"),
+         {"model.toml": MODEL.split("[valve]")[0] + '[valve]\nsource = "secret.toml"\n\n[maps]'
+          + MODEL.split("[maps]")[1], "secret.toml": f"{SECRET} = 1\n"}),
+    Case("leak: a format-1 model's valve naming a file that is no TOML",
+         ("compare", "--model", "model.toml", "--data", "log.csv"),
+         ("secret.toml", "not a valid valve file", "--valve"),
+         {"model.toml": replace(MODEL_V1, 'valve = "shipped"', 'valve = "secret.toml"'),
+          "secret.toml": f"{SECRET} is not TOML\n"}),
     with_model("[model]\nname = \"x\"\nmaps = " + "[" * 5000 + "]" * 5000 + "\n",
                words=("nested too deep",), id="nesting: a model 5000 levels deep"),
     with_model("[" + ".".join(["x"] * 5000) + "]\n", words=("nested too deep",),
@@ -985,17 +1001,22 @@ def test_a_file_a_model_names_is_never_quoted(case, as_json, tmp_path, capsys, m
     assert SECRET not in captured.err and SECRET not in captured.out
     if as_json:
         error = json.loads(captured.out)["error"]
-        assert error["exit_code"] == 2 and "check-data" in error["message"]
+        hint = "--valve" if "valve" in case.id else "check-data"
+        assert error["exit_code"] == 2 and hint in error["message"]
 
 
 def test_a_file_the_user_names_is_quoted(tmp_path, capsys, monkeypatch):
     """The control of the test above: the same files, named directly, are quoted."""
     monkeypatch.chdir(tmp_path)
     for case in LEAK_CASES:
+        if "no TOML" in case.id:  # the TOML parser's message quotes nothing anyway
+            continue
         name, content = next((name, content) for name, content in case.files.items()
                              if "model.toml" not in name)
         Path(name).write_text(content)
-        assert main(["check-data", name]) == 2
+        argv = (["compare", "--model", "cfda", "--valve", name] if name.endswith(".toml")
+                else ["check-data", name])
+        assert main(argv) == 2
         assert SECRET in capsys.readouterr().err, case.id
 
 

@@ -1,4 +1,4 @@
-"""Held-out refits (surrogate/workbench/heldout.py): the schemes, the linearised refits against
+"""Held-out refits (surrogate/fitting/heldout.py): the schemes, the linearised refits against
 explicit ones, the rule a candidate must pass on runs it was not fitted to, and the judgement
 against the maps' discrepancy refitted with the parameters."""
 
@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surrogate.fitting.discrepancy import Discrepancy
+from surrogate.fitting.heldout import (HEADLINE, Linearised, RunBlocks, held_at_bounds,
+                                       predicts_unseen, run_groups)
 from surrogate.parameters import Parameter
-from surrogate.workbench.discrepancy import Discrepancy
-from surrogate.workbench.heldout import (HEADLINE, Linearised, RunBlocks, held_at_bounds,
-                                         predicts_unseen, run_groups)
 
 
 def test_the_shipped_logs_schemes(bench_log):

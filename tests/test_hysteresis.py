@@ -7,11 +7,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from surrogate.workbench.diagnose import (Candidate, diagnose, gains_in_own_view,
-                                          hysteresis_share)
-from surrogate.workbench.hysteresis import hysteresis_split
-from surrogate.workbench.logfit import fit_to_log
-from surrogate.workbench.simulate import hidden_effect_case, noise_free_sequence
+from surrogate.diagnosis.diagnose import diagnose
+from surrogate.diagnosis.result import Candidate
+from surrogate.diagnosis.rule import gains_in_own_view
+from surrogate.fitting.hysteresis import hysteresis_split
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.reporting.prose import hysteresis_share, summarise
+from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 
 
 def ramps(runs: int = 2, samples: int = 40) -> pd.DataFrame:
@@ -82,4 +84,4 @@ def test_friction_gains_on_the_half_width_and_a_force_on_the_median_line(bench_l
     share = hysteresis_share(diagnosis, diagnosis.best)
     assert diagnosis.best.name == hidden and diagnosis.best.own_view
     assert (share > 0.5) if friction else (share < 0.5), share
-    assert "half-width" in diagnosis.summary
+    assert "half-width" in summarise(diagnosis)

@@ -38,15 +38,15 @@ def _left_behind(folder: Path) -> list[str]:
 def test_a_signal_while_writing_removes_the_staging_folder(signum, code, small_log, tmp_path,
                                                            monkeypatch, capsys):
     """The signal arrives while compare's figures are being written into its staging folder."""
-    from surrogate.commands import compare
+    from surrogate.reporting import report
 
-    real = compare.figure_png
+    real = report.figure_png
 
     def signalled(figure):
         os.kill(os.getpid(), signum)  # the handler raises here, in the middle of the writing
         return real(figure)
 
-    monkeypatch.setattr(compare, "figure_png", signalled)
+    monkeypatch.setattr(report, "figure_png", signalled)
     monkeypatch.chdir(tmp_path)
     assert main(["compare", "--model", "cfda", "--data", "log.csv", "--out", "out", "-q"]) == code
     assert _left_behind(tmp_path) == [], "a staging folder or a partial output stayed behind"

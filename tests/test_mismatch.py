@@ -1,6 +1,6 @@
 """The workbench tells missing physics from map error on a valve that differs from its CFD.
 
-Each log comes from a virtual valve (:mod:`surrogate.workbench.mismatch`): the shipped CFD
+Each log comes from a virtual valve (:mod:`surrogate.synthetic.mismatch`): the shipped CFD
 samples perturbed per opening (Δp 1.5 %, flow force 2.5 %, one draw per opening and case), its
 own curve across the unsampled gap and below the smallest opening, and a cavitation-driven
 back-pressure dependence of the flow force, plus one hidden effect (or none) and the shipped
@@ -15,25 +15,27 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from surrogate.data import load_cfd_samples
 from surrogate import load_valve
+from surrogate.data import load_cfd_samples
+from surrogate.diagnosis.diagnose import diagnose
+from surrogate.diagnosis.rule import BIC_THRESHOLD, INCLUSION_MIN
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.fluid import FluidState
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 from surrogate.presets import maps
-from surrogate.testing import check_effect
-from surrogate.fluid import FluidState
-from surrogate.workbench.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
+from surrogate.reporting.prose import sensor_check_text, summarise
+from surrogate.synthetic.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
                                           PerturbedForceMap, mismatched_samples)
-from surrogate.workbench.simulate import (cleanly_identified, hidden_effect_case,
-                                          noise_free_sequence, stress_suite,
-                                          unexplained_additions)
-from surrogate.workbench.diagnose import BIC_THRESHOLD, INCLUSION_MIN, diagnose
-from surrogate.workbench.logfit import fit_to_log
+from surrogate.synthetic.simulate import (cleanly_identified, hidden_effect_case,
+                                          noise_free_sequence, stress_suite, unexplained_additions)
+from surrogate.testing import check_effect
 from surrogate.workbench.workflow import run_workflow
 
 EVERY = 8
 #: the first settings seed of the stress suite (:func:`.simulate.stress_suite`): 20 randomised
-#: cases and 5 nothing-hidden logs, on grid maps and on GP maps (a GP case takes 20 s, so CI
-#: runs one setting; `python eval/workbench.py --only-mismatch [--mismatch-maps gp]` runs both)
+#: cases and 5 nothing-hidden logs, on grid maps and on GP maps (`pytest -m stress`; a GP case
+#: takes 20 s, so CI runs a slice; `python eval/workbench.py --only-mismatch [--mismatch-maps
+#: gp]` runs both settings)
 SETTINGS = (2026,)
 CASES = 20
 CONTROLS = 5
@@ -47,6 +49,8 @@ CLEAN_SHARE = 0.9
 #: at most this many effects added per case: a clean run adds one or two (the hidden effect
 #: and perhaps a map correction); more would only cost time
 ADDITIONS = 3
+#: the hidden-effect cases of CI's slice (`pytest -m stress` runs the whole suite)
+SLICE_CASES = 3
 
 
 @pytest.fixture(scope="module")
@@ -106,6 +110,22 @@ def test_the_cavitation_term_keeps_the_effect_contract():
 
 
 @pytest.mark.slow
+def test_a_slice_of_the_stress_suite_is_found_cleanly(sequence):
+    """CI's slice of the suite below: its first hidden-effect cases (a spring, a flow-force
+    scale, a discharge scale) and its first control, on grid maps."""
+    suite = stress_suite(CASES, CONTROLS, settings=SETTINGS)
+    cases = ([case for case in suite if case.hidden][:SLICE_CASES]
+             + [case for case in suite if case.hidden is None][:1])
+    outcomes = []
+    for case in cases:
+        workflow = run_case(case.hidden, case.values, sequence, seed=case.seed)
+        added = [name for step in workflow.steps[1:] for name in step.added]
+        outcomes.append((case.hidden, added, cleanly_identified(workflow, case.hidden)))
+    assert all(ok for *_, ok in outcomes), outcomes
+
+
+@pytest.mark.slow
+@pytest.mark.stress
 @pytest.mark.parametrize("kind", ["grid", "gp"])  # gp: the workflow's default maps
 def test_nothing_hidden_adds_no_physics_or_sensor_effect(sequence, kind):
     invented = {}
@@ -114,13 +134,15 @@ def test_nothing_hidden_adds_no_physics_or_sensor_effect(sequence, kind):
     for case in controls:
         workflow = run_case(None, None, sequence, seed=case.seed, kind=kind)
         extra = unexplained_additions(workflow, None)
-        flagged = [str(check) for check in workflow.final_diagnosis.sensor_checks]
+        flagged = [sensor_check_text(check)
+                   for check in workflow.final_diagnosis.sensor_checks]
         if extra or flagged:
             invented[case.seed] = extra + flagged
     assert not invented, invented
 
 
 @pytest.mark.slow
+@pytest.mark.stress
 @pytest.mark.parametrize("kind", ["grid", "gp"])
 def test_hidden_effects_are_found_cleanly_under_map_mismatch(sequence, kind):
     outcomes = []
@@ -147,4 +169,5 @@ def test_a_term_the_runs_do_not_agree_on_is_named_but_not_added(sequence):
     top = diagnosis.candidates[0]
     assert not top.stable and top.delta_bic < BIC_THRESHOLD
     assert diagnosis.group_inclusion(top) < INCLUSION_MIN
-    assert top.name in diagnosis.summary and "resamples over runs" in diagnosis.summary
+    summary = summarise(diagnosis)
+    assert top.name in summary and "resamples over runs" in summary

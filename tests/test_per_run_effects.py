@@ -9,11 +9,11 @@ import pytest
 
 from surrogate.effects import LIBRARY, PilotZeroDrift
 from surrogate.errors import InputError
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.fitting.residuals import replay_log, run_rows
 from surrogate.modelfile import load_model, save_model
 from surrogate.points import OperatingPoints
 from surrogate.units import to_si
-from surrogate.workbench.logfit import fit_to_log
-from surrogate.workbench.residuals import replay_log, run_rows
 
 
 @pytest.fixture(scope="module")

@@ -12,13 +12,12 @@ from html.parser import HTMLParser
 import numpy as np
 import pytest
 
-from surrogate.workbench.compare import compare
-from surrogate.workbench.figures import TITLE_LENGTH, all_figures
-from surrogate.workbench.report import (CELL_LENGTH, comparison_section, diagnosis_figure,
+from surrogate.reporting.figures import TITLE_LENGTH, all_figures
+from surrogate.reporting.report import (CELL_LENGTH, comparison_section, diagnosis_figure,
                                         diagnosis_section, parameter_summary, readable,
-                                        staircase_figure,
-                                        staircase_section)
-from surrogate.workbench.simulate import hidden_effect_case, noise_free_sequence
+                                        staircase_figure, staircase_section)
+from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
+from surrogate.workbench.compare import compare
 from surrogate.workbench.workflow import run_workflow
 
 pytestmark = pytest.mark.slow  # one short workflow (~10 s) for all of them

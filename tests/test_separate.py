@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surrogate.diagnosis.diagnose import diagnose
 from surrogate.effects import LIBRARY
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.planning.bench_runs import candidate_runs, separating_run
 from surrogate.presets import cfda
+from surrogate.reporting.prose import diagnosis_document, summarise
+from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 from surrogate.units import from_si
-from surrogate.workbench.diagnose import diagnose
-from surrogate.workbench.logfit import fit_to_log
-from surrogate.workbench.separate import candidate_runs, separating_run
-from surrogate.workbench.simulate import hidden_effect_case, noise_free_sequence
 
 FLOOR = 0.8e5  # [Pa] a noise floor of the shipped log's size
 
@@ -75,5 +76,5 @@ def test_diagnose_says_which_run_would_decide_between_look_alikes(sequence):
     separation = diagnosis.separation
     assert separation is not None and not separation.decides
     assert np.isfinite(separation.difference)
-    assert "no bench run" in diagnosis.summary and "dedicated test" in diagnosis.summary
-    assert diagnosis.to_json()["separating_run"]["decides"] is False
+    assert "no bench run" in summarise(diagnosis) and "dedicated test" in summarise(diagnosis)
+    assert diagnosis_document(diagnosis)["separating_run"]["decides"] is False

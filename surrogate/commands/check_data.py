@@ -7,7 +7,7 @@ import sys
 
 from ..data import DataFileError, load_any
 from ..data.summary import format_summary, summarize
-from .common import add_command
+from .common import add_command, progress_for
 
 
 def register(subparsers) -> None:
@@ -24,9 +24,10 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     summaries, errors = [], []
+    progress = progress_for(args)
     for path in args.paths:
         try:
-            table = load_any(path)
+            table = load_any(path, progress)
         except DataFileError as error:
             errors.append(error)
             print(f"error: {error}", file=sys.stderr)

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 from ..data import load_bench_log
-from ..effects import LIBRARY, EffectLibrary, load_effects_file
+from ..effects import KNOWN, EffectLibrary, load_effects_file
 from ..errors import InputError
 from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, refuse_ambiguous_kind
 from ..model import ValveModel
@@ -184,7 +183,7 @@ def effect_library(args, progress: Progress | None = None) -> EffectLibrary:
     (:func:`surrogate.testing.check_effect`) as it loads."""
     from ..testing import check_effect
 
-    library = LIBRARY
+    library = KNOWN  # the library and the shape-free terms a model file may name
     for path in args.effects_file:
         custom = load_effects_file(path)
         try:
@@ -211,7 +210,7 @@ def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, Ef
         if getattr(args, "maps", None):
             spec = spec.with_maps(maps_from_args(args.maps), f"{spec.name} ({args.maps} maps)")
         model = spec.build(library, where)
-    log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
+    log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG), progress)
     progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")
     if model is not None:
         _refuse_foreign_runs(model, log, args.model)

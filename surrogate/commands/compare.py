@@ -5,9 +5,8 @@ from __future__ import annotations
 import json
 
 from ..outputs import Output, atomic_directory
+from ..reporting.report import comparison_section, figure_pngs, write_html
 from ..workbench.compare import compare
-from ..workbench.figures import all_figures
-from ..workbench.report import comparison_section, figure_png, write_html
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)
 
@@ -33,8 +32,9 @@ def run(args) -> int:
     progress = progress_for(args)
     model, log, _ = load_inputs(args, progress)
     progress(f"replaying {model.name}")
-    comparison = compare(model, log)
+    comparison = compare(model, log, progress=progress)
     if args.out:
+        progress(f"writing {args.out}")
         write_comparison(comparison, args.out)
         progress(f"wrote {args.out}/report.html")
     if args.json:
@@ -51,9 +51,9 @@ def write_comparison(comparison, out) -> None:
         comparison.runs.to_csv(staging / "runs.csv", index=False)
         comparison.regions.to_csv(staging / "regions.csv", index=False)
         comparison.worst.to_csv(staging / "worst_samples.csv", index=False)
-        comparison.sample_table().to_csv(staging / "samples.csv", index=False,
-                                         float_format="%.6g")
-        for name, figure in all_figures(comparison).items():
-            (staging / f"{name}.png").write_bytes(figure_png(figure))
+        comparison.write_samples(staging / "samples.csv")
+        pngs = figure_pngs(comparison)  # drawn once, for the files and the report
+        for name, png in pngs.items():
+            (staging / f"{name}.png").write_bytes(png)
         write_html(staging / "report.html", f"Comparison: {comparison.model}",
-                   [comparison_section(comparison, "Model against measurements")])
+                   [comparison_section(comparison, "Model against measurements", pngs)])

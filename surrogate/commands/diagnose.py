@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import json
 
+from ..diagnosis.diagnose import candidate_effects, diagnose
+from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
+                              NOISE_MARGIN)
 from ..errors import InputError
+from ..fitting.logfit import fit_to_log
 from ..outputs import Output, atomic_directory
+from ..effects.handover import hand_over
+from ..reporting.prose import diagnosis_document, naming_words, shape_words, summarise
+from ..reporting.report import (comparison_section, diagnosis_figure, diagnosis_section,
+                                diagnosis_table, figure_png, write_html)
 from ..units import from_si
 from ..workbench.compare import compare
-from ..workbench.diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
-                                  NOISE_MARGIN, candidate_effects, diagnose)
-from ..workbench.logfit import fit_to_log
-from ..workbench.report import (comparison_section, diagnosis_figure, diagnosis_section,
-                                diagnosis_table, figure_png, write_html)
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)
 
@@ -40,7 +43,9 @@ def register(subparsers) -> None:
                     "never added. Candidates the data cannot tell apart are reported as a "
                     "group.")
     add_data_options(parser, out_help="write diagnosis.json, candidates.csv, a figure and "
-                                      "report.html into this folder")
+                                      "report.html into this folder, and, when the best "
+                                      "candidate is a shape-free term, its shape as an "
+                                      "effects file (found_*.py)")
     parser.add_argument("--candidates", nargs="+", metavar="NAME",
                         help="only these effects (default: every effect the model lacks)")
     parser.set_defaults(func=run)
@@ -60,9 +65,15 @@ def run(args) -> int:
     diagnosis = diagnose(model, log, library, base=comparison.played,
                          candidates=args.candidates, progress=progress)
     progress(f"done in {progress.elapsed:.1f} s")
+    document = diagnosis_document(diagnosis)
+    best = diagnosis.best
     if args.out:
         with atomic_directory(args.out) as staging:
-            (staging / "diagnosis.json").write_text(json.dumps(diagnosis.to_json(), indent=2))
+            if best is not None and best.shape_free:  # a shape without a name: hand it over
+                document["effects_files"] = hand_over(
+                    [best.effect], staging, origin=log.source,
+                    notes={best.name: shape_words(best) + " " + naming_words(best)})
+            (staging / "diagnosis.json").write_text(json.dumps(document, indent=2))
             diagnosis_table(diagnosis).to_csv(staging / "candidates.csv", index=False)
             (staging / "diagnosis.png").write_bytes(figure_png(diagnosis_figure(diagnosis)))
             write_html(staging / "report.html", f"Diagnosis: {model.name}",
@@ -70,14 +81,14 @@ def run(args) -> int:
                         comparison_section(comparison, "The fitted model against the data")])
         progress(f"wrote {args.out}/report.html")
     if args.json:
-        print_json(diagnosis.to_json())
+        print_json(document)
     else:
         print(format_diagnosis(diagnosis))
     return 0
 
 
 def format_diagnosis(diagnosis) -> str:
-    lines = [diagnosis.summary, "",
+    lines = [summarise(diagnosis), "",
              f"  current RMS {from_si(diagnosis.rms_before, 'bar'):.3f} bar, noise floor "
              f"{from_si(diagnosis.noise_floor, 'bar'):.3f} bar, "
              f"{diagnosis.effective_samples:.0f} effectively independent samples", "",

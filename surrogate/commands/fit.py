@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from ..errors import InputError
+from ..fitting.logfit import fit_to_log
+from ..fitting.residuals import noise_floor, replay_log
 from ..modelfile import save_model
 from ..outputs import Output
 from ..units import from_si
-from ..workbench.logfit import fit_to_log
-from ..workbench.residuals import noise_floor, replay_log
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)
 
@@ -29,6 +29,12 @@ def run(args) -> int:
     progress = progress_for(args)
     model, log, library = load_inputs(args, progress)
     classes = [library.effect(name) for name in args.add]
+    shaped = [cls.name for cls in classes if getattr(cls, "shape_free", False)]
+    if shaped:
+        raise InputError(f"--add {', '.join(shaped)}: a shape-free term takes its knots from "
+                         "the log a diagnosis fits it to; `diagnose --out DIR` writes the shape "
+                         "it finds as an effects file (found_*.py), which --effects-file FILE "
+                         "--add NAME adds")
     repeated = sorted({name for name in args.add if args.add.count(name) > 1})
     if repeated:
         raise InputError(f"--add {', '.join(repeated)} given more than once; add an effect once")

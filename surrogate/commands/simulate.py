@@ -9,8 +9,8 @@ from ..data.writer import write_bench_log
 from ..errors import InputError
 from ..outputs import Output
 from ..paths import SHIPPED_BENCH_LOG, shipped
-from ..workbench.mismatch import MapMismatch
-from ..workbench.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
+from ..synthetic.mismatch import MapMismatch
+from ..synthetic.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
                                   noise_free_sequence, reference_spec)
 from .common import (add_command, effect_library, guard_outputs, maps_from_args, maps_help_text,
                      non_negative_int, positive_int, print_json, progress_for, required)

@@ -10,10 +10,10 @@ from ..maps.crossval import most_accurate_kind
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, atomic_directory
 from ..paths import SHIPPED_BENCH_LOG, shipped
-from ..workbench.report import figure_png
-from ..workbench.suggest import suggest_cfd, suggestion_figure
-from .common import (add_command, add_data_options, effect_library, guard_outputs,
-                     maps_from_args, positive_int, print_json, progress_for)
+from ..planning.cfd_runs import suggest_cfd, suggestion_figure
+from ..reporting.report import figure_png
+from .common import (add_command, add_data_options, effect_library, guard_outputs, maps_from_args,
+                     positive_int, print_json, progress_for)
 
 DEFAULT_RUNS = 8
 

@@ -6,18 +6,19 @@ import json
 
 import numpy as np
 
+from ..effects.handover import hand_over
 from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MAP_KINDS
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
+from ..reporting.prose import naming_words, shape_words, summarise
+from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
+                                staircase_figure, staircase_section, staircase_table,
+                                staircases_section, write_html)
 from ..spec import ValveSource
 from ..units import from_si
 from ..workbench.compare import compare
-from ..workbench.figures import all_figures
-from ..workbench.report import (comparison_section, diagnosis_section, figure_png,
-                                staircase_figure, staircase_section, staircase_table,
-                                staircases_section, write_html)
 from ..workbench.workflow import MAX_ADDITIONS, run_workflow
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, maps_from_args,
                      non_negative_int, print_json, progress_for)
@@ -48,6 +49,15 @@ def register(subparsers) -> None:
     parser.add_argument("--max-additions", type=non_negative_int, default=MAX_ADDITIONS,
                         help=f"effects the loop may add at most (default {MAX_ADDITIONS})")
     parser.set_defaults(func=run)
+
+
+def hand_over_shapes(workflow, folder) -> dict[str, str]:
+    """Write the final model's shape-free terms as effects files into ``folder``; return
+    {effect name: file name}."""
+    found = {step.added[0]: step.diagnosis.best for step in workflow.steps if step.shape_free}
+    effects = [effect for effect in workflow.final.model.effects if effect.name in found]
+    notes = {name: shape_words(best) + " " + naming_words(best) for name, best in found.items()}
+    return hand_over(effects, folder, origin=workflow.log.source, notes=notes)
 
 
 def run(args) -> int:
@@ -82,19 +92,21 @@ def run(args) -> int:
                         for kind, score in scores.items()},
                     "other_kinds": {kind: other.to_json() for kind, other in workflows.items()
                                     if kind != main}}
+        document["effects_files"] = hand_over_shapes(workflow, staging)
         (staging / "workflow.json").write_text(json.dumps(document, indent=2) + "\n")
         staircase_table(workflow.steps).to_csv(staging / "staircase.csv", index=False)
         (staging / "staircase.png").write_bytes(
             figure_png(staircase_figure(workflow.steps, workflow.noise_floor)))
         save_model(final.model, staging / "final_model.toml",
                    note=f"final model of the workflow on {log.source}")
-        for name, figure in all_figures(comparison).items():
-            (staging / f"{name}.png").write_bytes(figure_png(figure))
+        pngs = figure_pngs(comparison)  # drawn once, for the files and the report
+        for name, png in pngs.items():
+            (staging / f"{name}.png").write_bytes(png)
         others = ([staircases_section(workflows, main, scores)] if len(workflows) > 1
                   else [])
         write_html(staging / "report.html", "CBV model against bench data: the workflow",
                    [staircase_section(workflow), *others,
-                    comparison_section(comparison, "The final model against the data"),
+                    comparison_section(comparison, "The final model against the data", pngs),
                     diagnosis_section(workflow.final_diagnosis, "What is left: final diagnosis")],
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
                         f"Maps: {main}. Run time "
@@ -112,6 +124,6 @@ def run(args) -> int:
             print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
                   f"{from_si(step.rms, 'bar'):7.3f} bar")
         print(f"    noise floor {from_si(workflow.noise_floor, 'bar'):.3f} bar")
-        print(workflow.final_diagnosis.summary)
+        print(summarise(workflow.final_diagnosis))
         print(f"report: {out}/report.html")
     return 0

@@ -15,6 +15,7 @@ import pandas as pd
 
 from ..fluid import FluidState
 from ..limits import PRESSURE_NOISE_BAR
+from ..memory import release_freed
 from ..units import to_si
 from .errors import DataFileError, Problem
 from .reader import RawTable, detect_schema, parse_cells, read_raw_table
@@ -125,35 +126,44 @@ def load_cfd_samples(path: str | Path, *, named_by: str | None = None) -> CfdSam
     return CfdSamples(frame, str(path))
 
 
-def load_bench_log(path: str | Path) -> BenchLog:
-    """Load and validate a bench log (schema: ``measurements/README.md``).
+def load_bench_log(path: str | Path, progress: Callable[[str], None] | None = None
+                   ) -> BenchLog:
+    """Load and validate a bench log (schema: ``measurements/README.md``); ``progress`` is
+    told how far the reading and checking got, for big logs.
 
     Raises
     ------
     DataFileError
         With every problem found: file, line, column, value and what was expected.
     """
-    frame = _load(path, BENCH_SCHEMA, _check_bench_runs)
+    frame = _load(path, BENCH_SCHEMA, _check_bench_runs, progress)
     return BenchLog(frame, str(path))
 
 
-def load_any(path: str | Path) -> CfdSamples | BenchLog:
-    """Load a file of either kind, recognised by its header."""
-    table = read_raw_table(path)
+def load_any(path: str | Path, progress: Callable[[str], None] | None = None
+             ) -> CfdSamples | BenchLog:
+    """Load a file of either kind, recognised by its header (``progress``: told how far the
+    reading and checking got, for big files)."""
+    table = read_raw_table(path, progress)
     schema = detect_schema(table)
+    parsed = _parse(table, schema, progress)
+    del table  # the file's bytes: the values are all that is needed from here
     if schema is CFD_SCHEMA:
-        return CfdSamples(_validate(table, CFD_SCHEMA, _check_cfd_rows), str(path))
-    return BenchLog(_validate(table, BENCH_SCHEMA, _check_bench_runs), str(path))
+        return CfdSamples(_validate(*parsed, CFD_SCHEMA, _check_cfd_rows), str(path))
+    return BenchLog(_validate(*parsed, BENCH_SCHEMA, _check_bench_runs), str(path))
 
 
-def _load(path, schema: FileSchema, check: Callable) -> pd.DataFrame:
-    table = read_raw_table(path)
+def _load(path, schema: FileSchema, check: Callable,
+          progress: Callable[[str], None] | None = None) -> pd.DataFrame:
+    table = read_raw_table(path, progress)
     detected = detect_schema_or_none(table)
     if detected is not None and detected is not schema:
-        raise DataFileError(table.file, [Problem(table.file, 1, None, None,
+        raise DataFileError(table.file, [Problem(table.file, table.header_line, None, None,
                                                  f"a {schema.kind}; this header is that of a "
                                                  f"{detected.kind}")], schema.kind)
-    return _validate(table, schema, check)
+    parsed = _parse(table, schema, progress)
+    del table
+    return _validate(*parsed, schema, check)
 
 
 def detect_schema_or_none(table: RawTable) -> FileSchema | None:
@@ -163,17 +173,26 @@ def detect_schema_or_none(table: RawTable) -> FileSchema | None:
         return None
 
 
-def _validate(table: RawTable, schema: FileSchema, check: Callable) -> pd.DataFrame:
-    values, problems = parse_cells(table, schema)
-    lines = np.asarray(table.lines, dtype=int)
-    problems += check(table.file, values, lines)
+def _parse(table: RawTable, schema: FileSchema, progress: Callable[[str], None] | None
+           ) -> tuple[str, Values, list[Problem], np.ndarray]:
+    """(file, values, problems, line of each row) of the table's cells against ``schema``."""
+    values, problems = parse_cells(table, schema, progress)
+    return table.file, values, problems, np.asarray(table.lines, dtype=int)
+
+
+def _validate(file: str, values: Values, problems: list[Problem], lines: np.ndarray,
+              schema: FileSchema, check: Callable) -> pd.DataFrame:
+    problems += check(file, values, lines)
     if problems:
-        raise DataFileError(table.file, _in_file_order(problems), schema.kind)
-    frame = pd.DataFrame({
-        column.si_name: (to_si(values[column.name], column.unit) if column.is_number
-                         else values[column.name].astype(str))
-        for column in schema.columns})
+        raise DataFileError(file, _in_file_order(problems), schema.kind)
+    columns = {}
+    for column in schema.columns:  # each file column given up as its SI column is made
+        raw = values.pop(column.name)
+        # text cells are str already (shared between equal cells): no copy per cell
+        columns[column.si_name] = to_si(raw, column.unit) if column.is_number else raw
+    frame = pd.DataFrame(columns, copy=False)
     frame["line"] = lines
+    release_freed(len(frame))
     return frame
 
 
@@ -272,64 +291,94 @@ def _check_sweeps(file: str, values: Values, lines: np.ndarray) -> list[Problem]
 
 
 def _check_bench_runs(file: str, values: Values, lines: np.ndarray) -> list[Problem]:
+    """Within each run: time increasing, one set point, p_P − p_B following it; and p_L above
+    p_B everywhere. Runs are grouped once (a log may hold thousands), problems come in the order
+    the cell-by-cell rules would list them."""
     if "run" not in values:
         return []
+    runs = pd.Series(values["run"])
+    named = runs.notna().to_numpy()
+    rows = np.flatnonzero(named)
+    group = pd.factorize(runs[named], sort=False)[0]  # runs in order of appearance
     problems = []
-    runs = values["run"]
-    for run in dict.fromkeys(r for r in runs if r is not None):
-        rows = np.flatnonzero(runs == run)
-        if "time_s" in values:
-            time = values["time_s"][rows]
-            valid = ~np.isnan(time)
-            t, at = time[valid], rows[valid]
-            for k in np.flatnonzero(np.diff(t) <= 0):
-                problems.append(Problem(file, int(lines[at[k + 1]]), "time_s", f"{t[k + 1]:g}",
-                                        f"time increasing within run {run!r}, i.e. > {t[k]:g} s "
-                                        f"(line {lines[at[k]]})"))
-        if "p_Pe_nominal_bar" in values:
-            set_points = values["p_Pe_nominal_bar"][rows]
-            valid = ~np.isnan(set_points)
-            if valid.any():
-                first = set_points[valid][0]
-                for k in np.flatnonzero(valid & (set_points != first)):
-                    problems.append(Problem(file, int(lines[rows[k]]), "p_Pe_nominal_bar",
-                                            f"{set_points[k]:g}",
-                                            f"one set point per run: run {run!r} started at "
-                                            f"{first:g} bar"))
-                if {"p_P_bar", "p_B_bar"} <= set(values):
-                    problems += _check_set_point(file, run, first, values["p_P_bar"][rows],
-                                                 values["p_B_bar"][rows], lines[rows])
+    if "time_s" in values:
+        problems += _time_problems(file, values["time_s"][rows], group, rows, lines,
+                                   runs.to_numpy()[rows])
+    if "p_Pe_nominal_bar" in values:
+        problems += _set_point_problems(file, values, group, rows, lines,
+                                        runs.to_numpy()[rows])
     if {"p_L_bar", "p_B_bar"} <= set(values):
         p_L, p_B = values["p_L_bar"], values["p_B_bar"]
         for i in np.flatnonzero(p_L < p_B - PRESSURE_NOISE_BAR):
             problems.append(Problem(file, int(lines[i]), "p_L_bar", f"{p_L[i]:g}",
                                     f"load pressure >= back pressure p_B_bar = {p_B[i]:g} bar "
-                                    f"within the sensors' noise ({PRESSURE_NOISE_BAR:g} bar): flow "
-                                    "runs from the load port to the back port"))
+                                    f"within the sensors' noise ({PRESSURE_NOISE_BAR:g} bar): "
+                                    "flow runs from the load port to the back port"))
     return problems
 
 
-def _check_set_point(file: str, run: str, set_point: float, p_P: np.ndarray, p_B: np.ndarray,
-                     lines: np.ndarray) -> list[Problem]:
-    """p_P − p_B follows the run's set point: the run as a whole, then sample by sample."""
-    pilot = p_P - p_B
-    valid = np.isfinite(pilot)
-    if not valid.any():
-        return []
-    typical = float(np.median(pilot[valid]))
+def _time_problems(file, time, group, rows, lines, names) -> list[Problem]:
+    """Samples whose time is not after the previous valid one of their run."""
+    valid = ~np.isnan(time)
+    frame = pd.DataFrame({"group": group[valid], "time": time[valid], "row": rows[valid]})
+    previous = frame.groupby("group", sort=False)[["time", "row"]].shift(1)
+    late = np.flatnonzero((frame["time"].to_numpy() <= previous["time"].to_numpy()))
+    problems = []
+    for k in late:
+        row, before = int(frame["row"].iat[k]), int(previous["row"].iat[k])
+        problems.append(Problem(file, int(lines[row]), "time_s", f"{frame['time'].iat[k]:g}",
+                                f"time increasing within run {names[valid][k]!r}, i.e. > "
+                                f"{previous['time'].iat[k]:g} s (line {lines[before]})"))
+    return problems
+
+
+def _set_point_problems(file, values, group, rows, lines, names) -> list[Problem]:
+    """One set point per run (its first), and p_P − p_B following it (:func:`_check_set_point`)."""
+    set_points = values["p_Pe_nominal_bar"][rows]
+    frame = pd.DataFrame({"group": group, "set_point": set_points})
+    first = frame.groupby("group", sort=False)["set_point"].transform("first").to_numpy()
+    problems = []
+    valid = ~np.isnan(set_points)
+    for k in np.flatnonzero(valid & (set_points != first)):
+        problems.append(Problem(file, int(lines[rows[k]]), "p_Pe_nominal_bar",
+                                f"{set_points[k]:g}",
+                                f"one set point per run: run {names[k]!r} started at "
+                                f"{first[k]:g} bar"))
+    if not {"p_P_bar", "p_B_bar"} <= set(values):
+        return problems
+    pilot = values["p_P_bar"][rows] - values["p_B_bar"][rows]
+    typical = pd.Series(np.where(np.isfinite(pilot), pilot, np.nan)).groupby(group).transform(
+        "median").to_numpy()
+    has_set_point = ~np.isnan(first)
+    first_row = pd.Series(rows).groupby(group).transform("first").to_numpy()
     fraction, absolute = SET_POINT_TOLERANCE
-    if abs(typical - set_point) > fraction * abs(set_point) + absolute:
-        hint = ""
-        if set_point > 0 and abs(typical / set_point / _PSI_PER_BAR - 1.0) < 0.1:
-            hint = "; p_P_bar and p_B_bar look like psi (1 bar = 14.5 psi)"
-        elif typical > 0 and abs(set_point / typical / _PSI_PER_BAR - 1.0) < 0.1:
-            hint = "; p_Pe_nominal_bar looks like psi (1 bar = 14.5 psi)"
-        return [Problem(file, int(lines[0]), "p_P_bar", None,
-                        f"p_P − p_B near the set point of run {run!r} ({set_point:g} bar, within "
-                        f"{100 * fraction:g} % + {absolute:g} bar); its median is {typical:.4g} "
-                        f"bar{hint}")]
+    run_off = has_set_point & np.isfinite(typical) & (
+        np.abs(typical - first) > fraction * np.abs(first) + absolute)
+    for k in np.flatnonzero(run_off & (rows == first_row)):
+        problems.append(_run_set_point_problem(file, names[k], first[k], typical[k],
+                                               int(lines[rows[k]])))
     fraction, absolute = SAMPLE_SET_POINT_TOLERANCE
-    off = np.flatnonzero(valid & (np.abs(pilot - set_point) > fraction * abs(set_point) + absolute))
-    return [Problem(file, int(lines[i]), "p_P_bar", f"{p_P[i]:g}",
-                    f"p_P − p_B within {100 * fraction:g} % + {absolute:g} bar of run {run!r}'s "
-                    f"set point {set_point:g} bar; here it is {pilot[i]:.4g} bar") for i in off]
+    off = (has_set_point & np.isfinite(typical) & ~run_off & np.isfinite(pilot)
+           & (np.abs(pilot - first) > fraction * np.abs(first) + absolute))
+    for k in np.flatnonzero(off):
+        problems.append(Problem(file, int(lines[rows[k]]), "p_P_bar",
+                                f"{values['p_P_bar'][rows[k]]:g}",
+                                f"p_P − p_B within {100 * fraction:g} % + {absolute:g} bar of run "
+                                f"{names[k]!r}'s set point {first[k]:g} bar; here it is "
+                                f"{pilot[k]:.4g} bar"))
+    return problems
+
+
+def _run_set_point_problem(file: str, run: str, set_point: float, typical: float,
+                           line: int) -> Problem:
+    """A run whose p_P − p_B sits away from its set point as a whole (a unit mix-up, say)."""
+    fraction, absolute = SET_POINT_TOLERANCE
+    hint = ""
+    if set_point > 0 and abs(typical / set_point / _PSI_PER_BAR - 1.0) < 0.1:
+        hint = "; p_P_bar and p_B_bar look like psi (1 bar = 14.5 psi)"
+    elif typical > 0 and abs(set_point / typical / _PSI_PER_BAR - 1.0) < 0.1:
+        hint = "; p_Pe_nominal_bar looks like psi (1 bar = 14.5 psi)"
+    return Problem(file, line, "p_P_bar", None,
+                   f"p_P − p_B near the set point of run {run!r} ({set_point:g} bar, within "
+                   f"{100 * fraction:g} % + {absolute:g} bar); its median is {typical:.4g} "
+                   f"bar{hint}")

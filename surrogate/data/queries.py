@@ -47,13 +47,13 @@ def load_queries(path: str | Path) -> Queries:
     DataFileError
         With file, line, column, value and what was expected for every problem.
     """
-    table = read_raw_table(path)
+    table = read_raw_table(path, columnar=False)  # the output repeats the input's text
     header = set(table.header)
     has_temperature = "temperature_C" in header
     has_fluid = bool({"nu_cSt", "rho_kg_m3"} & header)
     if has_temperature == has_fluid:
         raise DataFileError(table.file, [Problem(
-            table.file, 1, None, ",".join(table.header)[:80],
+            table.file, table.header_line, None, ",".join(table.header)[:80],
             "columns u_mm, p_L_bar, p_B_bar and either temperature_C (the valve's oil) or "
             "nu_cSt and rho_kg_m3 (any fluid), " + ("not both" if has_temperature else
                                                    "one of the two"))], "map query file")

@@ -2,7 +2,9 @@
 
 The built-in :data:`LIBRARY` holds physically distinct candidates an engineer would consider when
 a model and bench data disagree; users add their own with :func:`custom_effect` in a file of
-their own, loaded as a library of its own (``LIBRARY + load_effects_file(path)``).
+their own, loaded as a library of its own (``LIBRARY + load_effects_file(path)``). The
+shape-free terms (:mod:`.shapes`, :data:`SHAPES`) are no library candidates: a diagnosis tries
+them beside the library; a model file may name them (:data:`KNOWN`).
 """
 
 from .base import CATEGORIES, KINDS, BalanceState, Effect, FlowState
@@ -14,6 +16,7 @@ from .friction import (ConstantFriction, LoadPressureFriction, PilotDifferential
 from .library import EffectLibrary
 from .per_run import PerRunEffect
 from .sensors import FlowmeterGain, PilotTransducerOffset, PilotZeroDrift
+from .shapes import SHAPE_FREE, ShapeFreeEffect
 from .spring import ProgressiveSpring, SpringPreloadOffset
 from ..parameters import Parameter
 
@@ -24,7 +27,12 @@ BUILT_IN = (FlowForceScale, BackPressureFlowForce, NearSeatFlowForce, SpringPrel
 
 #: the built-in effects, by name
 LIBRARY = EffectLibrary(BUILT_IN)
+#: the shape-free terms, by name
+SHAPES = EffectLibrary(SHAPE_FREE)
+#: every effect a model file may name without an effects file
+KNOWN = LIBRARY + SHAPES
 
-__all__ = ["BUILT_IN", "CATEGORIES", "KINDS", "LIBRARY", "BalanceState", "Effect", "EffectLibrary", "FlowState",
-           "Parameter", "PerRunEffect", "custom_effect", "load_effects_file",
+__all__ = ["BUILT_IN", "CATEGORIES", "KINDS", "KNOWN", "LIBRARY", "SHAPES", "SHAPE_FREE",
+           "BalanceState", "Effect", "EffectLibrary", "FlowState", "Parameter", "PerRunEffect",
+           "ShapeFreeEffect", "custom_effect", "load_effects_file",
            *(c.__name__ for c in BUILT_IN)]

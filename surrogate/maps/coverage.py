@@ -144,10 +144,13 @@ def describe(flags: int) -> str:
     return "; ".join(text for flag, text in REASONS.items() if int(flags) & flag)
 
 
-def describe_all(flags: np.ndarray) -> list[str]:
-    """:func:`describe` of each flag value."""
-    cache: dict[int, str] = {}
-    return [cache.setdefault(int(value), describe(int(value))) for value in np.ravel(flags)]
+def describe_all(flags: np.ndarray) -> np.ndarray:
+    """:func:`describe` of each flag value, as an object array whose equal values share one
+    string (each distinct combination of flags is worded once: a log of millions of samples has
+    a few dozen)."""
+    distinct, inverse = np.unique(np.ravel(np.asarray(flags, np.int64)), return_inverse=True)
+    words = np.array([describe(int(value)) for value in distinct], dtype=object)
+    return words[inverse] if len(distinct) else np.array([], dtype=object)
 
 
 def shares(flags: np.ndarray) -> dict[str, float]:

@@ -157,7 +157,7 @@ class _SweepGrid:
     @property
     def fixed_back_pressure(self) -> float:
         """The one back pressure [Pa] whose samples the grid uses: CFD runs at others would not
-        change it (:mod:`surrogate.workbench.suggest`)."""
+        change it (:mod:`surrogate.planning.cfd_runs`)."""
         return self.reference_back_pressure
 
     @property

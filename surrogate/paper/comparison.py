@@ -13,12 +13,12 @@ import pandas as pd
 
 from ..data.loaders import BenchLog, BenchRun
 from ..errors import InputError
+from ..fitting.logfit import fit_to_log
+from ..fitting.residuals import run_rows
 from ..maps.registry import MapsSpec
 from ..presets import TABLE6_FRICTION_START
 from ..spec import ValveSource
 from ..units import from_si
-from ..workbench.logfit import fit_to_log
-from ..workbench.residuals import run_rows
 from .median import median_line
 from .models import FIT_P_PE, FIT_TEMPERATURE, PaperModels, build_paper_models, mean_abs_distance
 
@@ -125,7 +125,7 @@ def reproduce(valve: ValveSource, maps: MapsSpec, log: BenchLog,
 
 def fit_friction(models: PaperModels, run: BenchRun, log: BenchLog):
     """K1 and K2 of CFDA's Coulomb friction, fitted to every sample of ``run`` by replaying it
-    as the workbench replays a log (:func:`surrogate.workbench.logfit.fit_to_log`)."""
+    as the workbench replays a log (:func:`surrogate.fitting.logfit.fit_to_log`)."""
     start = models.cfda_with_friction(**TABLE6_FRICTION_START)
     return fit_to_log(start, log.take(run_rows(log, run.run)),
                       ["friction_constant.K1", "friction_load_pressure.K2"], tolerance=1e-8,

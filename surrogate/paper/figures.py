@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..fitting.residuals import measured_dp
 from ..points import OperatingPoints
 from ..solver import replay, solve_steady
 from ..units import from_si
-from ..workbench.residuals import measured_dp
 from .comparison import TABLE5_P_PE_BAR, TEMPERATURES_C, PaperComparison
 from .median import median_points
 

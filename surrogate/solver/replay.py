@@ -23,7 +23,7 @@ that many samples (a centred quadratic Savitzky–Golay filter within each run, 
 and their curvature without lag), while the *prediction* of a sliding sample is the edge at that
 sample's own measured inputs, as before: the model still answers each sample's inputs, it just
 does not let their noise push the friction state around. On a synthetic log made with the
-package's own valve (:mod:`surrogate.workbench.simulate`, nothing hidden) the true model's residual
+package's own valve (:mod:`surrogate.synthetic.simulate`, nothing hidden) the true model's residual
 RMS is 1.14 times the noise floor with 7 samples, 1.37 times with the classic play
 (``python eval/workbench.py`` prints both).
 """
@@ -37,7 +37,7 @@ from scipy.signal import savgol_filter
 
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
-from .steady import Status, solve_steady
+from .steady import BATCH, Status, solve_steady
 from .uncertainty import map_error_gains
 
 
@@ -119,7 +119,7 @@ class Replay:
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
            u_start: float = 0.0, guess: Replay | None = None,
-           diagnostics: bool = True, smoothing: int = 1) -> Replay:
+           diagnostics: bool = True, smoothing: int = 1, progress=None) -> Replay:
     """Replay samples in time order with friction as a play.
 
     Parameters
@@ -141,17 +141,39 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
     smoothing : int
         Samples over which the band edges are smoothed for the friction state (see the module
         docstring); 1, the default, is the classic play on the edges as they are.
+    progress : Progress, optional
+        Told how far the solves got, with the time left (:meth:`surrogate.progress.Progress.
+        stage`), for a log of more than :data:`.steady.BATCH` samples.
     """
     count = len(points)
-    if model.has_friction:  # both edges of the band in one batch
+    stage = None
+    # the work: one solve per sample and band edge, then the maps queried at the solutions
+    work = (3 if model.has_friction else 2) * count
+    if progress is not None and count > BATCH:
+        stage = progress.stage("replaying", count, "samples")
+    done = [0]
+
+    def solved(points_done: int) -> None:
+        done[0] += points_done
+        if stage is not None:
+            stage(min(count * done[0] // work, count))
+    if model.has_friction and 2 * count <= BATCH:  # both edges of the band in one batch
         both = concatenate([points.replace(direction=np.full(count, OPENING)),
                             points.replace(direction=np.full(count, CLOSING))])
         start = None if guess is None else guess.band.ravel()
         edges = solve_steady(model, both, guess=start, positions_only=True)
         u_edges, status_edges = edges.u.reshape(2, count), edges.status.reshape(2, count)
+    elif model.has_friction:  # a big log: one edge after the other, each solved in batches
+        u_edges, status_edges = np.empty((2, count)), np.empty((2, count), dtype=np.int8)
+        for row, side in enumerate((OPENING, CLOSING)):
+            edge = solve_steady(model, points.replace(direction=np.full(count, side)),
+                                guess=None if guess is None else guess.band[row],
+                                positions_only=True, solved=solved)
+            u_edges[row], status_edges[row] = edge.u, edge.status
     else:
         start = None if guess is None else guess.band[0]
-        edge = solve_steady(model, points, friction=False, guess=start, positions_only=True)
+        edge = solve_steady(model, points, friction=False, guess=start, positions_only=True,
+                            solved=solved)
         u_edges = np.vstack([edge.u, edge.u])
         status_edges = np.vstack([edge.status, edge.status])
 
@@ -161,13 +183,14 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
     fluid = model.fluid(points)
     dp = np.full(count, np.nan)
     reasons = np.zeros(count, dtype=np.int64)
-    solved = np.flatnonzero(status >= 0)
-    if solved.size:
-        sub = points[solved]
-        dp[solved] = model.balance(u[solved], sub, fluid[solved]).dp
+    solved_rows = np.flatnonzero(status >= 0)
+    for part in _batches(solved_rows):
+        sub = points[part]
+        dp[part] = model.balance(u[part], sub, fluid[part]).dp
         if diagnostics:
-            reasons[solved] = model.extrapolation_reasons(u[solved], sub.p_B + dp[solved], sub,
-                                                          fluid[solved])
+            reasons[part] = model.extrapolation_reasons(u[part], sub.p_B + dp[part], sub,
+                                                        fluid[part])
+        solved(len(part) // 2)
     at_stop = (status == Status.OK) & (u >= model.valve.U_max)
     status[at_stop] = Status.AT_STOP
     map_gain = map_std = None
@@ -176,10 +199,26 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         floats = moving if model.has_friction else np.ones(count, dtype=bool)
         side = np.where(~model.has_friction | ~moving, STEADY,
                         np.where(u <= np.fmin(u_edges[0], u_edges[1]), OPENING, CLOSING))
-        found = map_error_gains(model, points, u, dp, side, ~floats | (status == Status.AT_STOP))
-        if found is not None:
-            map_gain, map_std = found
+        held = ~floats | (status == Status.AT_STOP)
+        for part in _batches(np.arange(count)):
+            found = map_error_gains(model, points[part], u[part], dp[part], side[part],
+                                    held[part])
+            if found is None:
+                break
+            if map_gain is None:
+                map_gain, map_std = np.empty((2, count)), np.empty((2, count))
+            map_gain[:, part], map_std[:, part] = found
+            solved(len(part) // 2)
+    if stage is not None and count * done[0] // work < count:
+        stage(count)
     return Replay(points, u, dp, status, moving, reasons, u_edges, map_gain, map_std)
+
+
+def _batches(index: np.ndarray) -> list[np.ndarray]:
+    """``index`` cut into pieces of at most :data:`.steady.BATCH` points: the maps' grids
+    allocate a few hundred bytes per point they are asked about, which a log of millions of
+    samples would otherwise multiply."""
+    return [index[start:start + BATCH] for start in range(0, len(index), BATCH)]
 
 
 def _segment_starts(segments, count: int) -> np.ndarray:
@@ -209,23 +248,31 @@ def _play(u_open, u_close, status_open, status_close, starts, u_start, smoothing
     else:
         state_low, state_high = low, high
     previous = u_start
-    # a plain loop over Python floats: about 1 µs a sample, far below the batch solve
-    for k, (lo, hi, state_lo, state_hi, ok, start) in enumerate(zip(
-            low.tolist(), high.tolist(), state_low.tolist(), state_high.tolist(),
-            solved.tolist(), starts.tolist())):
-        if start:
-            previous = u_start
-        if ok:
-            state = min(max(previous, state_lo), state_hi)
-            if state != previous:  # pushed: the piston slides with this sample's own edge
-                moving[k] = True
-                u[k] = lo if state > previous else hi
+    # a plain loop over Python floats: about 1 µs a sample, far below the batch solve; a block
+    # of samples at a time, so that a big log is never held as Python floats whole
+    for begin in range(0, count, _PLAY_BLOCK):
+        block = slice(begin, begin + _PLAY_BLOCK)
+        for k, (lo, hi, state_lo, state_hi, ok, start) in enumerate(zip(
+                low[block].tolist(), high[block].tolist(), state_low[block].tolist(),
+                state_high[block].tolist(), solved[block].tolist(), starts[block].tolist()),
+                start=begin):
+            if start:
+                previous = u_start
+            if ok:
+                state = min(max(previous, state_lo), state_hi)
+                if state != previous:  # pushed: the piston slides with this sample's own edge
+                    moving[k] = True
+                    u[k] = lo if state > previous else hi
+                else:
+                    u[k] = state
+                previous = state
             else:
-                u[k] = state
-            previous = state
-        else:
-            u[k] = previous
+                u[k] = previous
     return u, moving, status
+
+
+#: samples the play turns into Python floats at a time
+_PLAY_BLOCK = 65_536
 
 
 def _smoothed(edge: np.ndarray, starts: np.ndarray, solved: np.ndarray, window: int

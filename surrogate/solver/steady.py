@@ -23,6 +23,7 @@ Edge cases get a status instead of a number that looks valid:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -31,6 +32,7 @@ import pandas as pd
 
 from ..maps.coverage import describe_all
 from ..model import ValveModel
+from ..parallel import map_threads
 from ..points import OperatingPoints
 from ..roots import find_roots, invert_increasing
 from ..units import BAR, from_si
@@ -53,6 +55,14 @@ class Status(IntEnum):
     NO_EQUILIBRIUM = -2
     MAP_FAILURE = -3
     NOT_CONVERGED = -4
+
+
+def status_names(codes: np.ndarray) -> np.ndarray:
+    """Each :class:`Status` code's name in lower case, as an object array whose equal values
+    share one string."""
+    distinct, inverse = np.unique(np.asarray(codes, np.int64), return_inverse=True)
+    names = np.array([Status(int(code)).name.lower() for code in distinct], dtype=object)
+    return names[inverse] if len(distinct) else np.array([], dtype=object)
 
 
 REASONS = {
@@ -131,14 +141,48 @@ class SteadyState:
             "dp_bar": from_si(self.dp, "bar"),
             "dp_std_bar": (np.full(len(self.dp), np.nan) if self.dp_std is None
                            else from_si(self.dp_std, "bar")),
-            "status": [Status(code).name.lower() for code in self.status],
+            "status": status_names(self.status),
             "extrapolating": self.extrapolating,
             "outside_samples": describe_all(self.reasons_outside),
             "reason": self.reasons(),
         })
 
 
+#: points solved in one batch: the solver evaluates the balance over a grid of openings for
+#: every point at once, a few kilobytes per point, so a log of millions is solved a batch at a
+#: time (side by side on threads) in memory that does not grow with the log
+BATCH = 50_000
+
+
 def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool = True,
+                 guess: np.ndarray | None = None, positions_only: bool = False,
+                 solved: Callable[[int], None] | None = None) -> SteadyState:
+    """Solve the force balance at every point (:func:`_solve_batch`, :data:`BATCH` points at a
+    time; the points are independent, so the batches change nothing). ``solved`` is called
+    with the number of points of each batch as it is done, for progress reports."""
+    count = len(points)
+    if count <= BATCH:
+        return _solve_batch(model, points, friction=friction, guess=guess,
+                            positions_only=positions_only)
+
+    def batch(start: int) -> SteadyState:
+        part = slice(start, min(start + BATCH, count))
+        return _solve_batch(model, points[part], friction=friction,
+                            guess=None if guess is None else guess[part],
+                            positions_only=positions_only)
+
+    parts = []
+    for part in map_threads(batch, range(0, count, BATCH)):
+        parts.append(part)
+        if solved is not None:
+            solved(len(part.u))
+    stds = [part.dp_std for part in parts]
+    return SteadyState(points, *(np.concatenate([getattr(part, name) for part in parts])
+                                 for name in ("u", "dp", "status", "reasons_outside")),
+                       None if any(std is None for std in stds) else np.concatenate(stds))
+
+
+def _solve_batch(model: ValveModel, points: OperatingPoints, *, friction: bool = True,
                  guess: np.ndarray | None = None, positions_only: bool = False) -> SteadyState:
     """Solve the force balance at every point.
 

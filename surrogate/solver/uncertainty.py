@@ -109,7 +109,7 @@ def map_error_effects(model: ValveModel, points: OperatingPoints, u: np.ndarray,
     standard deviations: row 0 for the flow map (its Δp at the point's flow and opening too
     high by 2·σ_C in ln), row 1 for the force map (its flow force too strong by σ_f). Signed,
     so that one map error shared by many points moves them consistently (the workbench's map
-    discrepancy, :mod:`surrogate.workbench.discrepancy`); their root-sum-square is σ_Δp.
+    discrepancy, :mod:`surrogate.fitting.discrepancy`); their root-sum-square is σ_Δp.
 
     Parameters
     ----------

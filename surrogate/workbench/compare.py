@@ -1,9 +1,11 @@
 """Compare: how much, and where, a model and a bench log disagree.
 
-The model is replayed over every run of the log (:func:`.residuals.replay_log`); the residual of a
+The model is replayed over every run of the log (:func:`~surrogate.fitting.residuals.replay_log`);
+the residual of a
 sample is the model's Δp = p_L − p_B minus the measured one. The comparison summarises it
 
-* over the whole log: RMS and the noise floor no model can beat (:func:`.residuals.noise_floor`);
+* over the whole log: RMS and the noise floor no model can beat
+  (:func:`~surrogate.fitting.residuals.noise_floor`);
 * per run: RMS, bias, the error in hysteresis width and the worst samples;
 * per pilot set point × temperature: RMS;
 * per operating region (flow band × temperature × set point), ranked by RMS, with how much of it
@@ -26,15 +28,18 @@ import numpy as np
 import pandas as pd
 
 from ..data.loaders import BenchLog
-from ..maps.coverage import shares
+from ..fitting.residuals import LogReplay, noise_floor, replay_log, run_groups_of
+from ..maps.coverage import describe_all, shares
+from ..memory import release_freed
 from ..model import ValveModel
-from ..solver.steady import Status
+from ..solver.steady import status_names
+from ..texttable import cell, text_table
 from ..units import from_si
-from .residuals import LogReplay, noise_floor, replay_log
 
 FLOW_BANDS = 4  # equal-width bands over the log's flow range, for the operating regions
 HYSTERESIS_BINS = 10  # flow bins within a run in which the ramps up and down are matched
 WORST_PER_RUN = 3  # samples with the largest |residual| kept per run
+TEXT_RUNS = 30  # runs listed in the text summary; a bigger log lists its worst
 # Runs are grouped by temperature rounded to this step: a bench holds its oil to about a degree
 # around set points that are tens of degrees apart, so rounding recovers the set point.
 TEMPERATURE_STEP_C = 5.0
@@ -151,23 +156,32 @@ class Comparison:
             f"{100 * self.extrapolating_fraction:.0f} % of samples",
             self._uncertainty_line(),
             "",
-            f"  {'run':<6}{'T [°C]':>7}{'p_Pe [bar]':>11}{'samples':>8}{'RMS':>8}{'bias':>8}"
-            f"{'noise':>7}{'maps σ':>7}{'hyst. data':>11}{'model':>7}{'error':>7}"
-            f"{'extrap.':>8}",
         ]
-        for r in self.runs.itertuples(index=False):
-            lines.append(
-                f"  {r.run:<6}{r.temperature_C:>7.1f}{r.p_Pe_bar:>11g}{r.samples:>8}"
-                f"{r.rms_bar:>8.3f}{r.bias_bar:>+8.3f}{r.noise_bar:>7.3f}{r.dp_std_bar:>7.3f}"
-                f"{r.hysteresis_measured_bar:>11.3f}{r.hysteresis_model_bar:>7.3f}"
-                f"{r.hysteresis_error_bar:>+7.3f}{100 * r.extrapolating_fraction:>7.0f}%")
+        runs = self.runs
+        if len(runs) > TEXT_RUNS:  # a big log: its worst runs; the file has them all
+            runs = runs.sort_values("rms_bar", ascending=False, kind="stable").head(TEXT_RUNS)
+            lines.append(f"  The {TEXT_RUNS} runs of largest RMS (of {len(self.runs)}; every run "
+                         "is in runs.csv with --out):")
+        not_measured = "not measured"  # a run without both ramps has no hysteresis width
+        lines += text_table(
+            ["run", "T [°C]", "p_Pe [bar]", "samples", "RMS", "bias", "noise", "maps σ",
+             "hyst. data", "model", "error", "extrap."],
+            [[str(r.run), cell(r.temperature_C, ".1f"), cell(r.p_Pe_bar, "g"), str(r.samples),
+              cell(r.rms_bar, ".3f"), cell(r.bias_bar, "+.3f"), cell(r.noise_bar, ".3f"),
+              cell(r.dp_std_bar, ".3f"), cell(r.hysteresis_measured_bar, ".3f", not_measured),
+              cell(r.hysteresis_model_bar, ".3f", not_measured),
+              cell(r.hysteresis_error_bar, "+.3f", not_measured),
+              cell(100 * r.extrapolating_fraction, ".0f") + "%"]
+             for r in runs.itertuples(index=False)])
         lines.append("  (in bar; maps σ: RMS of the Δp standard deviation the maps' uncertainty "
-                     "implies; hysteresis width: Δp of the ramp up − ramp down at equal q)")
+                     "implies; hysteresis width: Δp of the ramp up − ramp down at equal q, not "
+                     "measured for a run without both ramps)")
 
-        lines += ["", "  RMS [bar] by p_Pe set point (rows) and temperature (columns):",
-                  "  " + " " * 10 + "".join(f"{t:>8g} °C" for t in self.pivot.columns)]
-        for p_Pe, row in self.pivot.iterrows():
-            lines.append(f"  {p_Pe:>6g} bar" + "".join(f"{v:>11.3f}" for v in row))
+        lines += ["", "  RMS [bar] by p_Pe set point (rows) and temperature (columns):"]
+        lines += text_table(
+            ["p_Pe", *(f"{t:g} °C" for t in self.pivot.columns)],
+            [[f"{p_Pe:g} bar", *(cell(v, ".3f") for v in row)]
+             for p_Pe, row in self.pivot.iterrows()], left=())
 
         lines += ["", f"  Worst operating regions (of {len(self.regions)}):"]
         for r in self.regions.head(regions).itertuples(index=False):
@@ -179,28 +193,44 @@ class Comparison:
         return "\n".join(lines)
 
 
-    def sample_table(self) -> pd.DataFrame:
-        """One row per sample in display units: inputs, measured and model Δp, the model's Δp
-        standard deviation from the maps, residual, solver status, whether the piston moved,
-        and why the maps' query lies outside the CFD samples (empty inside)."""
-        frame = self.played.frame()
+    def sample_table(self, rows=slice(None)) -> pd.DataFrame:
+        """One row per sample (or per sample of ``rows``, positions) in display units: inputs,
+        measured and model Δp, the model's Δp standard deviation from the maps, residual,
+        solver status, whether the piston moved, and why the maps' query lies outside the CFD
+        samples (empty inside)."""
+        log, played, replay = self.played.log.frame, self.played, self.played.replay
+        dp_std = replay.dp_std
+
+        def column(name):
+            return log[name].to_numpy()[rows]
+
         return pd.DataFrame({
-            "run": frame["run"].to_numpy(),
-            "line": frame["line"].to_numpy(),
-            "time_s": frame["time"].to_numpy(),
-            "direction": frame["direction"].to_numpy(),
-            "q_lpm": from_si(frame["q"].to_numpy(), "L/min"),
-            "p_P_bar": from_si(frame["p_P"].to_numpy(), "bar"),
-            "p_B_bar": from_si(frame["p_B"].to_numpy(), "bar"),
-            "temperature_C": from_si(frame["temperature"].to_numpy(), "degC"),
-            "dp_measured_bar": from_si(frame["dp_measured"].to_numpy(), "bar"),
-            "dp_model_bar": from_si(frame["dp_predicted"].to_numpy(), "bar"),
-            "dp_std_bar": from_si(frame["dp_std"].to_numpy(), "bar"),
-            "residual_bar": from_si(frame["residual"].to_numpy(), "bar"),
-            "status": [Status(code).name.lower() for code in frame["status"]],
-            "moving": frame["moving"].to_numpy(),
-            "outside_samples": frame["outside_samples"].to_numpy(),
+            "run": column("run"),
+            "line": column("line"),
+            "time_s": column("time"),
+            "direction": column("direction"),
+            "q_lpm": from_si(column("q"), "L/min"),
+            "p_P_bar": from_si(column("p_P"), "bar"),
+            "p_B_bar": from_si(column("p_B"), "bar"),
+            "temperature_C": from_si(column("temperature"), "degC"),
+            "dp_measured_bar": from_si(played.measured[rows], "bar"),
+            "dp_model_bar": from_si(replay.dp[rows], "bar"),
+            "dp_std_bar": from_si(np.full(len(played.residual), np.nan)[rows] if dp_std is None
+                                  else dp_std[rows], "bar"),
+            "residual_bar": from_si(played.residual[rows], "bar"),
+            "status": status_names(replay.status[rows]),
+            "moving": replay.moving[rows],
+            "outside_samples": describe_all(replay.reasons_outside[rows]),
         })
+
+    def write_samples(self, path, chunk: int = 200_000) -> None:
+        """Write :meth:`sample_table` as CSV, a chunk of rows at a time (the table of a big log
+        is never held whole)."""
+        count = len(self.played.residual)
+        with open(path, "w", encoding="utf-8", newline="") as stream:
+            for start in range(0, max(count, 1), chunk):
+                self.sample_table(slice(start, min(start + chunk, count))).to_csv(
+                    stream, index=False, header=start == 0, float_format="%.6g")
 
     def _uncertainty_line(self) -> str:
         """The maps' Δp standard deviation and why samples lie outside the CFD samples."""
@@ -212,20 +242,23 @@ class Comparison:
         return head + ("; outside the CFD samples: " + ", ".join(reasons) if reasons else "")
 
 
-def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None) -> Comparison:
+def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None,
+            progress=None) -> Comparison:
     """Replay ``model`` over ``log`` and summarise the residual (see the module doc).
 
     ``played``: the model's replay of ``log``, if already computed. It must have been made with
-    diagnostics on (the default of :func:`.replay_log`), or every region reads as inside the maps
-    and no uncertainty is shown.
+    diagnostics on (the default of :func:`~surrogate.fitting.residuals.replay_log`), or every
+    region reads as inside the maps
+    and no uncertainty is shown. ``progress`` hears how far the replay of a big log got.
     """
-    played = played if played is not None else replay_log(model, log)
+    played = played if played is not None else replay_log(model, log, progress=progress)
     if len(played.residual) != len(log):
         raise ValueError(f"the replay has {len(played.residual)} samples, the log {len(log)}")
     played.require_solved(model.name)
     samples = _samples(played)
-    solved = samples[samples["residual"].notna()]
-    return Comparison(
+    solved_rows = samples["residual"].notna().to_numpy()
+    solved = samples if solved_rows.all() else samples[solved_rows]  # no copy when all solve
+    comparison = Comparison(
         model=model.name,
         played=played,
         rms=played.rms(),
@@ -233,8 +266,10 @@ def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None
         runs=_run_table(samples, solved, log.run_ids),
         pivot=_pivot(solved),
         regions=_regions(solved, samples["q"]),
-        worst=_worst(solved, log.run_ids),
+        worst=_worst(solved, log.run_ids, log.frame),
     )
+    release_freed(len(log))
+    return comparison
 
 
 def hysteresis_width(runs, q, direction, dp, bins: int = HYSTERESIS_BINS) -> pd.Series:
@@ -248,17 +283,35 @@ def hysteresis_width(runs, q, direction, dp, bins: int = HYSTERESIS_BINS) -> pd.
     Parameters
     ----------
     runs, q, direction, dp : array_like
-        Run label, flow [m^3/s], ramp direction (``"up"``/``"down"``) and Δp [Pa] per sample;
-        samples with NaN Δp are ignored.
+        Run label, flow [m^3/s], ramp direction (``"up"``/``"down"``, or True for up) and Δp
+        [Pa] per sample; samples with NaN Δp are ignored.
 
     Returns
     -------
     pandas.Series
         Width [Pa] by run (NaN for a run without both directions in any bin).
     """
-    frame = pd.DataFrame({"run": np.asarray(runs), "q": np.asarray(q, float),
-                          "up": np.asarray(direction) == "up", "dp": np.asarray(dp, float)})
-    labels = list(dict.fromkeys(frame["run"]))
+    codes, names = pd.factorize(np.asarray(runs), sort=False)  # small integers, not labels
+    direction, dp, q = np.asarray(direction), np.asarray(dp, float), np.asarray(q, float)
+    up = direction if direction.dtype == bool else direction == "up"
+    widths = np.full(len(names), np.nan)
+    # a block of runs at a time: the groupings below take a few hundred bytes per sample
+    for first in range(0, len(names), HYSTERESIS_RUNS_PER_BLOCK):
+        block = ((codes >= first) & (codes < first + HYSTERESIS_RUNS_PER_BLOCK)
+                 if len(names) > HYSTERESIS_RUNS_PER_BLOCK else slice(None))
+        width = _widths(codes[block] - first, q[block], up[block], dp[block], bins)
+        widths[first + width.index.to_numpy()] = width.to_numpy()
+    return pd.Series(widths, index=pd.Index(names, name="run"))
+
+
+#: runs whose hysteresis widths are computed together (a log of up to this many runs in one go)
+HYSTERESIS_RUNS_PER_BLOCK = 256
+
+
+def _widths(codes: np.ndarray, q: np.ndarray, up: np.ndarray, dp: np.ndarray,
+            bins: int) -> pd.Series:
+    """:func:`hysteresis_width` of runs numbered 0, 1, ... (``codes``), by number."""
+    frame = pd.DataFrame({"run": codes, "q": q, "up": up, "dp": dp})
     frame = frame[np.isfinite(frame["dp"])]
     flow = frame.groupby("run", sort=False)["q"]
     low, high = flow.transform("min"), flow.transform("max")
@@ -267,14 +320,25 @@ def hysteresis_width(runs, q, direction, dp, bins: int = HYSTERESIS_BINS) -> pd.
     means = (frame.groupby(["run", "bin", "up"], sort=False)["dp"].mean()
              .unstack("up").reindex(columns=[True, False]))
     gap = (means[True] - means[False]).dropna()
-    return gap.groupby(level="run", sort=False).mean().reindex(labels)
+    return gap.groupby(level="run", sort=False).mean()
 
 
 def _samples(played: LogReplay) -> pd.DataFrame:
-    """The replay's per-sample frame (SI) with the squared residual and the nominal temperature."""
-    samples = played.frame()
+    """What the statistics need of each sample (SI): the log's run, flow, ramp direction (up
+    as True), temperature and set point, the measured and predicted Δp, the residual and its
+    square, the Δp variance the maps imply, whether they extrapolate, and the run's nominal
+    temperature. Only these: a log of millions of samples is not copied whole."""
+    log, replay = played.log.frame, played.replay
+    std = np.full(len(played.residual), np.nan) if replay.dp_std is None else replay.dp_std
+    samples = pd.DataFrame({name: log[name].to_numpy() for name in (
+        "run", "q", "temperature", "p_Pe_nominal")})
+    samples["up"] = log["direction"].to_numpy() == "up"
+    samples["dp_measured"] = played.measured
+    samples["dp_predicted"] = replay.dp
+    samples["residual"] = played.residual
+    samples["extrapolating"] = replay.extrapolating
     samples["residual_squared"] = samples["residual"] ** 2
-    samples["dp_variance"] = samples["dp_std"] ** 2
+    samples["dp_variance"] = std ** 2
     run_temperature = samples.groupby("run", sort=False)["temperature"].transform("mean")
     samples["temperature_nominal_C"] = TEMPERATURE_STEP_C * np.round(
         from_si(run_temperature.to_numpy(), "degC") / TEMPERATURE_STEP_C)
@@ -289,12 +353,13 @@ def _display(values: pd.Series, unit: str) -> pd.Series:
 def _run_table(samples: pd.DataFrame, solved: pd.DataFrame, run_ids: list[str]) -> pd.DataFrame:
     every, good = samples.groupby("run", sort=False), solved.groupby("run", sort=False)
     # both widths from the same (solved) samples, so that failures cannot fake a difference
-    measured = hysteresis_width(samples["run"], samples["q"], samples["direction"],
+    measured = hysteresis_width(samples["run"], samples["q"], samples["up"],
                                 samples["dp_measured"].where(samples["residual"].notna()))
-    predicted = hysteresis_width(samples["run"], samples["q"], samples["direction"],
+    predicted = hysteresis_width(samples["run"], samples["q"], samples["up"],
                                  samples["dp_predicted"])
-    noise = pd.Series({run: noise_floor(group["residual"].to_numpy(), group["run"].to_numpy(),
-                                        required=False) for run, group in every})
+    residual, runs = samples["residual"].to_numpy(), samples["run"].to_numpy()
+    noise = pd.Series({runs[rows[0]]: noise_floor(residual[rows], runs[rows], required=False)
+                       for rows in run_groups_of(runs)})
     table = pd.DataFrame({
         "temperature_C": _display(every["temperature"].mean(), "degC"),
         "temperature_nominal_C": every["temperature_nominal_C"].first(),
@@ -345,18 +410,23 @@ def _regions(solved: pd.DataFrame, q: pd.Series) -> pd.DataFrame:
     return regions.sort_values("rms_bar", ascending=False, kind="stable").reset_index(drop=True)
 
 
-def _worst(solved: pd.DataFrame, run_ids: list[str]) -> pd.DataFrame:
+def _worst(solved: pd.DataFrame, run_ids: list[str], log: pd.DataFrame) -> pd.DataFrame:
+    """The :data:`WORST_PER_RUN` samples of largest |residual| per run (their time and line
+    from ``log``, the log's frame, whose rows ``solved`` keeps as its index)."""
     order = {run: index for index, run in enumerate(run_ids)}
-    ranked = solved.assign(size=solved["residual"].abs()).sort_values("size", ascending=False)
-    worst = ranked.groupby("run", sort=False).head(WORST_PER_RUN)
+    # ranked on the two columns that decide, then the few rows kept taken whole
+    ranked = pd.DataFrame({"run": solved["run"], "size": solved["residual"].abs()}).sort_values(
+        "size", ascending=False)
+    kept = ranked.groupby("run", sort=False).head(WORST_PER_RUN)
+    worst = solved.loc[kept.index].assign(size=kept["size"])
     worst = worst.assign(order=worst["run"].map(order)).sort_values(
         ["order", "size"], ascending=[True, False], kind="stable")
     return pd.DataFrame({
         "run": worst["run"].to_numpy(),
-        "line": worst["line"].to_numpy(),
-        "time_s": worst["time"].to_numpy(),
+        "line": log["line"].to_numpy()[worst.index.to_numpy()],
+        "time_s": log["time"].to_numpy()[worst.index.to_numpy()],
         "q_lpm": from_si(worst["q"].to_numpy(), "L/min"),
-        "direction": worst["direction"].to_numpy(),
+        "direction": log["direction"].to_numpy()[worst.index.to_numpy()],
         "dp_measured_bar": from_si(worst["dp_measured"].to_numpy(), "bar"),
         "dp_model_bar": from_si(worst["dp_predicted"].to_numpy(), "bar"),
         "residual_bar": from_si(worst["residual"].to_numpy(), "bar"),

@@ -7,12 +7,15 @@ Steps
 3. ``cfd-maps``: the CFD grid maps replace the orifice equation and the uniform pressure, with a
    fitted flow-force scale — the paper's CFDA without friction.
 4. ``cfda``: plus Coulomb friction s·(K1 + K2·p_L), one K1 and one K2 for all temperatures.
-5. Then, until nothing significant is left: diagnose (:mod:`.diagnose`), add the best significant
+5. Then, until nothing significant is left: diagnose (:mod:`~surrogate.diagnosis.diagnose`), add
+   the best significant
    candidate, refit every free parameter together.
 
-Every step refits all free parameters against every sample of the log (:func:`.fit.fit_to_log`);
+Every step refits all free parameters against every sample of the log
+(:func:`~surrogate.fitting.logfit.fit_to_log`);
 the RMS after each step is the *error staircase*. Next to it stands each step's RMS on runs its
-fit did not see (each run predicted by a refit to the others; :mod:`.heldout`): a step the
+fit did not see (each run predicted by a refit to the others; :mod:`~surrogate.fitting.heldout`):
+a step the
 diagnosis adds must lower it, and the RMS with one temperature or one pilot pressure left out
 too, so the loop stops when the held-out RMS stops falling. Each
 step carries the category of what it added (valve physics, map correction, sensor).
@@ -27,17 +30,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.loaders import BenchLog
+from ..diagnosis.diagnose import diagnose
+from ..diagnosis.result import Diagnosis
 from ..effects import LIBRARY, DischargeScale, EffectLibrary, FlowForceScale
+from ..fitting.heldout import HEADLINE, Linearised, RunBlocks, run_groups
+from ..fitting.identifiability import (Entangled, PushedToBound, entangled_pairs,
+                                       pushed_to_bounds)
+from ..fitting.logfit import fit_to_log
+from ..fitting.residuals import LogReplay, noise_floor, replay_log
 from ..leastsquares import FitResult
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
+from ..reporting.prose import summarise
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
-from .diagnose import Diagnosis, diagnose
-from .heldout import HEADLINE, Linearised, RunBlocks, run_groups
-from .logfit import fit_to_log
-from .residuals import LogReplay, noise_floor, replay_log
 
 MAX_ADDITIONS = 8  # effects the loop may add after the paper's steps
 
@@ -61,9 +68,19 @@ class Step:
     diagnosis : Diagnosis or None
         The diagnosis that chose the step's effect.
     category : str
-        What the step added: "physics", "map correction", "sensor" ("" for the first step).
+        What the step added: "physics", "map correction", "sensor" ("" for the first step);
+        for look-alikes the log cannot tell apart, each of theirs ("physics or sensor").
     heldout_rms : float
-        RMS on held-out runs [Pa] (:func:`heldout_rms`).
+        RMS on held-out runs [Pa]: for a step the diagnosis chose, the figure it judged the
+        step by; otherwise :func:`heldout_rms` of the step's fit.
+    heldout_check : float
+        :func:`heldout_rms` of the step's own fit [Pa], the same way for every step: a
+        diagnosed step is kept only if it does not rise over the step before.
+    entangled : tuple of Entangled
+        Pairs of the step's fitted parameters the log cannot separate
+        (:mod:`~surrogate.fitting.identifiability`).
+    pushed : tuple of PushedToBound
+        Parameters the step drove onto a bound, with the terms that did it.
     """
 
     model: ValveModel
@@ -74,12 +91,26 @@ class Step:
     diagnosis: Diagnosis | None = None
     category: str = ""
     heldout_rms: float = float("nan")
+    heldout_check: float = float("nan")
+    entangled: tuple[Entangled, ...] = ()
+    pushed: tuple[PushedToBound, ...] = ()
+
+    @property
+    def shape_free(self) -> bool:
+        """Whether the step added a shape-free term (:mod:`surrogate.effects.shapes`): a shape
+        the data drew, without a name; its effects file is what the user takes over."""
+        best = None if self.diagnosis is None else self.diagnosis.best
+        return best is not None and best.shape_free and best.name in self.added
 
     def to_json(self) -> dict:
         parameters = self.model.parameters().to_records(free_only=True)
         return {"model": self.model.name, "added": self.added, "category": self.category,
+                "shape_free": self.shape_free,
                 "rms_bar": round(float(from_si(self.rms, "bar")), 4),
                 "heldout_rms_bar": round(float(from_si(self.heldout_rms, "bar")), 4),
+                "heldout_check_bar": round(float(from_si(self.heldout_check, "bar")), 4),
+                "entangled": [pair.to_json() for pair in self.entangled],
+                "pushed_to_bounds": [pushed.to_json() for pushed in self.pushed],
                 "reason": self.reason, "parameters": parameters}
 
 
@@ -93,6 +124,7 @@ class Workflow:
     noise_floor: float  # [Pa], of the final model's residual
     seconds: float = 0.0
     maps: str = ""  # the kind of the CFD steps' maps ("" when started from a given model)
+    dropped: str = ""  # why a diagnosed step was refused after its full refit ("" if none)
 
     @property
     def final(self) -> Step:
@@ -102,7 +134,8 @@ class Workflow:
         return {"data": self.log.source, "samples": len(self.log), "maps": self.maps,
                 "noise_floor_bar": round(float(from_si(self.noise_floor, "bar")), 4),
                 "final_rms_over_noise": round(self.final.rms / self.noise_floor, 3),
-                "summary": self.final_diagnosis.summary,
+                "summary": summarise(self.final_diagnosis),
+                "dropped_step": self.dropped or None,
                 "steps": [step.to_json() for step in self.steps],
                 "seconds": round(self.seconds, 1)}
 
@@ -126,7 +159,8 @@ def paper_steps(valve: ValveSource, maps_spec: MapsSpec
 def heldout_rms(fitted: FitResult | None, played: LogReplay,
                 schemes: dict[str, dict[str, list[str]]]) -> float:
     """A fitted model's RMS on held-out runs [Pa], each run predicted by a linearised refit to
-    the others (:mod:`.heldout`); without free parameters it is the RMS itself."""
+    the others (:mod:`~surrogate.fitting.heldout`); without free parameters it is the RMS
+    itself."""
     ok = played.ok
     if fitted is None or fitted.jacobian is None or not fitted.jacobian.size:
         return played.rms()
@@ -143,6 +177,7 @@ class _Staircase:
         self.log, self.say = log, say
         self.steps: list[Step] = []
         self.schemes = run_groups(log)
+        self.dropped = ""
 
     @property
     def last(self) -> Step:
@@ -158,13 +193,20 @@ class _Staircase:
             fitted = fit_to_log(model, self.log, start=near)
             model = fitted.model
         played = replay_log(model, self.log, guess=near)
+        check = heldout_rms(fitted, played, self.schemes)
+        best = None if diagnosis is None else diagnosis.best
+        pushed = (pushed_to_bounds(self.last.model, model, added) if self.steps else [])
         step = Step(model, added, reason, played, played.rms(), diagnosis, category,
-                    heldout_rms(fitted, played, self.schemes))
+                    check if best is None else best.heldout_rms, check,
+                    tuple(entangled_pairs(fitted)), tuple(pushed))
         self.steps.append(step)
         self.say(f"step {len(self.steps)}: {model.name:<28} rms "
                  f"{from_si(step.rms, 'bar'):6.3f} bar, held out "
                  f"{from_si(step.heldout_rms, 'bar'):6.3f} bar   (+ "
                  f"{', '.join(added) or 'nothing'})")
+        for moved in pushed:
+            self.say(f"  {moved.parameter} driven to its bound ({moved.before:.4g} -> "
+                     f"{moved.after:.4g} {moved.unit}) by {', '.join(moved.by)}")
         return step
 
     def add_diagnosed(self, library: EffectLibrary, candidates: list[str] | None,
@@ -177,13 +219,27 @@ class _Staircase:
             self.say(f"diagnosing {current.model.name} ...")
             diagnosis = diagnose(current.model, self.log, library, base=current.played,
                                  candidates=candidates)
-            self.say(f"  {diagnosis.summary}")
+            summary = summarise(diagnosis)
+            self.say(f"  {summary}")
             best = diagnosis.best
             if best is None or additions == max_additions:
                 return diagnosis
             # the diagnosis already refitted every parameter with the effect added: polish that
-            self.record(best.model.copy(name=f"{current.model.name}+{best.name}"), [best.name],
-                        best.category, diagnosis.summary, diagnosis, near=best.replay)
+            categories = dict.fromkeys(c.category for c in diagnosis.candidates
+                                       if c.name in best.group)
+            step = self.record(best.model.copy(name=f"{current.model.name}+{best.name}"),
+                               [best.name], " or ".join(categories), summary, diagnosis,
+                               near=best.replay)
+            if step.heldout_check > current.heldout_check:
+                # the diagnosis judged the term on its own linearised refit; on the full refit
+                # it predicts unseen runs worse: refuse it rather than keep a step that rises
+                self.steps.pop()
+                self.dropped = (f"{best.name} was not kept: after the full refit its RMS on "
+                                f"held-out runs rose from "
+                                f"{from_si(current.heldout_check, 'bar'):.3f} to "
+                                f"{from_si(step.heldout_check, 'bar'):.3f} bar")
+                self.say(f"  {self.dropped}")
+                return diagnosis
             additions += 1
 
 
@@ -230,5 +286,5 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs,
                         source=steps[-1].played.log.source)
     return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began,
-                    maps_spec.flow.kind if start is None else "")
+                    maps_spec.flow.kind if start is None else "", staircase.dropped)
 

@@ -15,12 +15,15 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from ..diagnosis.naming import WITHIN, library_matches
+from ..diagnosis.result import Diagnosis
+from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
+                              NOISE_MARGIN)
 from ..outputs import atomic_file
 from ..units import from_si, label
-from .compare import Comparison
-from .diagnose import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN, NOISE_MARGIN,
-                       Diagnosis)
+from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, all_figures, caption
+from .prose import sensor_check_text, summarise
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1200px; margin: 2em auto; color: #222;
@@ -94,8 +97,11 @@ def _table(frame: pd.DataFrame, text_columns: tuple[str, ...] = (),
         for column, value in zip(frame.columns, row):
             if isinstance(value, (bool, np.bool_)):
                 text = "yes" if value else "no"
+            elif isinstance(value, (float, np.floating)) and not np.isfinite(value):
+                # a run without both ramps has no hysteresis width: say so, not "nan"
+                text = "not measured" if "hysteresis" in str(column) else ""
             elif isinstance(value, (float, np.floating)):
-                text = "" if not np.isfinite(value) else format(value, formats.get(column, ".4g"))
+                text = format(value, formats.get(column, ".4g"))
             else:  # long effect names may wrap after their underscores
                 text = html.escape(str(value)).replace("_", "_<wbr>")
             cells.append(f'<td class="{"text" if column in text_columns else ""}">{text}</td>')
@@ -108,10 +114,22 @@ def readable(name: str) -> str:
     return name.replace("+", " + ")
 
 
-def comparison_section(comparison: Comparison, heading: str) -> str:
-    """Headline, per-run table, p_Pe × temperature table, worst regions and the figures."""
+def figure_pngs(comparison: Comparison) -> dict[str, bytes]:
+    """Every figure of a comparison rendered as PNG, by name (:func:`.figures.all_figures`)."""
+    return {name: figure_png(figure) for name, figure in all_figures(comparison).items()}
+
+
+def comparison_section(comparison: Comparison, heading: str,
+                       pngs: dict[str, bytes] | None = None) -> str:
+    """Headline, per-run table, p_Pe × temperature table, worst regions and the figures
+    (``pngs``: the figures already rendered, by name; else they are drawn here)."""
     rms, floor = from_si(comparison.rms, "bar"), from_si(comparison.noise_floor, "bar")
     runs = comparison.runs.assign(extrapolating=100 * comparison.runs["extrapolating_fraction"])
+    shown_runs = ""
+    if len(runs) > TEXT_RUNS:  # a big log: its worst runs here, every run in runs.csv
+        runs = runs.sort_values("rms_bar", ascending=False, kind="stable").head(TEXT_RUNS)
+        shown_runs = (f" The {TEXT_RUNS} runs of largest RMS are shown, of "
+                      f"{len(comparison.runs)}; runs.csv holds every run.")
     runs = runs[["run", "temperature_C", "p_Pe_bar", "samples", "failed", "rms_bar", "bias_bar",
                  "hysteresis_measured_bar", "hysteresis_model_bar", "hysteresis_error_bar",
                  "extrapolating"]]
@@ -139,7 +157,7 @@ def comparison_section(comparison: Comparison, heading: str) -> str:
         f"{100 * comparison.extrapolating_fraction:.0f} % of the samples.</p>",
         "<h3>Per run</h3><p>Bias is the mean residual; hysteresis width is Δp on the ramp up minus "
         "Δp on the ramp down at equal flow; <i>maps extrapolate</i> is the share of samples where "
-        "the model leaves its maps' data.</p>", _table(runs, ("run",), bar),
+        f"the model leaves its maps' data.{shown_runs}</p>", _table(runs, ("run",), bar),
         "<h3>RMS by pilot set point and temperature [bar]</h3>", _table(pivot, (), bar),
         "<h3>Worst operating regions</h3><p>Flow band × temperature × set point, worst first.</p>",
         _table(regions, (), bar),
@@ -153,10 +171,11 @@ def comparison_section(comparison: Comparison, heading: str) -> str:
                              "the model misses.",
                 "hysteresis": "Filled circles: measured; open squares: the model; the line "
                               "between them is the model's error."}
-    for name, figure in all_figures(comparison).items():
+    if pngs is None:
+        pngs = figure_pngs(comparison)
+    for name, png in pngs.items():
         parts.append(f"<h3>{headings.get(name, name)}</h3>"
-                     + _figure(figure_png(figure), name,
-                               f"{caption(comparison)} {captions.get(name, '')}"))
+                     + _figure(png, name, f"{caption(comparison)} {captions.get(name, '')}"))
     return "\n".join(parts)
 
 
@@ -235,6 +254,29 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
     return figure
 
 
+def shape_figure(candidate) -> Figure:
+    """A shape-free find against its variable with its one-σ band, and the closest library
+    terms of its kind fitted to it (:mod:`surrogate.diagnosis.naming`)."""
+    curve = candidate.curve
+    figure = Figure(figsize=(7.5, 4.0), layout="constrained")
+    axes = figure.subplots()
+    axes.fill_between(curve.x, curve.value - WITHIN * curve.band,
+                      curve.value + WITHIN * curve.band, color="tab:blue", alpha=0.15,
+                      label=f"±{WITHIN:g}σ band")
+    axes.plot(curve.x, curve.value, color="tab:blue", linewidth=2.0,
+              label=f"found: {candidate.name}")
+    for match, style in zip(library_matches(candidate.name, curve)[:2], ("--", ":")):
+        verdict = "fits" if match.fits else f"departs by {match.worst:.1f}σ"
+        axes.plot(curve.x, match.fitted, color="tab:orange", linestyle=style,
+                  label=f"closest library term: {match.name} ({verdict})")
+    axes.axhline(0.0, color="k", linewidth=0.5)
+    axes.set_xlabel(f"{curve.label} [{label(curve.unit)}]")
+    axes.set_ylabel(f"{candidate.effect.quantity} [{label(curve.value_unit)}]")
+    axes.set_title(f"The shape the log drew: {candidate.effect.quantity} of {curve.variable}")
+    axes.legend(fontsize=8)
+    return figure
+
+
 def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
     rule = (f"A candidate is significant when it explains more than the maps' own error could "
             f"(ΔBIC &lt; {BIC_THRESHOLD:g} once smooth map-discrepancy terms of the maps' "
@@ -263,7 +305,7 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
          for k, v in diagnosis.correlations.items()])
     return "\n".join([
         f"<h2>{html.escape(heading)}</h2>",
-        f'<p class="summary">{html.escape(diagnosis.summary)}</p>',
+        f'<p class="summary">{html.escape(summarise(diagnosis))}</p>',
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
         _table(_heldout_shown(diagnosis_table(diagnosis)),
@@ -274,6 +316,12 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         _figure(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
                 f"Diagnosis of {readable(diagnosis.model.name)}: each candidate's line runs from "
                 "the current RMS to the RMS after refitting with it."),
+        *([_figure(figure_png(shape_figure(diagnosis.best)), "shape",
+                   f"The shape-free term {diagnosis.best.name} as fitted, with its band "
+                   f"({WITHIN:g} standard deviations from the fit's covariance), and the "
+                   "library terms of its kind fitted to it: one inside the band says the same "
+                   "with a name.")]
+          if diagnosis.best is not None and diagnosis.best.shape_free else []),
         "<h3>Correlation of the residual with candidate variables</h3><p><i>residual</i>: the "
         "residual itself; <i>hysteresis</i>: the residual signed by the ramp direction (a misfit "
         "of the hysteresis width).</p>",
@@ -288,7 +336,8 @@ def staircase_table(steps) -> pd.DataFrame:
     for number, step in enumerate(steps, start=1):
         parameters = "; ".join(str(p) for p in step.model.parameters().values() if p.vary)
         rows.append({"step": number, "added": ", ".join(step.added) or step.model.name,
-                     "category": step.category or "—",
+                     "category": (step.category or "—")
+                     + (", free shape" if getattr(step, "shape_free", False) else ""),
                      "rms [bar]": from_si(step.rms, "bar"),
                      "held out [bar]": from_si(step.heldout_rms, "bar"),
                      "parameters": parameters})
@@ -331,14 +380,15 @@ def staircase_section(workflow) -> str:
         f'<p class="summary">From the paper\'s basic model to the final one, the residual RMS '
         f"fell from {from_si(workflow.steps[0].rms, 'bar'):.2f} to {final:.2f} bar "
         f"({final / floor:.2f}× the noise floor of {floor:.2f} bar). "
-        f"{html.escape(workflow.final_diagnosis.summary)}</p>",
+        f"{html.escape(summarise(workflow.final_diagnosis))}</p>",
         "<p>Steps 1–4 are the paper's models (BMBE, BMBEBF, CFD maps, CFDA); later steps add the "
         "effect the diagnosis found most likely. Every step refits all free parameters on every "
         "sample. <i>held out</i> is the RMS on runs the step's fit did not see (each run "
         "predicted by a refit to the others): an added effect must lower it, and the RMS with "
         "one temperature or one pilot pressure left out too. "
         "<i>category</i> says what the step added: valve physics, a correction of the CFD maps, "
-        "or a sensor error.</p>",
+        "or a sensor error; <i>free shape</i> marks a term whose shape the data drew, which "
+        "no library effect has (its effects file, found_*.py, is in the output folder).</p>",
         _category_story(workflow),
         _table(staircase_table(workflow.steps).drop(columns="parameters").assign(
             **{"× noise floor": [step.rms / workflow.noise_floor for step in workflow.steps]}),
@@ -367,13 +417,39 @@ def _category_story(workflow) -> str:
                      "them; see the diagnosis' map limits and <code>suggest-cfd</code>).")
     if found.get("sensor"):
         lines.append(f"<b>Sensor errors</b>: {', '.join(found['sensor'])}: check the bench.")
+    for category, names in found.items():
+        if " or " in category:  # look-alikes: one finding, explanations of different kinds
+            lines.append(f"<b>One finding, {html.escape(category)}</b>: {', '.join(names)} "
+                         "stands for look-alikes this log cannot tell apart (see its step's "
+                         "reason); check the cheaper explanation.")
+    lines += _identifiability_lines(workflow)
+    if workflow.dropped:
+        lines.append(f"<b>Refused step</b>: {html.escape(workflow.dropped)}.")
     checks = workflow.final_diagnosis.sensor_checks
     if checks:
         lines.append("<b>Sensor checks</b> (per-run readings, never part of the model): "
-                     + html.escape("; ".join(map(str, checks))) + ".")
+                     + html.escape("; ".join(map(sensor_check_text, checks))) + ".")
     if not lines:
         lines.append("The diagnosis added nothing beyond the paper's steps.")
     return "<p>" + "<br>".join(lines) + "</p>"
+
+
+def _identifiability_lines(workflow) -> list[str]:
+    """What the steps pushed to a bound, and which of the final model's parameters the log
+    cannot separate (:mod:`surrogate.fitting.identifiability`)."""
+    lines = []
+    for number, step in enumerate(workflow.steps, start=1):
+        for moved in step.pushed:
+            lines.append(f"<b>Driven to a bound</b> at step {number}: "
+                         f"{html.escape(moved.parameter)} went from {moved.before:.4g} to {moved.after:.4g} "
+                         f"{html.escape(label(moved.unit))} when "
+                         f"{html.escape(', '.join(moved.by))} was added: that term took over "
+                         "what it carried, and the bound, not the data, now holds it.")
+    for pair in workflow.final.entangled:
+        lines.append(f"<b>Not separable on this log</b>: {html.escape(pair.first)} and "
+                     f"{html.escape(pair.second)} (their estimates correlate at "
+                     f"{pair.correlation:+.2f}): the log fixes their combination, not each.")
+    return lines
 
 
 def staircases_figure(workflows: dict) -> Figure:

@@ -4,7 +4,7 @@ At equal flow, a map error moves a run's ramp up and ramp down nearly alike: it 
 *median line*, the mean of the two branches (the paper's Table 5 compares models by it). Friction
 changes their *split*, the *half-width*, half their difference (Table 6 fits friction to it). So
 the half-width is where the maps' error barely reaches: a friction candidate must explain it, and
-a force or flow candidate must explain the median line (:mod:`.diagnose`).
+a force or flow candidate must explain the median line (:mod:`~surrogate.diagnosis.diagnose`).
 
 The split is linear. Per run, the flow range both branches cover is cut into bins; a bin's median
 and half-width are averages of each branch's samples in it. As matrices the split applies alike to

@@ -15,6 +15,7 @@ import pandas as pd
 from ..data.loaders import BenchLog
 from ..errors import InputError
 from ..maps.coverage import describe_all
+from ..memory import release_freed
 from ..model import ValveModel
 from ..points import OperatingPoints
 from ..solver import Replay, replay
@@ -85,6 +86,14 @@ class LogReplay:
         return frame
 
 
+def run_groups_of(runs: np.ndarray) -> list[np.ndarray]:
+    """The positions of each run's samples, runs in order of first appearance, samples in their
+    order: one pass over the labels, however many runs a log holds."""
+    codes, labels = pd.factorize(np.asarray(runs), sort=False)
+    order = np.argsort(codes, kind="stable")
+    return np.split(order, np.cumsum(np.bincount(codes, minlength=len(labels)))[:-1])
+
+
 def run_rows(log: BenchLog, run: str) -> np.ndarray:
     """Positions of one run's samples in the log."""
     return np.flatnonzero(log.frame["run"].astype(str).to_numpy() == str(run))
@@ -113,20 +122,22 @@ def state_smoothing_samples(log: BenchLog, seconds: float = STATE_SMOOTHING) -> 
 
 
 def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = None,
-               diagnostics: bool = True) -> LogReplay:
+               diagnostics: bool = True, progress=None) -> LogReplay:
     """Replay every run of ``log`` with ``model`` (friction as a play within each run, its state
     blind to the inputs' sample-to-sample noise over :data:`STATE_SMOOTHING`).
 
     ``guess``: a replay of the same log with nearby parameters, to start the solver from.
     ``diagnostics=False`` skips the maps' extrapolation reasons and Δp standard deviation
-    (:func:`surrogate.solver.replay.replay`), for the inner loop of a fit.
+    (:func:`surrogate.solver.replay.replay`), for the inner loop of a fit. ``progress``
+    (a :class:`~surrogate.progress.Progress`) hears how far the replay of a big log got.
     """
     points = OperatingPoints.from_bench(log.frame)
     played = replay(model, points, log.frame["run"].to_numpy(),
                     guess=None if guess is None else guess.replay, diagnostics=diagnostics,
-                    smoothing=state_smoothing_samples(log))
+                    smoothing=state_smoothing_samples(log), progress=progress)
     measured = measured_dp(log)
     residual = np.where(played.ok, played.dp - measured, np.nan)
+    release_freed(len(log))
     return LogReplay(log, played, measured, residual)
 
 
@@ -151,8 +162,9 @@ def noise_floor(residual: np.ndarray, runs: np.ndarray, *, required: bool = True
         result is NaN): the log is too short to tell noise from misfit.
     """
     weights, variances = [], []
-    for run in dict.fromkeys(runs):
-        r = residual[(runs == run) & np.isfinite(residual)]
+    finite = np.isfinite(residual)
+    for rows in run_groups_of(runs):
+        r = residual[rows[finite[rows]]]
         if len(r) < NOISE_SAMPLES:
             continue
         second = r[2:] - 2.0 * r[1:-1] + r[:-2]
@@ -162,8 +174,7 @@ def noise_floor(residual: np.ndarray, runs: np.ndarray, *, required: bool = True
     if not weights:
         if not required:
             return float("nan")
-        longest = max((int(np.sum((runs == run) & np.isfinite(residual)))
-                       for run in dict.fromkeys(runs)), default=0)
+        longest = max((int(np.sum(finite[rows])) for rows in run_groups_of(runs)), default=0)
         where = f"{source}: " if source else ""
         raise InputError(f"{where}the noise floor needs a run with at least {NOISE_SAMPLES} "
                          f"solved samples; the longest run here has {longest}")
@@ -178,8 +189,9 @@ def effective_samples(residual: np.ndarray, runs: np.ndarray) -> float:
     extra term look significant.
     """
     total = 0.0
-    for run in dict.fromkeys(runs):
-        r = residual[(runs == run) & np.isfinite(residual)]
+    finite = np.isfinite(residual)
+    for rows in run_groups_of(runs):
+        r = residual[rows[finite[rows]]]
         if len(r) < 3:
             total += len(r)
             continue

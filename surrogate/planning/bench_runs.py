@@ -24,9 +24,9 @@ import pandas as pd
 
 from ..data.loaders import BenchLog
 from ..effects import PerRunEffect
+from ..fitting.residuals import replay_log
 from ..model import ValveModel
 from ..units import BAR, from_si, to_si
-from .residuals import replay_log
 
 TEMPERATURE_STEP = 10.0  # [K] beyond the log's range
 SET_POINT_BELOW, SET_POINT_ABOVE = 15.0 * BAR, 20.0 * BAR  # [Pa] beyond the log's range

@@ -1,4 +1,5 @@
-"""Figures of a model-against-log comparison (:mod:`.compare`), written as PNG files.
+"""Figures of a model-against-log comparison (:mod:`~surrogate.workbench.compare`), written as
+PNG files.
 
 * ``dp_vs_q``: Δp over q, measured against the model, one panel per temperature;
 * ``residuals``: the residual against q, p_L, p_P, p_B, temperature and ramp direction;
@@ -10,6 +11,7 @@ Figures are built with :class:`matplotlib.figure.Figure` directly (no pyplot sta
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +23,7 @@ from matplotlib.patches import Patch
 
 from ..outputs import atomic_directory
 from ..units import from_si, label
-from .compare import Comparison
+from ..workbench.compare import Comparison
 
 DPI = 110
 # the paper's colours for 20, 40 and 60 °C, then more for logs with more temperatures
@@ -47,21 +49,68 @@ def write_figures(comparison: Comparison, folder: str | Path) -> dict[str, Path]
 
 def all_figures(comparison: Comparison) -> dict[str, Figure]:
     """Figure name -> figure, for every figure of the comparison."""
-    samples = _samples(comparison)
-    return {"dp_vs_q": dp_against_flow(comparison, samples),
-            "residuals": residual_panels(comparison, samples),
+    runs, points = decimated(comparison)
+    samples = _samples(comparison, runs)
+    return {"dp_vs_q": _noted(dp_against_flow(comparison, samples), runs),
+            "residuals": _noted(residual_panels(
+                comparison, samples if points is runs else _samples(comparison, points)),
+                points),
             "hysteresis": hysteresis_against_set_point(comparison)}
 
 
-def _samples(comparison: Comparison) -> pd.DataFrame:
-    """Per-sample data for plotting, in display units: the comparison's sample table, with each
-    run's nominal temperature and set point, the measured p_L and the ramp up as a flag."""
-    table = comparison.sample_table()
+#: samples above which the figures draw a thinned view (a figure then costs the same for a
+#: log of 10^5 samples and one of 10^7, and its dots still show the density)
+FIGURE_SAMPLES = 60_000
+#: runs drawn per condition (nominal temperature and set point) in a thinned Δp(q) figure:
+#: a big log repeats its runs, and a hundred loops on top of each other show no more than four
+RUNS_PER_CONDITION = 4
+
+
+@dataclass(frozen=True)
+class View:
+    """The samples a figure draws (positions in the log), and what was left out, in words."""
+
+    rows: np.ndarray | slice
+    note: str = ""
+
+
+def decimated(comparison: Comparison) -> tuple[View, View]:
+    """The views the figures draw: (the runs of the Δp(q) figure, the points of the residual
+    scatters). A log of at most :data:`FIGURE_SAMPLES` samples is drawn whole; a bigger one
+    draws the first :data:`RUNS_PER_CONDITION` runs of each condition, and every k-th sample
+    of the scatters (k the smallest that keeps :data:`FIGURE_SAMPLES`)."""
+    runs = comparison.played.runs
+    count = len(runs)
+    if count <= FIGURE_SAMPLES:
+        whole = View(slice(None))
+        return whole, whole
+    table = comparison.runs
+    rank = table.groupby(["temperature_nominal_C", "p_Pe_bar"], sort=False).cumcount()
+    kept = table.loc[rank.to_numpy() < RUNS_PER_CONDITION, "run"]
+    step = -(-count // FIGURE_SAMPLES)
+    return (View(np.flatnonzero(np.isin(runs, kept.to_numpy())),
+                 f"{len(kept)} of {len(table)} runs shown (the first {RUNS_PER_CONDITION} of "
+                 "each condition)"),
+            View(slice(None, None, step), f"every {step}th of {count:,} samples shown"))
+
+
+def _noted(figure: Figure, view: View) -> Figure:
+    """The figure, saying what its thinned view left out."""
+    if view.note:
+        figure.text(0.995, 0.005, view.note, ha="right", va="bottom", fontsize=7, color="0.35")
+    return figure
+
+
+def _samples(comparison: Comparison, view: View) -> pd.DataFrame:
+    """Per-sample data of a view for plotting, in display units: the comparison's sample table,
+    with each run's nominal temperature and set point, the measured p_L and the ramp up as a
+    flag."""
+    table = comparison.sample_table(view.rows)
     log = comparison.played.log.frame
     nominal = dict(zip(comparison.runs["run"], comparison.runs["temperature_nominal_C"]))
     return table.assign(temperature_nominal_C=table["run"].map(nominal).to_numpy(),
-                        p_Pe_bar=from_si(log["p_Pe_nominal"].to_numpy(), "bar"),
-                        p_L_bar=from_si(log["p_L"].to_numpy(), "bar"),
+                        p_Pe_bar=from_si(log["p_Pe_nominal"].to_numpy()[view.rows], "bar"),
+                        p_L_bar=from_si(log["p_L"].to_numpy()[view.rows], "bar"),
                         up=(table["direction"] == "up").to_numpy())
 
 

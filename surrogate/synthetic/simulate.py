@@ -30,6 +30,7 @@ import numpy as np
 from ..data.loaders import BenchLog, CfdSamples, load_cfd_samples
 from ..effects import LIBRARY, Effect, EffectLibrary, PerRunEffect
 from ..errors import InputError
+from ..fitting.residuals import replay_log
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..paths import SHIPPED_CFD_SAMPLES
@@ -37,7 +38,6 @@ from ..presets import cfda, cfda_effects
 from ..spec import EffectSpec, ModelSpec, ValveSource
 from ..units import to_si
 from .mismatch import MapMismatch, mismatched_truth
-from .residuals import replay_log
 
 #: a magnitude an engineer could meet on a real valve, per library effect (display units). The
 #: pilot-pressure frictions are set where they stand out from the K1 + K2·p_L friction the model

@@ -36,12 +36,12 @@ import pandas as pd
 
 from ..data.loaders import BenchLog
 from ..features import FeatureSpec
+from ..fitting.residuals import LogReplay, replay_log
 from ..maps.coverage import describe_all
 from ..model import ValveModel
 from ..points import OperatingPoints
 from ..solver.uncertainty import sensitivity
 from ..units import from_si, to_si
-from .residuals import LogReplay, replay_log
 
 #: correlation length of the maps' errors in standardised features [-]
 CORRELATION_LENGTH = 0.5

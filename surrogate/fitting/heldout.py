@@ -29,7 +29,8 @@ Held-out schemes (:func:`run_groups`): leave one run out, leave one temperature 
 pilot pressure out. A parameter the training runs do not determine (one run's own, with that run
 left out) keeps its value in the linear refit, so a per-run parameter would carry what it learnt
 from a run to that run's held-out prediction: per-run candidates are not judged on held-out runs
-at all (:func:`..diagnose.diagnose`), since by construction they cannot predict another run.
+at all (:func:`~surrogate.diagnosis.diagnose.diagnose`), since by construction they cannot predict
+another run.
 
 The held-out RMS quoted for a model (a workflow step, a candidate) is that of every run predicted
 by a fit to the others (:data:`HEADLINE`). A candidate must also predict a whole condition left
@@ -125,10 +126,15 @@ class RunBlocks:
         Each sample's run.
     penalty : float
         s² [Pa²]: the prior's weight on the nuisance coefficients.
+    roughness : tuple of numpy.ndarray, optional
+        (L, b): a penalty ‖L·θ + b‖² on the parameters' step θ (in the Jacobian's column
+        scaling), the roughness of a shape-free term (:mod:`surrogate.effects.shapes`): refits
+        keep the shape as smooth as its fit did. It shapes the refits but is not counted in
+        :meth:`objective`; :meth:`effective_parameters` says what it leaves free.
     """
 
     def __init__(self, fit: Linearised, discrepancy: Discrepancy | None, runs: np.ndarray,
-                 penalty: float):
+                 penalty: float, roughness: tuple[np.ndarray, np.ndarray] | None = None):
         nuisance = np.zeros((len(fit.residual), 0)) if discrepancy is None \
             else discrepancy.columns
         x = np.column_stack([fit.jacobian, nuisance])
@@ -147,34 +153,66 @@ class RunBlocks:
         diagonal = np.einsum("kii->i", self.gram)[:self.p]
         self.ridge = np.diag(1e-10 * max(float(diagonal.mean()) if self.p else 1.0, 1e-300)
                              * np.ones(self.p))
+        self.rough = None
+        if roughness is not None:
+            matrix, offset = roughness
+            self.rough = (matrix.T @ matrix, matrix.T @ offset)
 
     def step(self, weights: np.ndarray) -> np.ndarray:
         """The linear refit's parameter step θ with each run weighted by ``weights``."""
         p = self.p
         gram = np.tensordot(weights, self.gram[:, :p, :p], axes=1) + self.ridge
-        return -np.linalg.solve(gram, np.tensordot(weights, self.cross[:, :p], axes=1))
+        cross = np.tensordot(weights, self.cross[:, :p], axes=1)
+        if self.rough is not None:
+            gram, cross = gram + self.rough[0], cross + self.rough[1]
+        return -np.linalg.solve(gram, cross)
 
     def objective(self, weights: np.ndarray) -> float:
         """min over θ and a of the weighted sum of squares of r + J·θ + N·a plus s²·‖a‖² [Pa²]
-        (the parameters refitted with the discrepancy; without one, the sum of squares)."""
+        (the parameters refitted with the discrepancy; without one, the sum of squares). With a
+        roughness penalty, θ and a minimise it too, and the value is that of the sum of squares
+        and s²·‖a‖² at them."""
         squares = float(weights @ self.squares)
+        cross = np.tensordot(weights, self.cross, axes=1)
+        if self.rough is not None:
+            x = self._joint_step(weights, cross)
+            gram = np.tensordot(weights, self.gram, axes=1)
+            a = x[self.p:]
+            return (squares + 2.0 * float(cross @ x) + float(x @ gram @ x)
+                    + float(a @ self.penalty @ a))
         if not self.penalty.size:
             return squares
-        cross = np.tensordot(weights, self.cross, axes=1)
         return squares + float(cross @ self._joint_step(weights, cross))
+
+    def effective_parameters(self, columns: np.ndarray) -> float:
+        """How many parameters the columns ``columns`` (indices into θ) are worth, refitted with
+        the rest and the discrepancy on the whole log: the trace of their block of the hat
+        matrix (their count without a roughness penalty, less with one)."""
+        ones = np.ones(len(self.labels))
+        gram = np.tensordot(ones, self.gram, axes=1)
+        influence = np.linalg.solve(gram + self._regular(), gram)
+        return float(np.trace(influence[np.ix_(columns, columns)]))
 
     def nuisance(self) -> np.ndarray:
         """The discrepancy's coefficients a fitted to the whole log, with the parameters."""
         ones = np.ones(len(self.labels))
         return self._joint_step(ones, np.tensordot(ones, self.cross, axes=1))[self.p:]
 
-    def _joint_step(self, weights: np.ndarray, cross: np.ndarray) -> np.ndarray:
-        """(θ, a) minimising the weighted objective, whose cross products are ``cross``."""
+    def _regular(self) -> np.ndarray:
+        """What the solves add to the Gram matrix: the ridge, the roughness, the prior on a."""
         p = self.p
         regular = np.zeros_like(self.gram[0])
-        regular[:p, :p] = self.ridge
+        regular[:p, :p] = self.ridge + (0.0 if self.rough is None else self.rough[0])
         regular[p:, p:] = self.penalty
-        return -np.linalg.solve(np.tensordot(weights, self.gram, axes=1) + regular, cross)
+        return regular
+
+    def _joint_step(self, weights: np.ndarray, cross: np.ndarray) -> np.ndarray:
+        """(θ, a) minimising the weighted objective, whose cross products are ``cross``."""
+        if self.rough is not None:
+            cross = cross.copy()
+            cross[:self.p] += self.rough[1]
+        return -np.linalg.solve(np.tensordot(weights, self.gram, axes=1) + self._regular(),
+                                cross)
 
     def _squares_at(self, theta: np.ndarray, run: int) -> float:
         """‖r + J·θ‖² over run ``run``'s samples."""

@@ -1,0 +1,203 @@
+"""Which physical effect is the model missing? Refit with each candidate and judge the gain.
+
+Procedure
+---------
+1. Replay the model over the log: residual r0, its noise floor σ
+   (:func:`~surrogate.fitting.residuals.noise_floor`) and its effective number of independent
+   samples n_eff (:func:`~surrogate.fitting.residuals.effective_samples`).
+2. *Linearise* and *refit* every candidate together with the model's free parameters
+   (:mod:`.refit`).
+3. Judge each candidate against the maps' own error and on runs it was not fitted to: ΔBIC
+   against the maps' discrepancy, held-out RMS per scheme, inclusion frequency over bootstrap
+   resamples of runs (:mod:`.judge`). Rank the candidates by ΔBIC, best (most negative) first.
+4. Split each run's residual, before and after each candidate, into its median line and its
+   half-width (:mod:`~surrogate.fitting.hysteresis`): a map error moves both ramps alike,
+   friction changes their split. A friction term must narrow the half-width, any other term the
+   median line.
+5. Group the candidates the data cannot tell apart (:mod:`.lookalikes`), apply the significance
+   rule (:mod:`.rule`), and flag per-run readings that look like a sensor fault (:mod:`.sensors`).
+6. Only when no library term is significant, fit the shape-free terms (:mod:`.shapes`), judge
+   them the same way, and rank and group them with the library's, the bootstrap over runs
+   choosing among all of them.
+7. When the best candidate has a look-alike, replay both over the runs the bench could make
+   next and name the one where they differ most, or say that none within reach decides
+   (:mod:`~surrogate.planning.bench_runs`).
+
+The result is numbers only (:class:`~.result.Diagnosis`); :mod:`surrogate.reporting.prose` puts
+them into words.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import replace
+
+import numpy as np
+
+from ..data.loaders import BenchLog
+from ..effects import LIBRARY, Effect, EffectLibrary
+from ..effects.shapes import SHAPE_FREE
+from ..fitting.heldout import HEADLINE
+from ..fitting.hysteresis import hysteresis_split
+from ..fitting.residuals import LogReplay, noise_floor, replay_log
+from ..leastsquares import free_parameters
+from ..model import ValveModel
+from ..parallel import map_threads
+from ..units import from_si
+from .judge import Judge
+from .lookalikes import grouped, look_alike_separation
+from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
+from .result import Candidate, Diagnosis
+from .rule import RULE, SignificanceRule, gains_in_own_view
+from .sensors import sensor_checks
+from .shapes import shape_free_candidates
+
+
+def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
+                      names: Iterable[str] | None = None) -> list[type[Effect]]:
+    """The effects of ``library`` the model does not have (or those of them named), shape-free
+    ones included only when named (by default the diagnosis tries every shape-free term on its
+    own, :func:`shape_candidates`).
+
+    Raises
+    ------
+    InputError
+        For a name the library (or the shape-free terms) does not hold.
+    """
+    known = library + EffectLibrary(cls for cls in SHAPE_FREE if cls.name not in library)
+    chosen = ({name: cls for name, cls in library.items()
+               if not getattr(cls, "shape_free", False)} if names is None
+              else {name: known.effect(name) for name in names})
+    return [cls for name, cls in chosen.items() if not model.has_effect(name)]
+
+
+def shape_candidates(model: ValveModel, names: Iterable[str] | None = None,
+                     library: EffectLibrary = LIBRARY) -> list[type[Effect]]:
+    """The shape-free terms a diagnosis tries: every one the model lacks, or those named."""
+    if names is None:
+        return [cls for cls in SHAPE_FREE if not model.has_effect(cls.name)]
+    return [cls for cls in candidate_effects(model, library, names)
+            if getattr(cls, "shape_free", False)]
+
+
+def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY, *,
+             candidates: Iterable[str] | None = None, base: LogReplay | None = None,
+             steps: int = REFINE_STEPS, progress=None, workers: int | None = None,
+             rule: SignificanceRule = RULE, shapes: bool = True) -> Diagnosis:
+    """Rank the candidate effects by how much of the residual they explain (see module doc).
+
+    Parameters
+    ----------
+    model : ValveModel
+        The current model, with its free parameters already fitted to ``log``.
+    log : BenchLog
+    library : EffectLibrary
+        The effects to choose from (default: the built-in ones).
+    candidates : iterable of str, optional
+        Names of the library's effects (or shape-free terms) to try; default every one the
+        model lacks.
+    base : LogReplay, optional
+        The model's replay of ``log``, if already computed.
+    steps : int
+        Gauss–Newton steps (one replay each) per candidate after the linear solution.
+    progress : callable, optional
+        Called with a line of text as the work proceeds.
+    workers : int, optional
+        Threads refitting candidates side by side (default
+        :func:`surrogate.parallel.default_workers`); the result does not depend on it.
+    rule : SignificanceRule
+        When a candidate is a discovery (default: the package's :data:`.rule.RULE`).
+    shapes : bool
+        Whether to try the shape-free terms (:mod:`.shapes`; those named in ``candidates``, or
+        all of :data:`surrogate.effects.shapes.SHAPE_FREE`) when no library term is
+        significant. They then compete with the library's, ranked behind a library term that
+        fits about as well (:meth:`.rule.SignificanceRule.rank`).
+    """
+    say = progress or (lambda message: None)
+    base = base or replay_log(model, log)
+    problem = DiagnosisProblem(log, base)
+    floor = noise_floor(base.residual, base.runs, source=base.log.source)
+    own = free_parameters(model)
+    say(f"linearising the replay in the model's {len(own)} free parameter(s)")
+    own_columns = [column for column in map_threads(
+        lambda entry: problem.column_of(model, entry[0]), own, workers=workers) if column.felt]
+    classes = [cls for cls in candidate_effects(model, library, candidates)
+               if not getattr(cls, "shape_free", False)]
+    results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers)
+    judge = Judge(model, problem, own_columns, floor, rule)
+    split = hysteresis_split(log.frame.loc[problem.ok])
+    median_before, half_before = split.rms(problem.base_evaluation.residual)
+    own_matrix = (np.column_stack([c.change / c.step for c in own_columns]) if own_columns
+                  else np.zeros((int(problem.ok.sum()), 0)))
+
+    def with_views(found: list[Candidate]) -> list[Candidate]:
+        """The candidates with the RMS of the runs' median line and half-width after each."""
+        return [replace(c, **dict(zip(("median_rms", "half_width_rms"),
+                                      split.rms(c.linearised[0])))) for c in found]
+
+    def ranked(found: list[Candidate]) -> list[Candidate]:
+        """The candidates best first, grouped with their look-alikes, and the significance rule
+        applied, its last test (the bootstrap over runs) among these candidates."""
+        # best first by ΔBIC, which weighs the gain against the parameters it took (an offset
+        # per run always fits a little better than one offset; it must fit better by enough)
+        found = sorted(found, key=rule.rank)
+        found = [replace(c, own_view=gains_in_own_view(c, median_before, half_before),
+                         significant=False, stable=True, inclusion=0.0) for c in found]
+        found = [replace(c, significant=rule.passes(c, problem.rms_before, floor, judge.heldout))
+                 for c in found]
+        found = grouped(found, rule, own_matrix)
+        shares = judge.inclusion(found)
+        # the last test needs every candidate's share
+        found = [replace(c, inclusion=shares[c.name],
+                         stable=rule.stable(sum(shares[name] for name in c.group)))
+                 for c in found]
+        return [replace(c, significant=c.significant and c.stable) for c in found]
+
+    results = with_views([judge.judge(candidate) for candidate in results])
+    _say_scores(say, results, refined)
+    results = ranked(results)
+    # shape-free terms only after the library: a library term that explains the log says it
+    # with fewer parameters and a name (and the shapes, which soak up part of any effect, would
+    # split the bootstrap's votes with it)
+    shaped = (shape_candidates(model, candidates, library)
+              if shapes and not any(c.significant for c in results) else [])
+    if shaped:
+        found = with_views(shape_free_candidates(model, problem, own_columns, judge, shaped,
+                                                 steps=steps, workers=workers, say=say))
+        _say_scores(say, found, set(range(len(found))))
+        results = ranked(results + found)
+    diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, tuple(results),
+                          residual_correlations(base),
+                          judge.heldout.get(HEADLINE, float("nan")),
+                          judge.expected_rms(base), judge.map_limits(),
+                          sensor_checks(results, judge.schemes), median_before, half_before,
+                          heldout_by_scheme=judge.heldout)
+    return replace(diagnosis, separation=look_alike_separation(diagnosis, log))
+
+
+def _say_scores(say, candidates: list[Candidate], refined: set[int]) -> None:
+    """One progress line per candidate: its RMS, held-out RMS and ΔBIC."""
+    for number, candidate in enumerate(candidates, start=1):
+        say(f"  [{number}/{len(candidates)}] {candidate.name}: rms "
+            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, held out "
+            f"{from_si(candidate.heldout_rms, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
+            + ("" if number - 1 in refined else " (not refined)"))
+
+
+def residual_correlations(base: LogReplay) -> dict[str, float]:
+    """Pearson correlation of the residual with candidate variables, and of the residual signed
+    by the ramp direction (a hysteresis misfit) with the same variables."""
+    frame = base.log.frame
+    values = {"q": frame["q"], "p_L": frame["p_L"], "p_P": frame["p_P"], "p_B": frame["p_B"],
+              "p_Pe": frame["p_P"] - frame["p_B"], "temperature": frame["temperature"],
+              "|p_L - p_P|": (frame["p_L"] - frame["p_P"]).abs()}
+    ok = np.isfinite(base.residual)
+    signed = base.residual * np.where(frame["direction"].to_numpy() == "up", 1.0, -1.0)
+    result = {}
+    for name, series in values.items():
+        x = np.asarray(series, float)[ok]
+        if np.std(x) == 0:
+            continue
+        result[f"residual~{name}"] = float(np.corrcoef(base.residual[ok], x)[0, 1])
+        result[f"hysteresis~{name}"] = float(np.corrcoef(signed[ok], x)[0, 1])
+    return result

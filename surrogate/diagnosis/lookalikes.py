@@ -1,0 +1,103 @@
+"""Candidates a log cannot tell apart: one finding with several explanations.
+
+Two candidates are look-alikes on a log when either
+
+* their own Jacobian columns, once what the model's own parameters can do is taken out, are
+  collinear (:func:`collinearity` above :data:`COLLINEAR`): on this log they are the same term
+  of the force balance, whatever ΔBIC or the bootstrap prefer, since between two equal fits
+  those only measure which one the noise favours. A spring-preload offset and a pilot-transducer
+  offset both act as a constant force; a constant friction and a pilot-pressure friction do when
+  each run holds its pilot pressure nearly constant. Or
+* they change the model's prediction the same way (cosine of their fitted prediction changes
+  above :data:`SAME_DIRECTION`) while the data prefer neither (|ΔBIC between them| below the
+  rule's threshold): the test for terms of several parameters.
+
+Look-alikes are reported as one group, with the bench run that would separate them
+(:mod:`surrogate.planning.bench_runs`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..data.loaders import BenchLog
+from ..planning.bench_runs import Separation, separating_run
+from .result import Candidate, Diagnosis
+from .rule import RULE, SignificanceRule
+
+SAME_DIRECTION = 0.98  # cosine of two prediction changes above which they act alike
+#: the canonical correlation of two candidates' own Jacobian columns (with the model's own
+#: parameters' part taken out) above which the log cannot tell them apart. On logs of the
+#: shipped test sequence from virtual valves (grid maps, map mismatch; a preload, a
+#: pilot-pressure friction or nothing hidden) the look-alike pairs reach 0.97–1.00: spring
+#: preload and pilot-transducer offset 0.993–1.000, pilot-pressure and pilot-differential
+#: friction 0.991–0.994, flowmeter gain and discharge scale 0.973–0.993; every other pair stays
+#: below 0.61
+COLLINEAR = 0.95
+#: terms of more own parameters than this are compared by their prediction changes only
+COLLINEAR_PARAMETERS = 2
+
+
+def own_directions(candidate: Candidate, own: np.ndarray) -> np.ndarray | None:
+    """An orthonormal basis of ``candidate``'s own Jacobian columns at the model's point
+    (:attr:`.result.Candidate.probe`) with the part the model's own parameters' columns
+    ``own`` can produce taken out; None when it has none, more than
+    :data:`COLLINEAR_PARAMETERS`, or a parameter per run (a per-run term is a sensor check,
+    never a model's explanation)."""
+    if candidate.probe is None or candidate.per_run or candidate.shape_free:
+        return None
+    mine = np.asarray(candidate.probe, float)
+    if not 0 < mine.shape[1] <= COLLINEAR_PARAMETERS:
+        return None
+    if own.size:
+        mine = mine - own @ np.linalg.lstsq(own, mine, rcond=None)[0]
+    basis, singular, _ = np.linalg.svd(mine, full_matrices=False)
+    kept = singular > 1e-9 * max(singular[0], 1e-300)
+    return basis[:, kept] if kept.any() else None
+
+
+def collinearity(a: np.ndarray | None, b: np.ndarray | None) -> float:
+    """The smallest canonical correlation between two bases of equal size (0 if either is
+    missing or their sizes differ): 1 when the two terms can do exactly the same on this log."""
+    if a is None or b is None or a.shape[1] != b.shape[1]:
+        return 0.0
+    return float(np.linalg.svd(a.T @ b, compute_uv=False).min())
+
+
+def grouped(candidates: list[Candidate], rule: SignificanceRule = RULE,
+            own: np.ndarray | None = None) -> list[Candidate]:
+    """The candidates with their groups: each with the names of those it cannot be told from
+    (module docstring); ``own`` holds the columns of the model's own free parameters (samples ×
+    parameters)."""
+    own = np.zeros((0, 0)) if own is None else own
+    groups = [[candidate.name] for candidate in candidates]
+    directions = [own_directions(candidate, own) for candidate in candidates]
+    for i, a in enumerate(candidates):
+        for j in range(i + 1, len(candidates)):
+            b = candidates[j]
+            if collinearity(directions[i], directions[j]) > COLLINEAR:
+                groups[i].append(b.name)
+                groups[j].append(a.name)
+                continue
+            size = np.linalg.norm(a.change) * np.linalg.norm(b.change)
+            if size == 0:
+                continue
+            cosine = float(a.change @ b.change) / size
+            if cosine > SAME_DIRECTION and abs(a.delta_bic - b.delta_bic) < -rule.bic:
+                groups[i].append(b.name)
+                groups[j].append(a.name)
+    return [replace(candidate, group=tuple(group))
+            for candidate, group in zip(candidates, groups)]
+
+
+def look_alike_separation(diagnosis: Diagnosis, log: BenchLog) -> Separation | None:
+    """The bench run that would tell the best candidate from its first look-alike, or None
+    without a best candidate or a look-alike."""
+    best = diagnosis.best
+    if best is None or len(best.group) < 2:
+        return None
+    other = next(c for c in diagnosis.candidates if c.name in best.group and c is not best)
+    return separating_run(best.model, other.model, log, diagnosis.noise_floor, (best.name,
+                                                                                other.name))

@@ -1,0 +1,152 @@
+"""Refitting every candidate effect with the model's own free parameters, cheaply.
+
+1. *Linearise*: one finite-difference replay per free parameter of the model (shared by every
+   candidate) and per parameter of each candidate effect.
+2. *Refit* every candidate together with the model's free parameters: bounded linear least
+   squares on the linearisation, then up to four Gauss–Newton steps in which every new point is
+   replayed for real and the Jacobian is corrected by Broyden's update (one replay per step
+   instead of one per parameter); a step that lowers the RSS by less than
+   :data:`surrogate.leastsquares.SETTLED_GAIN` of it ends the refit. Only the four front runners
+   after the first real replay (and any as good as the last of them) take those steps; the
+   others keep the RMS of that first replay, an upper bound, as they are far behind. The
+   reported RMS is that of a real replay at the reported parameters, never a linear estimate.
+   Standard errors come from the final Jacobian, inflated by √(n/n_eff) because the samples are
+   not independent. The candidates are independent of each other and are refitted side by side
+   on threads (:mod:`surrogate.parallel`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data.loaders import BenchLog
+from ..effects import Effect, PerRunEffect
+from ..fitting.heldout import held_at_bounds
+from ..fitting.logfit import felt, probe_change
+from ..fitting.residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
+from ..leastsquares import Evaluation, FitProblem, Minimizer, split_key
+from ..model import ValveModel
+from ..parallel import map_threads
+from .result import Candidate
+from .rule import BIC_THRESHOLD, delta_bic
+
+REFINE_STEPS = 4  # Gauss–Newton steps per front-running candidate after the linear solution
+REFINED = 4  # candidates refined by those steps (with any as good as the last of them)
+
+
+def refit_candidates(model: ValveModel, classes: list[type[Effect]],
+                     problem: "DiagnosisProblem", own_columns: list["Column"], steps: int,
+                     workers: int | None) -> tuple[list[Candidate], set[int]]:
+    """Every candidate refitted with the model's free parameters (module docstring, step 2):
+    the candidates are independent, so they are linearised and refitted side by side. Each gets
+    its linear solution evaluated for real; only the front runners are refined further, the
+    others keep that first real RMS (an upper bound: refining only lowers it)."""
+
+    def linearise(cls: type[Effect]) -> tuple[Minimizer, list[Column]]:
+        trial = model.copy()
+        trial.effects.append(cls.for_runs(problem.log.run_ids))
+        columns = [problem.column_of(trial, f"{cls.name}.{name}")
+                   for name, parameter in trial.effect(cls.name).params.items() if parameter.vary]
+        # a parameter the data do not feel (a run's pilot offset while its piston sits on the
+        # stop) stays where it is: an empty column leaves the linear step undetermined
+        columns = [c for c in columns if c.felt]
+        every = own_columns + columns
+        minimizer = Minimizer(trial, problem, [c.key for c in every])
+        minimizer.linearise([c.change for c in every], [c.step for c in every],
+                            problem.base_evaluation).refine(1)
+        return minimizer, columns
+
+    refits = list(map_threads(linearise, classes, workers=workers))
+    probes = [np.column_stack([c.change / c.step for c in columns]) if columns else None
+              for _, columns in refits]
+    first = [candidate_of(cls, minimizer, len(columns), problem, probe)
+             for cls, (minimizer, columns), probe in zip(classes, refits, probes)]
+    chosen = front_runners(first)
+    refined = dict(zip(chosen, map_threads(
+        lambda i: candidate_of(classes[i], refits[i][0].refine(steps), len(refits[i][1]),
+                               problem, probes[i]), chosen, workers=workers)))
+    return [refined.get(i, candidate) for i, candidate in enumerate(first)], set(refined)
+
+
+def candidate_of(cls: type[Effect], minimizer: Minimizer, extra: int,
+                 problem: "DiagnosisProblem", probe: np.ndarray | None = None) -> Candidate:
+    """The candidate at its refinement's best point, with standard errors; ``extra`` of its
+    parameters are the candidate's own (the data inform them), ``probe`` their columns at the
+    model's point (:attr:`.result.Candidate.probe`)."""
+    evaluation, rss = minimizer.refined
+    minimizer.refinement_errors()
+    linearised = (evaluation.residual,
+                  held_at_bounds(minimizer.refined_jacobian, minimizer.parameters))
+    change = np.zeros(len(problem.ok))
+    change[problem.ok] = evaluation.residual - problem.base_evaluation.residual
+    trial = minimizer.model
+    return Candidate(cls.name, cls.title, cls.describe(), cls.kind, cls.category,
+                     float(np.sqrt(rss / problem.ok.sum())),
+                     delta_bic(rss, problem.rss_before, problem.n_eff, extra),
+                     params=tuple(trial.effect(cls.name).params.values()), change=change,
+                     model=trial, replay=evaluation.payload,
+                     per_run=issubclass(cls, PerRunEffect), extra=extra,
+                     check_threshold=getattr(cls, "check_threshold", 0.0),
+                     linearised=linearised, probe=probe)
+
+
+@dataclass
+class Column:
+    """One parameter's column of the replay's Jacobian: the Δp change for a step [SI]."""
+
+    key: str
+    step: float
+    change: np.ndarray
+    felt: bool = True  # whether the data determine the parameter (surrogate.fitting.logfit.felt)
+
+
+class DiagnosisProblem(FitProblem):
+    """The log's residual on the samples the model solves, every replay warm-started from the
+    model's own (the candidates' refits never move it, so they do not depend on each other)."""
+
+    def __init__(self, log: BenchLog, base: LogReplay):
+        self.log, self.base = log, base
+        self.ok = np.isfinite(base.residual)
+        self.rss_before = float(np.sum(base.residual[self.ok] ** 2))
+        self.rms_before = float(np.sqrt(self.rss_before / self.ok.sum()))
+        self.n_eff = effective_samples(base.residual, base.runs)
+        self.noise_floor = noise_floor(base.residual, base.runs, source=base.log.source)
+        self.base_evaluation = Evaluation(base.residual[self.ok], base)
+
+    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
+        played = replay_log(model, self.log, guess=self.base, diagnostics=False)
+        return Evaluation(played.residual[self.ok], played)
+
+    def effective_samples(self, evaluation: Evaluation) -> float:
+        return self.n_eff
+
+    def column_of(self, model: ValveModel, key: str) -> "Column":
+        """∂Δp/∂parameter · step by a forward difference, warm-started from the base replay; a
+        parameter scoped to one run replays that run only."""
+        effect_name, parameter_name = split_key(key)
+        scope = model.effect(effect_name).params[parameter_name].scope
+        if scope is None:
+            step, change = probe_change(model, effect_name, parameter_name, self.log, self.base)
+            determined = felt(change[self.ok], scoped=False)
+        else:
+            rows = run_rows(self.log, scope)
+            step, in_run = probe_change(model, effect_name, parameter_name, self.log.take(rows),
+                                        self.base.take(rows))
+            determined = felt(in_run, scoped=True)
+            change = np.zeros(len(self.ok))
+            change[rows] = in_run
+        return Column(key, step, np.where(np.isfinite(change), change, 0.0)[self.ok],
+                      determined)
+
+
+def front_runners(candidates: list[Candidate]) -> list[int]:
+    """Indices of the candidates worth refining: the :data:`REFINED` best by ΔBIC after their
+    first real replay, and any within 2·|:data:`.rule.BIC_THRESHOLD`| of the last of those (so
+    that two candidates the data may not tell apart are refined alike)."""
+    order = sorted(range(len(candidates)), key=lambda i: candidates[i].delta_bic)
+    if len(order) <= REFINED:
+        return order
+    cut = candidates[order[REFINED - 1]].delta_bic - 2.0 * BIC_THRESHOLD
+    return [i for i in order if candidates[i].delta_bic <= cut]

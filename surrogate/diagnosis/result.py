@@ -1,0 +1,162 @@
+"""What a diagnosis found, as numbers: each candidate's scores and the diagnosis as a whole.
+
+Both are immutable; the words that explain them are :mod:`surrogate.reporting.prose`'s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..fitting.residuals import LogReplay
+from ..model import ValveModel
+from ..planning.bench_runs import Separation
+from ..units import from_si
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate effect, refitted together with the model's free parameters, and judged."""
+
+    name: str
+    title: str
+    description: str
+    kind: str
+    category: str  # physics, map correction or sensor (:data:`surrogate.effects.CATEGORIES`)
+    rms_after: float  # [Pa]
+    delta_bic: float  # against the maps' discrepancy once judged (:mod:`.judge`)
+    significant: bool = False
+    group: tuple[str, ...] = ()  # it and the candidates these data cannot tell from it
+    params: tuple = ()  # fitted Parameters of the candidate
+    median_rms: float = float("nan")  # [Pa] of the median line of the runs' residual after
+    half_width_rms: float = float("nan")  # [Pa] of the half-width (surrogate.fitting.hysteresis)
+    heldout_rms: float = float("nan")  # [Pa] on held-out runs, each left out in turn
+    heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme (and "pooled")
+    inclusion: float = 0.0  # share of bootstrap resamples over runs that select it
+    own_view: bool = True  # narrows the hysteresis view its physics acts on (rule.py)
+    stable: bool = True  # it or its group is chosen in most resamples over runs (rule.py)
+    per_run: bool = False  # a parameter per run: a sensor check, never part of the model
+    check_threshold: float = 0.0  # a per-run value below this (display units) is not flagged
+    change: np.ndarray | None = field(default=None, repr=False)  # prediction change [Pa]
+    model: ValveModel | None = field(default=None, repr=False)  # the current model + this effect
+    replay: LogReplay | None = field(default=None, repr=False)  # its replay of the log
+    extra: float = 0  # parameters of its own the data inform (a shape's effective number)
+    linearised: tuple | None = field(default=None, repr=False)  # (residual, Jacobian) at its fit
+    #: ∂Δp/∂(own parameter) at the model's point, per solved sample [Pa per unit], by forward
+    #: differences (the refits' Broyden-corrected Jacobian no longer has true columns)
+    probe: np.ndarray | None = field(default=None, repr=False)
+    #: a shape-free term's fitted shape against its variable, with its band (None otherwise)
+    curve: "ShapeCurve | None" = field(default=None, repr=False)
+
+    @property
+    def shape_free(self) -> bool:
+        """Whether this is a shape-free term (:mod:`surrogate.effects.shapes`), not a library
+        effect with a named shape."""
+        return self.curve is not None
+
+    @property
+    def effect(self):
+        """The candidate's fitted effect (in :attr:`model`)."""
+        return None if self.model is None else self.model.effect(self.name)
+
+    def to_json(self) -> dict:
+        return {
+            "name": self.name, "description": self.description, "title": self.title,
+            "kind": self.kind, "category": self.category,
+            "rms_after_bar": rounded_bar(self.rms_after),
+            "heldout_rms_bar": rounded_bar(self.heldout_rms),
+            "median_line_rms_bar": rounded_bar(self.median_rms),
+            "half_width_rms_bar": rounded_bar(self.half_width_rms),
+            "heldout_rms_by_scheme_bar": {k: rounded_bar(v)
+                                          for k, v in self.heldout.items() if k != "pooled"},
+            "inclusion": round(float(self.inclusion), 3), "stable": bool(self.stable),
+            "gains_in_own_view": bool(self.own_view),
+            "delta_bic": round(float(self.delta_bic), 2), "significant": bool(self.significant),
+            "per_run": bool(self.per_run), "group": list(self.group),
+            "params": {p.name: p.to_record() for p in self.params},
+            **({"shape": self.curve.to_json()} if self.curve is not None else {}),
+        }
+
+
+@dataclass(frozen=True)
+class ShapeCurve:
+    """A shape-free term's fitted shape on a grid of its variable, in display units.
+
+    ``band`` is one standard deviation of the shape at each point, from the fit's covariance
+    (penalised as the fit was); ``weight`` the roughness weight the held-out runs chose.
+    """
+
+    variable: str  # the variable's name (surrogate.effects.shapes.VARIABLES)
+    label: str  # what it is, in words
+    unit: str  # its display unit
+    value_unit: str  # the shape's
+    x: np.ndarray
+    value: np.ndarray
+    band: np.ndarray
+    weight: float
+
+    def to_json(self) -> dict:
+        return {"variable": self.variable, "unit": self.unit, "value_unit": self.value_unit,
+                "roughness_weight": self.weight,
+                "x": [round(float(v), 6) for v in self.x],
+                "value": [round(float(v), 6) for v in self.value],
+                "band": [round(float(v), 6) for v in self.band]}
+
+
+@dataclass(frozen=True)
+class SensorCheck:
+    """A run whose per-run parameter lies well outside its standard error (display units)."""
+
+    effect: str
+    title: str
+    run: str
+    value: float
+    stderr: float
+    unit: str
+
+
+@dataclass(frozen=True)
+class MapLimit:
+    """Where the maps' fitted discrepancy is largest: a discrepancy term and its RMS [Pa]."""
+
+    where: str
+    rms: float
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The result of :func:`~surrogate.diagnosis.diagnose.diagnose`, in numbers; its summary in
+    words is :func:`surrogate.reporting.prose.summarise`."""
+
+    model: ValveModel
+    base: LogReplay
+    rms_before: float  # [Pa]
+    noise_floor: float  # [Pa]
+    effective_samples: float
+    candidates: tuple[Candidate, ...]
+    correlations: dict[str, float]
+    heldout_before: float = float("nan")  # [Pa] the model's RMS on runs left out in turn
+    expected_rms: float = float("nan")  # [Pa] what noise and the maps' σ_Δp allow together
+    map_limits: tuple[MapLimit, ...] = ()  # where the maps' error is largest
+    sensor_checks: tuple[SensorCheck, ...] = ()  # per-run readings off
+    median_before: float = float("nan")  # [Pa] RMS of the residual's median line
+    half_width_before: float = float("nan")  # [Pa] RMS of its half-width
+    #: the bench run that would tell the best candidate from its first look-alike, if any
+    separation: Separation | None = None
+    heldout_by_scheme: dict = field(default_factory=dict)  # [Pa] per held-out scheme
+
+    @property
+    def best(self) -> Candidate | None:
+        """The best significant candidate, or None."""
+        return next((c for c in self.candidates if c.significant), None)
+
+    def group_inclusion(self, candidate: Candidate) -> float:
+        """The share of resamples over runs that add ``candidate`` or a look-alike of its
+        group."""
+        return float(sum(c.inclusion for c in self.candidates if c.name in candidate.group))
+
+
+def rounded_bar(value: float) -> float | None:
+    """[Pa] -> bar to 4 decimals, None for NaN (JSON has no NaN)."""
+    return round(float(from_si(value, "bar")), 4) if np.isfinite(value) else None

@@ -1,0 +1,130 @@
+"""The significance rule: when a candidate effect is a discovery the workflow adds.
+
+A candidate is **significant** when all of these hold (:meth:`SignificanceRule.passes`, then
+:meth:`SignificanceRule.stable`):
+
+* ΔBIC < −10 against the maps' discrepancy (very strong evidence, Kass & Raftery), counted with
+  n_eff so that residuals correlated in time do not pass as thousands of independent samples
+  (:func:`delta_bic`); a shape-free term (:mod:`surrogate.effects.shapes`) must pass it by its
+  handicap too, ΔBIC < −20 (:meth:`SignificanceRule.handicap`);
+* it lowers the RMS on held-out runs by more than :data:`HELDOUT_GAIN` of it, each run left out
+  in turn, and one temperature or one pilot pressure left out
+  (:func:`~surrogate.fitting.heldout.predicts_unseen`): an effect that describes the valve helps
+  on runs it was not fitted to, one that patches this log does not;
+* the residual before is not already noise: RMS_before > 1.1·σ (:data:`NOISE_MARGIN`);
+* the gain is more than a sliver of noise: RMS_before − RMS_after > 0.02·σ
+  (:data:`GAIN_FRACTION`);
+* it has no parameter per run: such a parameter cannot predict another run, so per-run
+  candidates are reported as sensor checks, never added;
+* it narrows the view of the hysteresis its physics acts on (:func:`gains_in_own_view`): a
+  friction term the runs' half-width, any other term their median line;
+* it, or the group it cannot be told from, is the one added in the majority of bootstrap
+  resamples over runs (:data:`INCLUSION_MIN`).
+
+Candidates are ranked by ΔBIC, a shape-free term (:mod:`surrogate.effects.shapes`) with a
+handicap of |:data:`BIC_THRESHOLD`|: a library term that fits about as well comes first, having
+fewer parameters and a name (:meth:`SignificanceRule.rank`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fitting.heldout import predicts_unseen
+
+BIC_THRESHOLD = -10.0
+NOISE_MARGIN = 1.1  # the residual must exceed the noise floor by 10 %
+#: and a candidate must remove at least this share of the noise floor of in-sample RMS: a guard
+#: against slivers that a huge effective sample count would call significant. Small, as the
+#: held-out gain is the real test: a pilot-transducer offset of 0.6 bar, hidden in a log whose
+#: maps err like a real valve's (tests/test_mismatch.py), lowers the in-sample RMS by 0.02–0.03
+#: noise floors once the model's own free parameters have taken their share
+GAIN_FRACTION = 0.02
+#: a discovery must lower the RMS on held-out runs by at least this share of it. Real effects on
+#: the shipped log lower it by 20–33 %; on virtual valves (tests/test_mismatch.py) a leakage term
+#: added after the hidden friction, patching the maps, lowered it by 2.8 %
+HELDOUT_GAIN = 0.03
+#: a discovery (or the group it cannot be told from) must be the one added in at least this
+#: share of those resamples: the majority. A finding that depends on which runs happen to be in
+#: the log is not one. On the stress suite's virtual valves (tests/test_mismatch.py) the hidden
+#: effects were chosen in 62–100 % of resamples, the terms that stood in for map error where
+#: nothing of their kind was hidden in 35–57 %
+INCLUSION_MIN = 0.5
+
+
+@dataclass(frozen=True)
+class SignificanceRule:
+    """The thresholds of the rule (module docstring), as one object."""
+
+    bic: float = BIC_THRESHOLD
+    noise_margin: float = NOISE_MARGIN
+    gain_fraction: float = GAIN_FRACTION
+    heldout_gain: float = HELDOUT_GAIN
+    inclusion_min: float = INCLUSION_MIN
+
+    def passes(self, candidate, rms_before: float, floor: float,
+               heldout_before: dict[str, float]) -> bool:
+        """Whether ``candidate`` passes every test but the last, its inclusion frequency; RMS
+        values [Pa], ``heldout_before`` per scheme."""
+        return (not candidate.per_run
+                and candidate.delta_bic + self.handicap(candidate) < self.bic
+                and rms_before > self.noise_margin * floor
+                and rms_before - candidate.rms_after > self.gain_fraction * floor
+                and self.predicts_unseen(candidate, heldout_before)
+                and candidate.own_view)
+
+    def predicts_unseen(self, candidate, heldout_before: dict[str, float]) -> bool:
+        """Whether the candidate predicts held-out runs better by :attr:`heldout_gain`."""
+        return predicts_unseen(candidate.heldout, heldout_before, self.heldout_gain)
+
+    def handicap(self, candidate) -> float:
+        """What a candidate's ΔBIC is raised by for ranking and for the threshold: |:attr:`bic`|
+        for a shape-free term, nothing for a library effect.
+
+        A shape-free term is chosen from a dozen families, its roughness from a grid, and its
+        effective parameter count does not see either choice: the handicap is that search's
+        price. Without it, a leakage of free shape soaked up 7 % of the held-out RMS of a log
+        whose pilot transducer drifted from run to run (ΔBIC −14; tests/test_hidden_effects.py),
+        and flow-force and discharge shapes were added beside hidden library terms under map
+        mismatch (tests/test_mismatch.py)."""
+        return -self.bic if getattr(candidate, "shape_free", False) else 0.0
+
+    def rank(self, candidate) -> tuple[float, float]:
+        """The sort key of the candidates, best first: ΔBIC with the shape-free handicap, then
+        the RMS after."""
+        return (candidate.delta_bic + self.handicap(candidate), candidate.rms_after)
+
+    def stable(self, group_share: float) -> bool:
+        """Whether a candidate whose group is chosen in ``group_share`` of the resamples over
+        runs is a finding (the last test)."""
+        return group_share >= self.inclusion_min
+
+
+#: the rule the package uses
+RULE = SignificanceRule()
+
+
+def delta_bic(rss_after: float, rss_before: float, n_eff: float, extra: float) -> float:
+    """n_eff·ln(S_after/S_before) + k·ln(n_eff): the gain in fit against the ``extra``
+    parameters it took (a shape-free term's effective number, a fraction)."""
+    return float(n_eff * np.log(max(rss_after, 1e-300) / rss_before) + extra * np.log(n_eff))
+
+
+def gains_in_own_view(candidate, median_before: float, half_before: float) -> bool:
+    """Whether ``candidate`` narrows the view its physics acts on (RMS [Pa] before it given):
+    a friction term the half-width of the runs' hysteresis, any other term their median line.
+
+    Friction splits the up and down ramps; a friction term that leaves that split no closer to
+    the data is soaking up something else (the maps' error moves both ramps alike). A term
+    that moves both ramps alike must bring their median line closer. A necessary condition,
+    not a sufficient one: how much of the gain lies in each view is only reported
+    (:func:`surrogate.reporting.prose.hysteresis_sentence`), since a weak friction can gain more
+    on the median line than on the half-width where the piston sticks at the ramps' ends.
+    """
+    after, before = ((candidate.half_width_rms, half_before) if candidate.kind == "friction"
+                     else (candidate.median_rms, median_before))
+    if not (np.isfinite(after) and np.isfinite(before)):
+        return True  # a log without both ramps at equal flow has no such view to judge by
+    return after < before

@@ -1,0 +1,374 @@
+"""Fitting a shape-free effect (:mod:`surrogate.effects.shapes`) to a log, cheaply.
+
+A shape-free term is linear in its coefficients: its hook's output is Σ_k c_k·b_k(x). To first
+order, a sample's Δp answers a small extra hook output with a *sensitivity* that depends on the
+sample's state, not on where the output came from. So one replay with a uniform output (a force
+of 1 N everywhere, a friction band widened by 1 N ...) measures that sensitivity s at every
+sample, and the Jacobian column of coefficient k is b_k(x)·s: a whole basis costs one replay,
+not one per coefficient. Where friction holds the piston, a sample answers the output it met when
+the piston last moved, not its own; the column is then approximate, and the refinement's real
+replays (Gauss–Newton with Broyden updates, :class:`~surrogate.leastsquares.Minimizer`) correct
+what it got wrong.
+
+The roughness penalty's weight λ is chosen by the held-out runs: for each λ of
+:data:`ROUGHNESS_WEIGHTS` the linearised fit is refitted without each run, each temperature and
+each pilot pressure in turn (:class:`~surrogate.fitting.heldout.RunBlocks`, with the maps'
+discrepancy), and the λ
+that predicts the left-out runs best (pooled over the schemes) is kept.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import lsq_linear
+
+from ..effects import BalanceState, Effect, FlowState, Parameter
+from ..effects.shapes import NU_REFERENCE, PRESSURE_DROP, SHAPE_FREE, ShapeFreeEffect
+from ..fitting.heldout import Linearised, RunBlocks, held_at_bounds
+from ..fitting.logfit import probe_change
+from ..fitting.residuals import LogReplay
+from ..leastsquares import Minimizer
+from ..model import ValveModel
+from ..parallel import map_threads
+from ..units import LPM, from_si, to_si
+from .refit import candidate_of
+from .result import ShapeCurve
+
+#: λ tried, relative to the columns' mean square (so that the choice does not depend on units)
+ROUGHNESS_WEIGHTS = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+
+
+# --- probes: how Δp answers a uniform hook output ----------------------------------------------
+
+class _Probe(Effect):
+    """A uniform output ``v`` of one hook everywhere: the probe of :func:`sensitivities`."""
+
+    category = "physics"
+    title = "probe"
+
+
+class _ForceProbe(_Probe):
+    name, kind = "probe_force", "force"
+    parameter_specs = (Parameter("v", 0.0, "N", min=-50.0, max=50.0),)
+
+    def force(self, state: BalanceState) -> np.ndarray:
+        return np.broadcast_to(self["v"], state.u.shape)
+
+
+class _FrictionProbe(_Probe):
+    name, kind = "probe_friction", "friction"
+    parameter_specs = (Parameter("v", 0.0, "N", min=0.0, max=50.0),)
+
+    def friction(self, state: BalanceState) -> np.ndarray:
+        return np.broadcast_to(self["v"], state.u.shape)
+
+
+class _LeakageProbe(_Probe):
+    name, kind = "probe_leakage", "leakage"
+    parameter_specs = (Parameter("v", 0.0, "L/min", min=0.0, max=5.0 * LPM),)
+
+    def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
+        return np.where(dp > 0, self["v"], 0.0)
+
+
+class _FlowForceProbe(_Probe):
+    name, kind = "probe_flow_force", "force"
+    parameter_specs = (Parameter("v", 0.0, "1", min=-1.0, max=1.0),)
+
+    def force(self, state: BalanceState) -> np.ndarray:
+        return self["v"] * state.flow_force
+
+
+class _DischargeProbe(_Probe):
+    name, kind = "probe_discharge", "flow"
+    parameter_specs = (Parameter("v", 0.0, "1", min=-0.5, max=0.5),)
+
+    def restriction_flow(self, q: np.ndarray, state: FlowState) -> np.ndarray:
+        return q / (1.0 + self["v"])
+
+
+#: the probe of each shape-free effect's hook, by what the shape scales
+_PROBES = {"force": _ForceProbe, "friction": _FrictionProbe, "leakage": _LeakageProbe,
+           "flow force": _FlowForceProbe, "discharge": _DischargeProbe}
+
+
+def probe_of(cls: type[ShapeFreeEffect]) -> type[_Probe]:
+    """The probe whose uniform output a shape of ``cls`` scales sample by sample."""
+    if cls.kind == "flow":
+        return _DischargeProbe
+    if cls.kind == "force" and cls.value_unit == "1":
+        return _FlowForceProbe
+    return _PROBES[cls.kind]
+
+
+def sensitivity(model: ValveModel, probe: type[_Probe], base: LogReplay) -> np.ndarray:
+    """Δp's change [Pa] per SI unit of the probe's uniform output at every sample of ``base``'s
+    log (0 where the model has no solution), from one replay warm-started at ``base``."""
+    trial = model.copy()
+    trial.effects.append(probe())
+    step, change = probe_change(trial, probe.name, "v", base.log, base)
+    return np.where(np.isfinite(change), change, 0.0) / step
+
+
+# --- the variables at the samples ----------------------------------------------------------------
+
+def state_at_samples(model: ValveModel, base: LogReplay) -> dict[str, np.ndarray]:
+    """Every shape's variable [SI] at each sample of ``base`` as the model sees it: the opening
+    and Δp of its replay, the sensor-corrected readings, p_L = p_B + Δp, the oil's viscosity."""
+    points = model.true_points(base.replay.points)
+    dp = base.replay.dp
+    return {"u": base.replay.u, "p_L": points.p_B + dp, "p_P": points.p_P, "p_B": points.p_B,
+            "p_LP": points.p_B + dp - points.p_P, "nu": model.fluid(base.replay.points).nu,
+            "q": points.q, "dp": dp}
+
+
+def variable_values(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) -> np.ndarray:
+    return state[cls.variable.name]
+
+
+def column_factor(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) -> np.ndarray:
+    """What multiplies the basis in the hook's output besides the coefficients (the laminar
+    viscosity factor of a leakage, 1 otherwise)."""
+    if cls.variable is PRESSURE_DROP:
+        return NU_REFERENCE / state["nu"]
+    return np.ones(len(state["u"]))
+
+
+# --- the fit -------------------------------------------------------------------------------------
+
+@dataclass
+class ShapeColumns:
+    """A shape-free effect on the log's knots and its linearised columns at the solved samples.
+
+    Attributes
+    ----------
+    effect : ShapeFreeEffect
+        The effect, off, on knots where the log's values of its variable lie.
+    columns : numpy.ndarray
+        (n, k) [Pa]: Δp's change at each solved sample for a step ``steps[j]`` of coefficient j.
+    steps : numpy.ndarray
+        (k,) [SI]: one display unit of each coefficient.
+    roughness : numpy.ndarray
+        The penalty's difference matrix over the coefficients (SI values).
+    """
+
+    effect: ShapeFreeEffect
+    columns: np.ndarray
+    steps: np.ndarray
+    roughness: np.ndarray
+
+    @property
+    def scale(self) -> float:
+        """The columns' mean square per coefficient [Pa²] (λ is relative to it)."""
+        return float(np.sum(self.columns**2)) / max(self.columns.shape[1], 1)
+
+    def penalty(self, weight: float) -> np.ndarray:
+        """L over the coefficients' SI values for a relative weight ``weight``: ‖L·c‖² is
+        weight·scale·Σ(differences in display units)²."""
+        return np.sqrt(weight * self.scale) * self.roughness / self.steps
+
+
+def last_moving(x: np.ndarray, moving: np.ndarray, runs: np.ndarray) -> np.ndarray:
+    """``x`` with each held sample's value replaced by that of the last sample of its run at
+    which the piston moved (its own before the run's first move)."""
+    frame = pd.DataFrame({"x": np.where(moving, x, np.nan), "run": runs})
+    carried = frame.groupby("run", sort=False)["x"].ffill().to_numpy()
+    return np.where(np.isfinite(carried), carried, x)
+
+
+def shape_columns(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray],
+                  sensitivities: np.ndarray, ok: np.ndarray, moving: np.ndarray,
+                  runs: np.ndarray) -> ShapeColumns:
+    """The effect on knots at the values its variable takes where the piston moves (``moving``;
+    where it rests on a stop or friction holds it, a shape's value changes nothing), and its
+    columns at the solved samples ``ok`` (``runs``: each sample's run)."""
+    x = variable_values(cls, state)
+    where = ok & moving & np.isfinite(x)
+    effect = cls.on_knots(cls.knots_for(x[where if where.any() else ok & np.isfinite(x)]))
+    steps = np.array([float(to_si(1.0, cls.value_unit) - to_si(0.0, cls.value_unit))]
+                     * len(effect.coefficients))
+    # A held piston stays where the shape's output put it when it last moved: that part of a
+    # held sample's answer is the output at that moment. A flow or a leakage also acts on the
+    # held sample itself, through the restriction at its fixed opening (local_sensitivity).
+    def basis_at(values):
+        return effect.basis(np.where(np.isfinite(values[ok]), values[ok], effect.knots[0]))
+
+    now, then = basis_at(x), basis_at(last_moving(x, moving, runs))
+    factor = column_factor(cls, state)[ok]
+    local = local_sensitivity(cls, state)[ok]
+    columns = (then * (factor * sensitivities[ok])[:, None]
+               + (now - then) * (factor * local)[:, None])
+    return ShapeColumns(effect, columns * steps, steps, effect.roughness())
+
+
+def local_sensitivity(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) -> np.ndarray:
+    """Δp's change [Pa] per SI unit of the shape's output at a fixed opening: a flow effect
+    scales the restriction's Δp ∝ (q/C_d)² by (1 + d)⁻², a leakage takes its flow from the
+    restriction's; a force or a friction moves nothing while the piston is held."""
+    dp, q = state["dp"], state["q"]
+    if cls.kind == "flow":
+        return -2.0 * dp
+    if cls.kind == "leakage":
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(q > 0, -2.0 * dp / q, 0.0)
+    return np.zeros(len(dp))
+
+
+@dataclass
+class RoughnessChoice:
+    """The roughness weight a shape's held-out runs chose, and the linear fit at it."""
+
+    weight: float
+    heldout: dict  # [Pa] per scheme and "pooled"
+    coefficients: np.ndarray  # [SI]
+    rms: float  # [Pa] of the linear fit, in sample
+
+
+def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
+                     runs: np.ndarray, discrepancy, prior: float, schemes: dict,
+                     weights: tuple[float, ...] = ROUGHNESS_WEIGHTS) -> RoughnessChoice:
+    """The weight of :data:`ROUGHNESS_WEIGHTS` whose linearised fit (the model's own columns
+    ``own`` refitted too, coefficients within their bounds) predicts held-out runs best, pooled
+    over the held-out schemes (:meth:`~surrogate.fitting.heldout.RunBlocks.heldout_rms`).
+
+    ``residual`` [Pa] is the model's at its optimum on the solved samples, ``discrepancy`` and
+    ``prior`` (s² [Pa²]) the maps' nuisance terms of the judgement.
+    """
+    k, p = shape.columns.shape[1], own.shape[1]
+    jacobian = np.column_stack([own, shape.columns])
+    parameters = shape.effect.params
+    names = shape.effect.coefficient_names()
+    lower = np.r_[[-np.inf] * p, [parameters[n].min / s for n, s in zip(names, shape.steps)]]
+    upper = np.r_[[np.inf] * p, [parameters[n].max / s for n, s in zip(names, shape.steps)]]
+    best = None
+    for weight in weights:
+        rough = np.hstack([np.zeros((shape.roughness.shape[0], p)),
+                           np.sqrt(weight * shape.scale) * shape.roughness])
+        ridge = 1e-8 * np.sqrt(shape.scale) * np.eye(p + k)  # keeps collinear columns defined
+        theta = lsq_linear(np.vstack([jacobian, rough, ridge]),
+                           np.r_[-residual, np.zeros(len(rough) + p + k)],
+                           bounds=(lower, upper)).x
+        fitted = residual + jacobian @ theta
+        # held out: refits of the shape's linearisation at this fit, its inactive bounds free
+        active = np.r_[np.ones(p, bool), (theta[p:] > lower[p:] + 1e-9) | ~np.isfinite(lower[p:])]
+        blocks = RunBlocks(Linearised(fitted, jacobian[:, active]), discrepancy, runs, prior,
+                           (rough[:, active], rough @ theta))
+        heldout = blocks.heldout_rms(schemes)
+        if best is None or heldout["pooled"] < best.heldout["pooled"]:
+            best = RoughnessChoice(weight, heldout, theta[p:] * shape.steps,
+                                   float(np.sqrt(np.mean(fitted**2))))
+    return best
+
+
+# --- shape-free candidates -----------------------------------------------------------------------
+
+#: points of a shape's curve in the diagnosis (its JSON, its figure)
+CURVE_POINTS = 41
+
+
+def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
+                          classes=SHAPE_FREE, *, steps: int, workers: int | None = None,
+                          say=None) -> list:
+    """Every shape-free effect of ``classes`` fitted beside the model's own parameters and
+    judged like a library candidate (:mod:`surrogate.diagnosis.judge`), with its roughness.
+
+    Each shape's coefficients are linearised from one probe replay of its hook
+    (:func:`sensitivity`; five replays in all), its roughness weight chosen by held-out runs
+    (:func:`choose_roughness`), and only the shapes whose linear fit predicts the runs left out
+    better by the rule's held-out gain are refitted for real (the others cannot pass the rule;
+    they are left out, at no replay). ``problem`` is the diagnosis' :class:`~surrogate.
+    diagnosis.refit.DiagnosisProblem`, ``own_columns`` its model's columns, ``judge`` its
+    :class:`~surrogate.diagnosis.judge.Judge`.
+    """
+    say = say or (lambda message: None)
+    base, ok = problem.base, problem.ok
+    state = state_at_samples(model, base)
+    probes = list(dict.fromkeys(probe_of(cls) for cls in classes))
+    say(f"probing how Δp answers {len(probes)} kind(s) of shape-free term")
+    sensitivities = dict(zip(probes, map_threads(
+        lambda probe: sensitivity(model, probe, base), probes, workers=workers)))
+
+    def linear(cls):
+        columns = shape_columns(cls, state, sensitivities[probe_of(cls)], ok,
+                                base.replay.moving, base.runs)
+        choice = choose_roughness(columns, problem.base_evaluation.residual, judge.own,
+                                  judge.runs, judge.discrepancy, judge.penalty, judge.schemes)
+        return cls, columns, choice
+
+    fits = [fit for fit in map_threads(linear, classes, workers=workers)
+            if judge.rule.predicts_unseen(_Scores(fit[2].heldout), judge.heldout)]
+    say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
+        "better")
+    return list(map_threads(lambda fit: _refitted(model, problem, own_columns, judge, *fit,
+                                                  steps=steps), fits, workers=workers))
+
+
+@dataclass
+class _Scores:
+    """Held-out RMS per scheme, as the rule reads them off a candidate."""
+
+    heldout: dict
+
+
+def _refitted(model, problem, own_columns, judge, cls, columns: ShapeColumns,
+              choice: RoughnessChoice, *, steps: int):
+    """The shape refitted with the model's parameters (Gauss–Newton with Broyden updates, the
+    roughness penalty included), judged, with its curve."""
+    trial = model.copy()
+    effect = columns.effect.copy()
+    trial.effects.append(effect)
+    names = [c.key for c in own_columns] + [f"{cls.name}.{name}"
+                                            for name in effect.coefficient_names()]
+    penalty = np.hstack([np.zeros((columns.roughness.shape[0], len(own_columns))),
+                         columns.penalty(choice.weight)])
+    minimizer = Minimizer(trial, problem, names)
+    minimizer.linearise([c.change for c in own_columns] + list(columns.columns.T),
+                        [c.step for c in own_columns] + list(columns.steps),
+                        problem.base_evaluation, penalty=penalty).refine(1 + steps)
+    candidate = candidate_of(cls, minimizer, len(columns.steps), problem)
+    # the refits of the judgement know no bounds: a coefficient on its bound takes no part
+    jacobian = held_at_bounds(minimizer.refined_jacobian, minimizer.parameters)
+    free = [i for i, parameter in enumerate(minimizer.parameters)
+            if i < len(own_columns) or not parameter.at_bound]
+    scale = np.array([p.value for p in minimizer.parameters])
+    steps_si = np.r_[[c.step for c in own_columns], columns.steps]
+    rough = penalty * steps_si  # in the Jacobian's columns: one step of each parameter
+    roughness = (rough[:, free], penalty @ scale)
+    candidate = replace(candidate, linearised=(candidate.linearised[0], jacobian[:, free]))
+    shape = [k for k, i in enumerate(free) if i >= len(own_columns)]
+    judged = judge.judge(candidate, roughness, shape)
+    fitted = judged.model.effect(cls.name)
+    return replace(judged, curve=shape_curve(fitted, jacobian[:, free], judged.linearised[0],
+                                             rough[:, free], free, len(own_columns),
+                                             problem.n_eff, choice.weight))
+
+
+def shape_curve(effect: ShapeFreeEffect, jacobian: np.ndarray, residual: np.ndarray,
+                rough: np.ndarray, free: list[int], own: int, n_eff: float,
+                weight: float):
+    """The fitted shape on :data:`CURVE_POINTS` points of its variable, with one standard
+    deviation from the penalised fit's covariance (σ² from the residual, widened for the
+    samples' correlation in time, like the fit's standard errors)."""
+    x = np.linspace(effect.knots[0], effect.knots[-1], CURVE_POINTS)
+    basis = effect.basis(x)
+    count, size = jacobian.shape
+    variance = float(residual @ residual) / max(count - size, 1) * count / max(n_eff, 1.0)
+    try:
+        covariance = np.linalg.pinv(jacobian.T @ jacobian + rough.T @ rough) * variance
+    except np.linalg.LinAlgError:
+        covariance = np.full((size, size), np.nan)
+    coefficient = [i - own for i in free if i >= own]
+    shape_rows = [k for k, i in enumerate(free) if i >= own]
+    steps = np.array([float(to_si(1.0, effect.value_unit) - to_si(0.0, effect.value_unit))]
+                     * len(effect.coefficients))
+    scaled = basis[:, coefficient] * steps[coefficient]
+    block = covariance[np.ix_(shape_rows, shape_rows)]
+    std = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", scaled, block, scaled), 0.0, None))
+    variable = effect.variable
+    return ShapeCurve(variable.name, variable.label, variable.unit, effect.value_unit,
+                      from_si(x, variable.unit), from_si(effect.shape(x), effect.value_unit),
+                      from_si(std, effect.value_unit) - from_si(0.0, effect.value_unit),
+                      weight)

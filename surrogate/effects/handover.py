@@ -1,0 +1,136 @@
+"""A fitted shape handed over as code: an effects file the user reads, edits and tests.
+
+A shape a diagnosis found (:mod:`.shapes`) is a hypothesis, not a finding with a name. The user
+needs it in a form they can own: a ``@custom_effect`` file (:mod:`.custom`) holding the fitted
+shape as a table in display units and one parameter, ``scale``, that a fit sets (about 1 when the
+shape is right). Added with ``--effects-file FILE --add NAME`` to ``fit`` or ``workflow``, it
+reproduces the shape-free term's gain with a single parameter; the user can then replace the
+table by a formula of their own (a spring with a kink, a detent) and watch the error.
+"""
+
+from __future__ import annotations
+
+import re
+import textwrap
+from pathlib import Path
+
+import numpy as np
+
+from ..outputs import atomic_file
+from ..units import to_si
+from .shapes import ShapeFreeEffect
+
+#: table rows written: enough that linear interpolation follows a cubic spline to well below
+#: its standard error
+TABLE_POINTS = 81
+
+_SIGNATURES = {"force": "state", "friction": "state", "leakage": "dp, state", "flow": "q, state"}
+
+
+def effect_name(effect: ShapeFreeEffect, suffix: str = "") -> str:
+    """A Python identifier for the handed-over effect: ``found_`` + the shape's name."""
+    base = "found_" + effect.name.removeprefix("shape_")
+    return re.sub(r"\W", "_", base + (f"_{suffix}" if suffix else ""))
+
+
+def effect_source(effect: ShapeFreeEffect, *, name: str | None = None, origin: str = "",
+                  note: str = "") -> str:
+    """The source of an effects file reproducing ``effect``'s fitted shape.
+
+    Parameters
+    ----------
+    effect : ShapeFreeEffect
+        The fitted shape-free effect.
+    name : str, optional
+        The effect's name in the file (default :func:`effect_name`).
+    origin : str
+        Where it was found (the bench log, the model), for the file's docstring.
+    note : str
+        What else to say about it (its gain, its look-alikes, a library term close to it).
+    """
+    name = name or effect_name(effect)
+    variable = effect.variable
+    x, values = effect.table(TABLE_POINTS)
+    x_unit, value_unit = variable.unit, effect.value_unit
+    x_factor = float(to_si(1.0, x_unit) - to_si(0.0, x_unit))
+    value_factor = float(to_si(1.0, value_unit) - to_si(0.0, value_unit))
+    if effect.rising:  # rounding must not make a rising table fall or go negative
+        values = np.maximum.accumulate(np.maximum(values, 0.0))
+    shape = (f"scale * np.interp({variable.source} / {x_factor!r}, X, VALUES) "
+             f"* {value_factor!r}")
+    bounds = (0.0, 3.0)
+    title = effect.title.replace(", of free shape", ", as found")
+    doc = [f"{title[0].upper()}{title[1:]}."]
+    if origin:
+        doc.append(f"Found by cbv-surrogate's diagnosis on {origin}.")
+    if note:
+        doc.append(note)
+    doc.append(f"The table is the fitted shape: {variable.label} [{x_unit}] against the "
+               f"{effect.quantity} [{value_unit}], linear between rows and held beyond them. "
+               "scale = 1 reproduces it; a fit of scale says how much of it the data want. "
+               "Replace the table by a formula of your own to test a physical explanation.")
+    docstring = "\n\n".join(textwrap.fill(paragraph, 95, initial_indent="    ",
+                                          subsequent_indent="    ") for paragraph in doc)
+    return f'''"""{textwrap.fill(doc[0], 95)}
+
+Use it:
+
+    python -m surrogate fit --model MODEL --data LOG --effects-file {name}.py \\
+        --add {name} --out fitted.toml
+    python -m surrogate workflow --data LOG --effects-file {name}.py --out DIR
+"""
+
+import numpy as np
+
+from surrogate.effects import custom_effect
+
+#: {variable.label} [{x_unit}]
+X = np.array({_numbers(x)})
+#: the {effect.quantity} there [{value_unit}]
+VALUES = np.array({_numbers(values)})
+
+
+@custom_effect({effect.kind!r}, units={{"scale": "1"}}, bounds={{"scale": {bounds!r}}},
+               category={effect.category!r},
+               title={title!r})
+def {name}({_SIGNATURES[effect.kind]}, scale=0.0):
+    """{docstring.strip()}
+    """
+    return {effect.formula.format(shape=f"({shape})")}
+'''
+
+
+def write_effect_file(effect: ShapeFreeEffect, path: str | Path, **options) -> Path:
+    """Write :func:`effect_source` to ``path`` (all at once); return the path."""
+    path = Path(path)
+    options.setdefault("name", path.stem if path.stem.isidentifier() else None)
+    with atomic_file(path) as stream:
+        stream.write(effect_source(effect, **options))
+    return path
+
+
+def hand_over(effects, folder: str | Path, *, origin: str = "",
+              notes: dict[str, str] | None = None) -> dict[str, str]:
+    """Write one effects file per shape-free effect of ``effects`` into ``folder`` (a staging
+    folder: the caller publishes it whole); return {effect name: file name}. Other effects are
+    skipped: a library or custom effect already has its code."""
+    notes = notes or {}
+    written = {}
+    for effect in effects:
+        if not isinstance(effect, ShapeFreeEffect):
+            continue
+        name = effect_name(effect)
+        write_effect_file(effect, Path(folder) / f"{name}.py", origin=origin,
+                          note=notes.get(effect.name, ""))
+        written[effect.name] = f"{name}.py"
+    return written
+
+
+def _numbers(values: np.ndarray) -> str:
+    """A list literal of ``values``, seven to a line, with six significant digits."""
+    items = [f"{float(value):.6g}" for value in values]
+    lines = [", ".join(items[i:i + 7]) for i in range(0, len(items), 7)]
+    return "[" + ",\n    ".join(lines) + "]"
+
+
+__all__ = ["effect_name", "effect_source", "hand_over", "write_effect_file"]

@@ -1,0 +1,246 @@
+"""The diagnosis in words: what the numbers of :mod:`surrogate.diagnosis` say, for people.
+
+:func:`summarise` writes the summary the workflow, the command line and the report show;
+:func:`diagnosis_document` is the diagnosis as JSON, numbers and words together.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..diagnosis.naming import WITHIN, library_matches, shape_features
+from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
+from ..diagnosis.rule import RULE
+from ..planning.bench_runs import Separation, search_range
+from ..units import from_si
+
+# a residual within 1.3x the noise floor counts as noise in the summary: the floor estimate runs
+# ~10 % low when friction holds the piston (input noise then reaches Δp in bursts, not white)
+NOISE_LEVEL = 1.3
+#: share of a candidate's gain (in sum of squares) that must lie in the view its physics acts on
+#: before the summary stops warning: friction on the half-width, the rest on the median line
+OWN_VIEW_SHARE = 0.25
+
+
+def sensor_check_text(check: SensorCheck) -> str:
+    """``run R03: pilot-pressure transducer zero looks +0.40 bar off (± 0.05)``."""
+    return (f"run {check.run}: {check.title} looks {check.value:+.2f} {check.unit} off "
+            f"(± {check.stderr:.2f})")
+
+
+def map_limit_texts(diagnosis: Diagnosis) -> list[str]:
+    """Where the maps' error shows most, e.g. ``force map near 0.16 mm (1.34 bar RMS)``."""
+    return [f"{limit.where} ({from_si(limit.rms, 'bar'):.2f} bar RMS)"
+            for limit in diagnosis.map_limits]
+
+
+def diagnosis_document(diagnosis: Diagnosis) -> dict:
+    """The diagnosis as plain JSON data: numbers in bar, NaN as null, with its summary."""
+    return {"model": diagnosis.model.name,
+            "rms_before_bar": rounded_bar(diagnosis.rms_before),
+            "noise_floor_bar": rounded_bar(diagnosis.noise_floor),
+            "effective_samples": round(diagnosis.effective_samples, 1),
+            "heldout_rms_bar": rounded_bar(diagnosis.heldout_before),
+            "heldout_rms_by_scheme_bar": {k: rounded_bar(v) for k, v
+                                          in diagnosis.heldout_by_scheme.items()
+                                          if k != "pooled"},
+            "expected_rms_bar": rounded_bar(diagnosis.expected_rms),
+            "median_line_rms_bar": rounded_bar(diagnosis.median_before),
+            "half_width_rms_bar": rounded_bar(diagnosis.half_width_before),
+            "map_limits": map_limit_texts(diagnosis),
+            "sensor_checks": [{"effect": check.effect, "run": check.run,
+                               "value": round(check.value, 4),
+                               "stderr": round(check.stderr, 4), "unit": check.unit,
+                               "text": sensor_check_text(check)}
+                              for check in diagnosis.sensor_checks],
+            "separating_run": (diagnosis.separation.to_json()
+                               if diagnosis.separation is not None else None),
+            "summary": summarise(diagnosis),
+            "candidates": [c.to_json() for c in diagnosis.candidates],
+            "residual_correlations": {k: round(v, 3)
+                                      for k, v in diagnosis.correlations.items()}}
+
+
+def hysteresis_share(diagnosis: Diagnosis, candidate: Candidate) -> float:
+    """The share of ``candidate``'s gain, in the sum of squares of the two views, that lies in
+    the half-width (NaN when it gains in neither)."""
+    median = diagnosis.median_before**2 - candidate.median_rms**2
+    half = diagnosis.half_width_before**2 - candidate.half_width_rms**2
+    gain = max(median, 0.0) + max(half, 0.0)
+    return max(half, 0.0) / gain if gain > 0 else float("nan")
+
+
+def hysteresis_sentence(diagnosis: Diagnosis, candidate: Candidate) -> str:
+    """Where the candidate's gain lies: the runs' median line or their half-width."""
+    share = hysteresis_share(diagnosis, candidate)
+    if not np.isfinite(share):
+        return ""
+    views = (f" Of its gain, {100 * share:.0f} % lies in the runs' hysteresis half-width "
+             f"({from_si(diagnosis.half_width_before, 'bar'):.2f} → "
+             f"{from_si(candidate.half_width_rms, 'bar'):.2f} bar RMS) and "
+             f"{100 * (1 - share):.0f} % in their median line "
+             f"({from_si(diagnosis.median_before, 'bar'):.2f} → "
+             f"{from_si(candidate.median_rms, 'bar'):.2f} bar).")
+    friction = candidate.kind == "friction"
+    own = share if friction else 1.0 - share
+    if own < OWN_VIEW_SHARE:
+        views += (" Friction splits the ramps, so a friction term that gains mostly on the "
+                  "median line, where the maps' error acts too, is provisional: refit it to the "
+                  "hysteresis alone before trusting it." if friction else
+                  " A term that moves both ramps alike but gains mostly on the half-width acts "
+                  "like friction here: a friction candidate may be the better explanation.")
+    return views
+
+
+def separation_advice(separation: Separation | None) -> str:
+    """What would decide between the best candidate and its look-alike."""
+    if separation is None:
+        return "pick by physical knowledge or a dedicated test."
+    if separation.decides:
+        return f"{separation} would tell them apart: their Δp differ there by {separation.gap()}."
+    return (f"no bench run {search_range()} separates them by the noise floor (at best by "
+            f"{separation.gap()}, {separation.where()}): pick by "
+            "physical knowledge or a dedicated test (a transducer calibration, a spring measured "
+            "on its own).")
+
+
+def summarise(diagnosis: Diagnosis) -> str:
+    """Plain sentences: the most likely missing effect (with its category, held-out gain and
+    inclusion frequency), or why none is named, where the maps limit the diagnosis, and what
+    the per-run readings say about the sensors."""
+    before = from_si(diagnosis.rms_before, "bar")
+    floor = from_si(diagnosis.noise_floor, "bar")
+    expected = from_si(diagnosis.expected_rms, "bar")
+    best = diagnosis.best
+    if best is None:
+        unstable = next((c for c in diagnosis.candidates if not c.stable and RULE.passes(
+            c, diagnosis.rms_before, diagnosis.noise_floor, diagnosis.heldout_by_scheme)), None)
+        if diagnosis.rms_before <= NOISE_LEVEL * diagnosis.noise_floor:
+            sentence = (f"Nothing beyond noise is left: the residual RMS ({before:.2f} bar) is "
+                        f"within {NOISE_LEVEL:.1f}x the noise floor ({floor:.2f} bar) and no "
+                        "candidate improves the model significantly.")
+        elif np.isfinite(expected) and before <= expected:
+            sentence = (f"The residual ({before:.2f} bar RMS) is within what the noise "
+                        f"({floor:.2f} bar) and the maps' uncertainty allow together "
+                        f"({expected:.2f} bar), and no candidate explains more than the maps' "
+                        "own error could: nothing can be concluded beyond the maps.")
+        else:
+            sentence = (f"No candidate in the library explains the residual significantly on "
+                        f"runs it was not fitted to, but it ({before:.2f} bar) is still "
+                        f"{before / floor:.1f}x the noise floor ({floor:.2f} bar): the missing "
+                        "physics may lie outside the library, or in the maps; a custom effect "
+                        "(--effects-file) can test a hypothesis.")
+        if unstable is not None:
+            share = diagnosis.group_inclusion(unstable)
+            sentence += (f" {unstable.title[0].upper()}{unstable.title[1:]} ({unstable.name}) "
+                         f"would explain part of this log (ΔBIC {unstable.delta_bic:.0f}), but "
+                         f"it is chosen in only {100 * share:.0f} % of resamples "
+                         "over runs: which runs the log holds decides it, so it is not a "
+                         "finding; more runs where it acts would settle it.")
+    elif best.shape_free:
+        sentence = shape_sentence(diagnosis, best)
+    elif len(best.group) > 1:
+        sentence = look_alike_sentence(diagnosis, best)
+    else:
+        params = ", ".join(str(p) for p in best.params if p.vary)
+        sentence = (f"The most likely missing effect is {best.title} ({best.name}, "
+                    f"{best.category}): adding it lowers the residual RMS from {before:.2f} to "
+                    f"{from_si(best.rms_after, 'bar'):.2f} bar and the RMS on held-out runs from "
+                    f"{from_si(diagnosis.heldout_before, 'bar'):.2f} to "
+                    f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor {floor:.2f} bar, "
+                    f"ΔBIC {best.delta_bic:.0f} against the maps' own error, chosen in "
+                    f"{100 * best.inclusion:.0f} % of resamples over runs) with {params}.")
+        sentence += hysteresis_sentence(diagnosis, best)
+        if best.category == "map correction":
+            sentence += (" It patches the CFD maps rather than adding valve physics: "
+                         "more CFD where the bench operates would replace it.")
+    if diagnosis.map_limits:
+        sentence += (" The maps' error shows most " + "; ".join(map_limit_texts(diagnosis))
+                     + ": `suggest-cfd` lists the CFD runs that would settle it.")
+    if diagnosis.sensor_checks:
+        sentence += (" Sensor check (never part of the model): "
+                     + "; ".join(map(sensor_check_text, diagnosis.sensor_checks[:3])) + ".")
+    return sentence
+
+
+def explanation(candidate: Candidate) -> str:
+    """One explanation of a finding: what it is, its category and its fitted size."""
+    params = ", ".join(str(p) for p in candidate.params if p.vary)
+    return f"{candidate.title} ({candidate.name}, {candidate.category}: {params})"
+
+
+def look_alike_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
+    """A finding the log cannot attribute: every explanation with its category and size, none
+    preferred, and what would decide."""
+    members = [c for c in diagnosis.candidates if c.name in best.group]
+    categories = sorted({c.category for c in members})
+    sentence = (f"The log holds one finding with {len(members)} explanations it cannot tell "
+                f"apart: " + ", or ".join(map(explanation, members)) + ". On this log they "
+                "are the same term of the force balance (their effects are collinear), so "
+                "neither is preferred: either lowers the residual RMS from "
+                f"{from_si(diagnosis.rms_before, 'bar'):.2f} to about "
+                f"{from_si(best.rms_after, 'bar'):.2f} bar and the RMS on held-out runs from "
+                f"{from_si(diagnosis.heldout_before, 'bar'):.2f} to about "
+                f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor "
+                f"{from_si(diagnosis.noise_floor, 'bar'):.2f} bar, ΔBIC {best.delta_bic:.0f}, "
+                f"one of them chosen in {100 * diagnosis.group_inclusion(best):.0f} % of "
+                "resamples over runs).")
+    advice = separation_advice(diagnosis.separation)
+    if len(categories) > 1:
+        sentence += (f" The explanations differ in kind ({' and '.join(categories)}): "
+                     f"check the cheaper one before changing the model; {advice}")
+    else:
+        sentence += f" {advice[0].upper()}{advice[1:]}"
+    return sentence + hysteresis_sentence(diagnosis, best)
+
+
+def shape_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
+    """What a shape-free find says: what it is, what it gains, its shape, whether a library
+    term has that shape, and how to take it over (its effects file)."""
+    curve = best.curve
+    effect = best.effect
+    before = from_si(diagnosis.rms_before, "bar")
+    sentence = (f"The log holds a {effect.quantity} that depends on {curve.label} with a shape of "
+                f"its own ({best.name}, {best.category}): a term of free shape lowers the "
+                f"residual RMS from {before:.2f} to {from_si(best.rms_after, 'bar'):.2f} bar and "
+                f"the RMS on held-out runs from {from_si(diagnosis.heldout_before, 'bar'):.2f} to "
+                f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor "
+                f"{from_si(diagnosis.noise_floor, 'bar'):.2f} bar, ΔBIC {best.delta_bic:.0f} "
+                f"against the maps' own error with {best.extra:.1f} effective parameters, chosen "
+                f"in {100 * best.inclusion:.0f} % of resamples over runs). ")
+    sentence += shape_words(best) + " " + naming_words(best)
+    sentence += (" `diagnose --out DIR` writes it as an effects file to read, edit and add with "
+                 "--effects-file.")
+    return sentence + hysteresis_sentence(diagnosis, best)
+
+
+def shape_words(candidate: Candidate) -> str:
+    """The found shape in a sentence: its range, and where it bends, rises or falls."""
+    curve = candidate.curve
+    features = shape_features(curve)
+    unit, x_unit = curve.value_unit, curve.unit
+    words = (f"Its {candidate.effect.quantity} runs from {features.low:+.3g} {unit} (at "
+             f"{features.low_at:.3g} {x_unit}) to {features.high:+.3g} {unit} (at "
+             f"{features.high_at:.3g} {x_unit})")
+    steepest = f", most steeply near {features.steepest_at:.3g} {x_unit}."
+    if features.rising:
+        return words + ", rising with it" + steepest
+    if features.falling:
+        return words + ", falling with it" + steepest
+    kind = "bump" if features.bend > 0 else "dip"
+    return (words + f", with a {kind} of {abs(features.bend):.3g} {unit} at "
+                    f"{features.bend_at:.3g} {x_unit} against the line between its ends.")
+
+
+def naming_words(candidate: Candidate) -> str:
+    """Whether a library term has the found shape, and if not, what tells them apart."""
+    matches = library_matches(candidate.name, candidate.curve)
+    if not matches:
+        return "No library term acts on this variable in this way."
+    closest = matches[0]
+    if closest.fits:
+        return (f"The library's {closest.name} fits this shape within {WITHIN:g} standard "
+                "deviations of it: prefer that term, which says the same with a name.")
+    return (f"No library term has this shape: the closest, {closest.name}, departs from it by "
+            f"{closest.worst:.1f} standard deviations at {closest.worst_at:.3g} "
+            f"{candidate.curve.unit}.")

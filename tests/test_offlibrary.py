@@ -1,0 +1,71 @@
+"""Physics beyond the library: a shape the diagnosis draws, handed over as code, does the work.
+
+The log comes from a virtual valve (:mod:`surrogate.synthetic.mismatch`: its CFD perturbed like a
+real valve's, with behaviour where the CFD has no samples) with an off-library effect hidden in
+it (:mod:`surrogate.synthetic.offlibrary`): a detent force over a narrow band of the opening,
+which no library term has. The model under test runs on the shipped grid maps and never sees the
+virtual valve. The whole stress suite is `python eval/offlibrary.py`.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from surrogate.cli import main
+from surrogate.data.writer import write_bench_log
+from surrogate.effects import KNOWN, LIBRARY, load_effects_file
+from surrogate.fitting.heldout import run_groups
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.fitting.residuals import replay_log
+from surrogate.modelfile import load_model, save_model
+from surrogate.presets import maps
+from surrogate.synthetic.mismatch import MapMismatch
+from surrogate.synthetic.offlibrary import OFF_LIBRARY, off_library_suite
+from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
+from surrogate.workbench.workflow import heldout_rms
+
+#: the file handed over must keep at least this share of the shape-free term's held-out gain
+KEPT_GAIN = 0.9
+
+
+@pytest.fixture(scope="module")
+def detent_case(bench_log):
+    case = next(c for c in off_library_suite() if c.hidden == "detent_force")
+    return hidden_effect_case(case.hidden, case.values, seed=case.seed,
+                              sequence=noise_free_sequence(bench_log, every=8),
+                              library=LIBRARY + OFF_LIBRARY, mismatch=MapMismatch(),
+                              maps_under_test=maps("grid"))
+
+
+@pytest.mark.slow
+def test_a_shape_found_by_diagnose_is_handed_over_as_a_file_that_does_its_work(
+        detent_case, tmp_path, capsys):
+    """diagnose --out writes the shape-free find as found_*.py; fit --effects-file --add takes
+    it (its scale from 0) and predicts held-out runs as well as the shape-free term did."""
+    model_file, log_file = tmp_path / "start.toml", tmp_path / "log.csv"
+    save_model(detent_case.start, model_file)
+    write_bench_log(detent_case.log, log_file)
+    common = ["--model", str(model_file), "--data", str(log_file)]
+    assert main(["diagnose", *common, "--out", str(tmp_path / "diag"), "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    best = document["candidates"][0]
+    assert best["significant"] and best["name"] == "shape_force_of_opening", document["summary"]
+    (found_name, file_name), = document["effects_files"].items()
+    assert found_name == best["name"]
+    found = tmp_path / "diag" / file_name
+    assert found.is_file() and "np.interp" in found.read_text()
+    name = found.stem
+    assert main(["fit", *common, "--effects-file", str(found), "--add", name,
+                 "--out", str(tmp_path / "fitted.toml")]) == 0
+
+    fitted = fit_to_log(load_model(str(tmp_path / "fitted.toml"), library=KNOWN + load_effects_file(found)),
+                        detent_case.log)
+    start = fit_to_log(detent_case.start, detent_case.log)
+    schemes = run_groups(detent_case.log)
+    before = heldout_rms(start, replay_log(start.model, detent_case.log), schemes)
+    after = heldout_rms(fitted, replay_log(fitted.model, detent_case.log), schemes)
+    shape_gain = before - best["heldout_rms_bar"] * 1e5
+    assert before - after >= KEPT_GAIN * shape_gain, (before, after, best["heldout_rms_bar"])
+    assert 0.5 < fitted.model.effect(name).params["scale"].value < 1.5
