@@ -28,7 +28,7 @@ from surrogate.model import ValveModel
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import Status, replay, solve_steady
-from surrogate.presets import cfda, maps
+from surrogate.presets import CFDA_START, cfda, maps
 from surrogate.solver.steady import _OPENING_FLOOR, _U_RTOL
 from surrogate.spec import EffectSpec, ModelSpec
 
@@ -79,9 +79,10 @@ def main() -> None:
     args = parser.parse_args()
 
     valve = load_valve()
-    with_friction = cfda().build()  # the paper's CFDA: scale 0.9, K1 6.5 N, K2 0.05 N/bar
-    model = ModelSpec("CFDA", maps=with_friction.to_spec().maps,
-                      effects=(EffectSpec.start(FlowForceScale, scale=0.9),)).build()
+    with_friction = cfda().build()  # the paper's CFDA at its start values (CFDA_START)
+    model = ModelSpec("CFDA", maps=ModelSpec.of(with_friction).maps,
+                      effects=(EffectSpec.start(FlowForceScale, scale=CFDA_START["scale"]),)
+                      ).build()
     points = random_points(args.points)
 
     batch_time, batch = best_time(lambda: solve_steady(model, points), args.repeats)

@@ -34,9 +34,10 @@ from threadpoolctl import threadpool_limits
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.data.loaders import CfdSamples
-from surrogate.learn import splits, training
+from surrogate.learn import training
 from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_one_ulp,
                                              prediction_difference)
+from surrogate.maps import splits
 from surrogate.maps.registry import build_maps
 from surrogate.outputs import atomic_directory
 from surrogate.paths import SHIPPED_CFD_SAMPLES

@@ -2,7 +2,7 @@
 
     python eval/surrogates.py [--out results/surrogates] [--train]
 
-* **Accuracy by cross-validation**, per kind and scheme (:mod:`surrogate.crossval`: k-fold by
+* **Accuracy by cross-validation**, per kind and scheme (:mod:`surrogate.maps.crossval`: k-fold by
   sweep, leave one opening out, leave one temperature out, back-pressure set out): relative RMS
   error of q (predicted from p_L) and of the flow force, and the share of left-out samples inside
   the calibrated ±2σ bands. The grid's cross-validation runs here (a second); the learned kinds'
@@ -31,12 +31,13 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from surrogate import load_valve
-from surrogate.crossval import SCHEMES, standard_deviations
 from surrogate.data import load_cfd_samples
 from surrogate.learn.monotonicity import random_states, violations
 from surrogate.maps.calibration import Calibration
-from surrogate.maps.learned import read_manifest
-from surrogate.maps.registry import build_maps, cross_validation_summary, map_kind, trained_folder
+from surrogate.maps.crossval import SCHEMES, standard_deviations
+from surrogate.maps.learned import trained_folder
+from surrogate.maps.package import read_manifest
+from surrogate.maps.registry import build_maps, cross_validation_summary, learned_kinds, map_kind
 from surrogate.outputs import atomic_directory
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 from surrogate.reporting.report import figure_png
@@ -163,7 +164,8 @@ def main() -> int:
                     for kind in KINDS}
     speed = throughput(valve)
     trained = training_seconds(valve) if args.train else {
-        kind: read_manifest(trained_folder(kind))["training"]["seconds"] for kind in ("nn", "gp")}
+        kind: read_manifest(trained_folder(kind), learned_kinds())["training"]["seconds"]
+        for kind in ("nn", "gp")}
 
     lines = ["Accuracy by cross-validation (relative RMS error; ±2σ: share of the left-out "
              "samples inside the calibrated band):", "", accuracy_table(summaries), "",

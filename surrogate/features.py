@@ -38,8 +38,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .fluid import FluidState
-from .maps.base import broadcast_query
+from .fluid import FluidState, broadcast_query
 from .units import BAR, P_ATM
 from .valve import ValveParameters
 

@@ -55,6 +55,18 @@ class FluidState:
         return FluidState(self.nu.ravel(), self.rho.ravel())
 
 
+def broadcast(*arrays) -> tuple[np.ndarray, ...]:
+    """Float arrays of one common shape."""
+    return np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in arrays))
+
+
+def broadcast_query(a, b, u, fluid: FluidState):
+    """(a, b, u, fluid) broadcast to one shape, fluid included: the arguments of a map query
+    (:mod:`surrogate.maps.base`) or of its features (:mod:`surrogate.features`)."""
+    a, b, u, nu, rho = broadcast(a, b, u, fluid.nu, fluid.rho)
+    return a, b, u, FluidState(nu, rho)
+
+
 @dataclass(frozen=True)
 class Oil:
     """A mineral hydraulic oil described by its datasheet values.

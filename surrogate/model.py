@@ -22,7 +22,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .effects import BalanceState, Effect, FlowState
-from .errors import InputError
 from .fluid import FluidState
 from .leakage import shared_pressure_drop
 from .maps.base import FlowMap, ForceMap
@@ -76,7 +75,8 @@ class ValveModel:
     origin : (ValveSource, MapsSpec), optional
         Where the valve and the maps come from, for a model built from a
         :class:`~surrogate.spec.ModelSpec` (the way the package builds its models); it lets the
-        model describe itself as a spec again (:meth:`to_spec`), to be saved and rebuilt.
+        model be described as a spec again (:meth:`~surrogate.spec.ModelSpec.of`), to be saved
+        and rebuilt.
     """
 
     def __init__(self, valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap,
@@ -105,24 +105,6 @@ class ValveModel:
         return ValveModel(self.valve, self.flow_map, self.force_map,
                           [effect.copy() for effect in effects], name or self.name,
                           self.origin)
-
-    def to_spec(self, description: str = ""):
-        """The :class:`~surrogate.spec.ModelSpec` of the model as it is now (its parameters'
-        current values, bounds and standard errors), to save or rebuild it.
-
-        Raises
-        ------
-        InputError
-            For a model assembled from maps directly, which cannot say where they came from.
-        """
-        from .spec import EffectSpec, ModelSpec
-
-        if self.origin is None:
-            raise InputError(f"model {self.name!r} was assembled from maps directly and does not "
-                             "record where they come from; build it from a ModelSpec to save it")
-        valve, maps = self.origin
-        return ModelSpec(self.name, valve, maps, tuple(EffectSpec.of(e) for e in self.effects),
-                         description)
 
     def effect(self, name: str) -> Effect:
         """The effect registered as ``name``."""

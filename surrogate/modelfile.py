@@ -45,4 +45,4 @@ def load_model(name_or_path: str, valve_path: str | None = None,
 def save_model(model: ValveModel, path: str | Path, note: str = "") -> None:
     """Write ``model`` as a model file (see :class:`~surrogate.spec.ModelSpec`); ``stderr``
     entries are informative."""
-    model.to_spec().write(path, note)
+    ModelSpec.of(model).write(path, note)

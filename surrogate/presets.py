@@ -14,17 +14,23 @@ from pathlib import Path
 
 from .effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
 from .errors import InputError
-from .maps.registry import BASIC_DISCHARGE_COEFFICIENT, MAP_KINDS, MapsSpec, map_kind
+from .maps.orifice import BASIC_DISCHARGE_COEFFICIENT
+from .maps.registry import MAP_KINDS, MapsSpec, map_kind
 from .spec import EffectSpec, ModelSpec, ValveSource
 
-#: the paper's CFDA starting values: flow-force scale, K1 [N], K2 [N/bar]
+#: the paper's CFDA starting values: flow-force scale, K1 [N], K2 [N/bar]; every model that adds
+#: CFDA's effects starts from these
 CFDA_START = {"scale": 0.9, "K1": 6.5, "K2": 0.05}
+#: where the paper's comparison starts its friction fits per temperature (Table 6): about the
+#: values of the paper's Table 6, K1 [N], K2 [N/bar], not CFDA's start
+TABLE6_FRICTION_START = {"K1": 8.0, "K2": 0.05}
 
 
-def maps(kind: str = "grid", cfd: str | Path | None = None) -> MapsSpec:
-    """Both maps of ``kind``; maps built from CFD samples record the file (default: the shipped
-    one) and its SHA-256, so that a model built on them names the data it needs."""
-    source = map_kind(kind).source(cfd)
+def maps(kind: str = "grid", cfd: str | Path | None = None, **options) -> MapsSpec:
+    """Both maps of ``kind``, with its ``options`` (a learned kind's ``folder``, say); maps built
+    from CFD samples record the file (default: the shipped one) and its SHA-256, so that a model
+    built on them names the data it needs."""
+    source = map_kind(kind).source(cfd, **options)
     return MapsSpec(source, source)
 
 
@@ -42,8 +48,13 @@ def bmbe(valve: ValveSource | None = None) -> ModelSpec:
 def cfda_effects(scale: float = CFDA_START["scale"], K1: float = CFDA_START["K1"],
                  K2: float = CFDA_START["K2"]) -> tuple[EffectSpec, ...]:
     """CFDA's effects: flow-force scale [-], K1 [N], K2 [N/bar]."""
-    return (EffectSpec.start(FlowForceScale, scale=scale),
-            EffectSpec.start(ConstantFriction, K1=K1),
+    return (EffectSpec.start(FlowForceScale, scale=scale), *cfda_friction(K1, K2))
+
+
+def cfda_friction(K1: float = CFDA_START["K1"], K2: float = CFDA_START["K2"]
+                  ) -> tuple[EffectSpec, ...]:
+    """CFDA's Coulomb friction s·(K1 + K2·p_L): K1 [N], K2 [N/bar]."""
+    return (EffectSpec.start(ConstantFriction, K1=K1),
             EffectSpec.start(LoadPressureFriction, K2=K2))
 
 
@@ -73,8 +84,7 @@ def cfd_maps_step(previous: ModelSpec, maps_spec: MapsSpec) -> ModelSpec:
 
 def cfda_step(previous: ModelSpec) -> ModelSpec:
     """Coulomb friction K1 + K2·p_L added, one pair for all temperatures."""
-    friction = cfda_effects()[1:]
-    return previous.adding(*friction, name="cfda")
+    return previous.adding(*cfda_friction(), name="cfda")
 
 
 PRESET_DESCRIPTIONS = {

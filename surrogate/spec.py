@@ -48,6 +48,7 @@ from pathlib import Path
 from .effects import KNOWN, Effect, EffectLibrary
 from .errors import InputError
 from .maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
+from .model import ValveModel
 from .outputs import atomic_file
 from .tomlio import dumps, loads
 from .valve import ValveParameters, load_valve, shipped_valve_path
@@ -212,7 +213,25 @@ class ModelSpec:
 
     # --- building ---------------------------------------------------------------------------------
 
-    def build(self, library: EffectLibrary = KNOWN, where: str | None = None):
+    @classmethod
+    def of(cls, model: ValveModel, description: str = "") -> "ModelSpec":
+        """The spec of ``model`` as it is now (its parameters' current values, bounds and
+        standard errors), to save or rebuild it.
+
+        Raises
+        ------
+        InputError
+            For a model assembled from maps directly, which cannot say where they came from.
+        """
+        if model.origin is None:
+            raise InputError(f"model {model.name!r} was assembled from maps directly and does "
+                             "not record where they come from; build it from a ModelSpec to "
+                             "save it")
+        valve, maps = model.origin
+        return cls(model.name, valve, maps, tuple(EffectSpec.of(e) for e in model.effects),
+                   description)
+
+    def build(self, library: EffectLibrary = KNOWN, where: str | None = None) -> ValveModel:
         """The :class:`~surrogate.model.ValveModel` this spec describes.
 
         Raises
@@ -221,8 +240,6 @@ class ModelSpec:
             Naming ``where`` (default: the model's name) and the effect, for an effect the
             library lacks, a parameter it does not have, or a record it cannot take.
         """
-        from .model import ValveModel
-
         where = where or f"model {self.name!r}"
         effects, seen = [], {}
         for index, spec in enumerate(self.effects, start=1):

@@ -31,7 +31,7 @@ from hypothesis import strategies as st
 
 from surrogate.cli import main
 from surrogate.effects import LIBRARY
-from surrogate.maps.registry import trained_folder
+from surrogate.maps.learned import trained_folder
 from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 from surrogate.presets import preset
 

@@ -13,19 +13,19 @@ from hypothesis import strategies as st
 from surrogate.data.loaders import CfdSamples
 from surrogate.errors import InputError
 from surrogate.features import FeatureSpec, targets
-from surrogate.crossval import SCHEMES, cross_validate, folds, summary
 from surrogate.learn.gaussian_process import fit_gp
 from surrogate.learn.monotone_nn import SignConstrainedNet, state_arrays
 from surrogate.learn.monotonicity import random_states, violations
 from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_one_ulp,
                                              prediction_difference)
 from surrogate.maps.calibration import Calibration
+from surrogate.maps.crossval import SCHEMES, cross_validate, folds, summary
 from surrogate.maps.domain import FeatureDomain
 from surrogate.maps.gp import BRIDGE, NumpyGP
-from surrogate.maps.learned import load_learned_maps, read_manifest
+from surrogate.maps.learned import load_learned_maps, trained_folder
 from surrogate.maps.network import Architecture, NumpyNet
-from surrogate.maps.registry import build_maps, cross_validation_summary, file_hash, map_kind, \
-    trained_folder
+from surrogate.maps.package import file_hash, read_manifest
+from surrogate.maps.registry import build_maps, cross_validation_summary, learned_kinds, map_kind
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 from surrogate.testing import check_flow_map, check_force_map
 
@@ -39,7 +39,7 @@ def learned_maps(valve):
 
 @pytest.mark.parametrize("kind", LEARNED)
 def test_committed_surrogates_are_current_and_use_every_sample(kind, cfd_samples):
-    manifest = read_manifest(trained_folder(kind))
+    manifest = read_manifest(trained_folder(kind), learned_kinds())
     assert manifest["training"]["data_sha256"] == file_hash(SHIPPED_CFD_SAMPLES), (
         "cfd_samples.csv changed since the surrogates were trained: run python training/train.py")
     assert manifest["training"]["samples"] == "all"
@@ -88,10 +88,10 @@ def test_the_gp_cross_validation_is_what_the_manifest_records(cfd_samples, valve
     from surrogate.learn.training import learned_maps_on
 
     torch.set_num_threads(max(1, min(2, torch.get_num_threads())))
-    recorded = read_manifest(trained_folder("gp"))
+    recorded = read_manifest(trained_folder("gp"), learned_kinds())
     scheme = "back-pressure set out"
     chosen = [fold for fold in folds(cfd_samples.frame) if fold.scheme == scheme]
-    import surrogate.crossval as crossval
+    import surrogate.maps.crossval as crossval
 
     original = crossval.folds
     crossval.folds = lambda frame: chosen
@@ -267,7 +267,7 @@ def test_retraining_reproduces_the_committed_surrogates(kind, retrain, learned_m
     nearly linear algebra: rounding moves it by 1e-10, another environment by 2e-7, anything
     broken by 4e-3 or more; its tolerance is 1e-6 RMS, 1e-5 largest.
     """
-    recorded = read_manifest(trained_folder(kind))["training"]["environment"]
+    recorded = read_manifest(trained_folder(kind), learned_kinds())["training"]["environment"]
     fresh = retrain(kind)
     difference = _difference(fresh, learned_maps[kind], cfd_samples, valve)
     if recorded == environment():
@@ -331,7 +331,7 @@ def _predictions(maps, valve):
 
 @pytest.mark.parametrize("kind", LEARNED)
 def test_committed_manifests_seal_every_weight_file(kind):
-    manifest = read_manifest(trained_folder(kind))
+    manifest = read_manifest(trained_folder(kind), learned_kinds())
     for name in ("flow", "force"):
         entry = manifest[name]["predictor"]
         assert entry["sha256"] == file_hash(trained_folder(kind) / entry["file"])
@@ -345,7 +345,7 @@ def test_training_writes_the_hashes_loading_checks(kind, tmp_path, valve, capsys
 
     flow, force = load_learned_maps(trained_folder(kind))
     TrainedSurrogate(kind, flow, force, 1.0).save(tmp_path / kind, {"samples": "all"}, {})
-    manifest = read_manifest(tmp_path / kind)
+    manifest = read_manifest(tmp_path / kind, learned_kinds())
     for name in ("flow", "force"):
         entry = manifest[name]["predictor"]
         assert entry["sha256"] == file_hash(tmp_path / kind / entry["file"])

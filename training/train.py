@@ -4,9 +4,9 @@
                              [--workers 2]
 
 Each kind is trained on **every** CFD sample: a user's CFD runs are too expensive to hold any
-back. How accurate the result is comes from cross-validation (``surrogate.crossval``): the same
-training repeated with sweeps, an opening, a temperature or the back-pressure set left out, and
-asked about what it did not see. Those errors calibrate the maps' standard deviations, and go
+back. How accurate the result is comes from cross-validation (``surrogate.maps.crossval``): the
+same training repeated with sweeps, an opening, a temperature or the back-pressure set left out,
+and asked about what it did not see. Those errors calibrate the maps' standard deviations, and go
 into each folder: the summary per scheme in ``surrogate.json`` (with the SHA-256 of the sample
 file, so a test can tell when the committed surrogates no longer match the shipped samples), the
 errors per left-out sample in ``cross_validation.csv``.
@@ -25,21 +25,23 @@ from functools import partial
 from pathlib import Path
 
 from surrogate import load_valve
-from surrogate.crossval import calibrate, cross_validate, summary
 from surrogate.data import load_cfd_samples
 from surrogate.learn.reproducibility import environment
 from surrogate.learn.training import KINDS, learned_maps_on, train_surrogate
-from surrogate.maps.registry import TRAINED, file_hash
+from surrogate.maps.crossval import calibrate, cross_validate, summary
+from surrogate.maps.package import file_hash
 from surrogate.errors import InputError
 from surrogate.outputs import Output, check_outputs
-from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES,
+                             SHIPPED_SURROGATES)
 from surrogate.progress import Progress
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--kinds", nargs="+", choices=KINDS, default=list(KINDS))
-    parser.add_argument("--out", type=Path, default=TRAINED, help="parent folder of the surrogates")
+    parser.add_argument("--out", type=Path, default=SHIPPED_SURROGATES,
+                        help="parent folder of the surrogates")
     parser.add_argument("--cfd", type=Path, default=SHIPPED_CFD_SAMPLES, help="CFD-sample file")
     parser.add_argument("--valve", help="valve file (default: the shipped valve)")
     parser.add_argument("--workers", type=int, default=2,

@@ -10,12 +10,12 @@ from pathlib import Path
 from ..data import load_bench_log
 from ..effects import KNOWN, EffectLibrary, load_effects_file
 from ..errors import InputError
-from ..maps.registry import (MAP_KINDS, TRAINED, MapsSpec, MapSource, map_kind,
-                             refuse_ambiguous_kind)
+from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, refuse_ambiguous_kind
 from ..model import ValveModel
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, check_outputs
-from ..paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, shipped
+from ..paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES, shipped
+from ..presets import maps
 from ..progress import Progress
 from ..valve import shipped_valve_path
 
@@ -31,7 +31,7 @@ INPUT_OPTIONS = ("data", "model", "valve", "effects_file", "input", "cfd", "sequ
 #: bench log (their folders, with their READMEs), the trained surrogates and the valve file
 SHIPPED_INPUTS = ((SHIPPED_CFD_SAMPLES.parent, "the shipped CFD samples"),
                   (SHIPPED_BENCH_LOG.parent, "the shipped measurements"),
-                  (TRAINED, "the shipped trained surrogates"),
+                  (SHIPPED_SURROGATES, "the shipped trained surrogates"),
                   (shipped_valve_path(), "the shipped valve file"))
 #: how --maps reads its value, for the options' help
 MAPS_HELP = ("a map kind ({kinds}) or the folder of a trained surrogate; a local folder named "
@@ -137,11 +137,10 @@ def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
     """
     refuse_ambiguous_kind(kind, Path.cwd(), "--maps")
     if kind in MAP_KINDS:
-        source = map_kind(kind).source(cfd)
-    else:  # the folder of a trained surrogate: its kind, with the folder and its hash recorded
-        folder = MapSource.from_dict(kind, "--maps", Path.cwd())
-        source = map_kind(folder.kind).source(cfd, folder=folder.settings["folder"])
-    return MapsSpec(source, source)
+        return maps(kind, cfd)
+    # the folder of a trained surrogate: its kind, with the folder and its hash recorded
+    folder = MapSource.from_dict(kind, "--maps", Path.cwd())
+    return maps(folder.kind, cfd, folder=folder.settings["folder"])
 
 
 def guard_outputs(args, *outputs: Output) -> None:

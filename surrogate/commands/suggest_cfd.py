@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import json
 
-from ..crossval import most_accurate_kind
 from ..data import load_bench_log
 from ..errors import InputError
+from ..maps.crossval import most_accurate_kind
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, atomic_directory
 from ..paths import SHIPPED_BENCH_LOG, shipped

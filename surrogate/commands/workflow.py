@@ -6,8 +6,8 @@ import json
 
 import numpy as np
 
-from ..crossval import most_accurate_kind
 from ..effects.handover import hand_over
+from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MAP_KINDS
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory

@@ -12,19 +12,19 @@ import numpy as np
 from ..data.loaders import CfdSamples
 from ..features import ADDITIVE_GROUPS, FEATURE_NAMES, FeatureSpec, Targets, targets
 from ..maps.gp import GaussianProcessPredictor
-from ..maps.learned import LearnedFlowMap, LearnedForceMap, write_manifest
+from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.nn import NetworkEnsemble
 from ..maps.calibration import Calibration
 from ..maps.coverage import Coverage
 from ..maps.domain import FeatureDomain
-from ..maps.package import seal
-from ..maps.registry import MAP_KINDS, map_kind
+from ..maps.package import seal, write_manifest
+from ..maps.registry import learned_kinds, map_kind
 from ..outputs import atomic_directory
 from ..valve import ValveParameters
 from .gaussian_process import fit_gp
 
 #: the map kinds that are trained (the registry's learned kinds)
-KINDS = tuple(name for name, kind in MAP_KINDS.items() if kind.learned)
+KINDS = tuple(learned_kinds())
 #: the cross-validated errors behind a folder's calibration, next to its ``surrogate.json``
 CROSS_VALIDATION_FILE = "cross_validation.csv"
 
@@ -69,7 +69,7 @@ class TrainedSurrogate:
     details: dict = field(default_factory=dict)
 
     def calibrate(self, flow: Calibration, force: Calibration) -> None:
-        """Attach the calibrations found by cross-validation (:mod:`surrogate.crossval`)."""
+        """Attach the calibrations found by cross-validation (:mod:`surrogate.maps.crossval`)."""
         self.flow_map.calibration, self.force_map.calibration = flow, force
 
     def save(self, folder: str | Path, training: dict, metrics: dict,

@@ -1,8 +1,15 @@
-"""Flow and force maps behind one interface (:mod:`.base`): orifice, grid, and learned maps."""
+"""Flow and force maps behind one interface (:mod:`.base`): orifice, grid, and learned maps.
+
+Each built-in map kind registers itself (:mod:`.registry`) from its own module; importing them
+here, in the order help texts and errors list the kinds, registers all of them whichever module
+of the package is imported first.
+"""
 
 from .base import FlowMap, ForceMap, MapResult
-from .grid import GridFlowMap, GridForceMap
-from .orifice import OrificeFlowMap, UniformPressureForceMap
+from .orifice import OrificeFlowMap, UniformPressureForceMap  # the kind "orifice"
+from .grid import GridFlowMap, GridForceMap  # the kind "grid"
+from . import nn  # the kind "nn"
+from . import gp  # the kind "gp"
 
 __all__ = ["FlowMap", "ForceMap", "GridFlowMap", "GridForceMap", "MapResult", "OrificeFlowMap",
            "UniformPressureForceMap"]

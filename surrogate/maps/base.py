@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fluid import FluidState
+from ..fluid import FluidState, broadcast_query
 from ..roots import invert_increasing
 from ..units import BAR, LPM
 
@@ -47,17 +47,6 @@ class MapResult:
     value: np.ndarray
     extrapolating: np.ndarray
     std: np.ndarray | None = None
-
-
-def broadcast(*arrays) -> tuple[np.ndarray, ...]:
-    """Float arrays of one common shape."""
-    return np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in arrays))
-
-
-def broadcast_query(a, b, u, fluid: FluidState):
-    """(a, b, u, fluid) broadcast to one shape, fluid included."""
-    a, b, u, nu, rho = broadcast(a, b, u, fluid.nu, fluid.rho)
-    return a, b, u, FluidState(nu, rho)
 
 
 class FlowMap(ABC):

@@ -27,7 +27,7 @@ with
   limits).
 
 The constants are fitted by maximum likelihood to the errors the kind makes on samples it did not
-see (:mod:`surrogate.crossval`), each cross-validation scheme weighted alike, so that the 16
+see (:mod:`.crossval`), each cross-validation scheme weighted alike, so that the 16
 samples of the back-pressure set count as much as the 150 of the k-fold.
 """
 

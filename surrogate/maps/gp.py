@@ -26,6 +26,8 @@ from scipy.linalg import solve_triangular
 from ..errors import InputError
 from ..features import FEATURE_NAMES
 from . import package
+from .learned import learned_kind
+from .registry import register
 
 RBF, BRIDGE = 0, 1
 PART_KINDS = {"rbf": RBF, "bridge": BRIDGE}
@@ -272,3 +274,12 @@ def check_arrays(a: GPArrays, where: str) -> None:
 def _named(entry: dict) -> str:
     """The weight file a predictor entry names, for messages (never another value of it)."""
     return entry["file"] if isinstance(entry.get("file"), str) else "a map"
+
+
+register(learned_kind(
+    "gp", "Gaussian processes on dimensionless features (the force's bridged across openings), "
+          "with a standard deviation",
+    trainer="surrogate.learn.training:train_processes",
+    save_predictor=save_predictor, load_predictor=load_predictor,
+    constraints={"flow": "none (monotonicity measured, not guaranteed)",
+                 "force": "none (monotonicity measured, not guaranteed)"}))

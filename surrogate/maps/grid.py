@@ -36,22 +36,32 @@ kind (:mod:`.coverage`): outside or between far-apart openings, outside a sweep'
 the sampled viscosities, away from the reference back pressure. The grid's uncertainty grows
 with the distance from its samples, as its own cross-validated errors show
 (:class:`GridUncertainty`).
+
+The map kind ``grid`` (:mod:`.registry`) builds these maps from a CFD-sample file, refusing one
+whose SHA-256 is not the one a model file records.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
 
 import numpy as np
 
-from ..data.loaders import CfdSamples
+from ..data.loaders import CfdSamples, load_cfd_samples
 from ..errors import InputError
-from ..fluid import FluidState
+from ..fluid import FluidState, broadcast_query
+from ..paths import SHIPPED_CFD_SAMPLES
 from ..units import BAR, from_si
 from ..valve import ValveParameters
-from .base import FlowMap, ForceMap, broadcast_query
+from .base import FlowMap, ForceMap
 from .coverage import DP_OUTSIDE, Coverage
+from .crossval import calibrate, cross_validate, summary
 from .curves import CurveSet
+from .package import file_hash
+from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register,
+                       resolve_file, sha256_hex)
 
 _TINY_OPENING = 1e-12  # [m] openings below this are treated as this, to keep logarithms finite
 _SAME_RTOL = 1e-6  # relative tolerance for "same value" when grouping samples into sweeps
@@ -391,7 +401,7 @@ class GridUncertainty:
     relative) grows with the distances it interpolates over, from the nearest sampled opening and
     fluid state (:meth:`_SweepGrid.sweep_distances`), and with the distance of the back pressure
     from the sampled one (:mod:`.calibration`). The constants come from the grid's own errors on
-    samples left out of it (:mod:`surrogate.crossval`); rebuilding the grid for every fold takes
+    samples left out of it (:mod:`.crossval`); rebuilding the grid for every fold takes
     a second, so that runs when a standard deviation is first asked for.
     """
 
@@ -410,13 +420,9 @@ class GridUncertainty:
 
     @property
     def errors(self):
-        """The grid's cross-validated errors (:func:`surrogate.crossval.cross_validate`),
+        """The grid's cross-validated errors (:func:`.crossval.cross_validate`),
         computed on first use."""
         if self._errors is None:
-            from functools import partial
-
-            from ..crossval import cross_validate
-
             self._errors = cross_validate(self.samples, self.valve,
                                           partial(grid_maps_on, self.samples, self.valve))
         return self._errors
@@ -425,16 +431,12 @@ class GridUncertainty:
     def calibrations(self) -> dict:
         """{"flow": ..., "force": ...} :class:`~.calibration.Calibration`, fitted on first use."""
         if self._calibrations is None:
-            from ..crossval import calibrate
-
             flow, force = calibrate(self.errors, use_spread=False)
             self._calibrations = {"flow": flow, "force": force}
         return self._calibrations
 
     def summary(self) -> dict:
-        """The cross-validation summary per scheme (:func:`surrogate.crossval.summary`)."""
-        from ..crossval import summary
-
+        """The cross-validation summary per scheme (:func:`.crossval.summary`)."""
         return summary(self.errors, self.calibrations["flow"], self.calibrations["force"])
 
 
@@ -447,3 +449,39 @@ def grid_maps_on(samples: CfdSamples, valve: ValveParameters, train=None
     flow, force = GridFlowMap.from_samples(samples), GridForceMap.from_samples(samples, valve)
     flow.uncertainty = force.uncertainty = GridUncertainty(samples, valve)
     return flow, force
+
+
+# --- the kind: grid maps of a CFD-sample file ----------------------------------------------------
+
+def _grid_data(cfd, **options) -> dict:
+    if cfd is not None:  # a file the user names: checked here, where its errors may quote it
+        load_cfd_samples(cfd)
+    reference = SHIPPED if cfd is None else str(Path(cfd).resolve())
+    return {"cfd": reference,
+            "cfd_sha256": file_hash(resolve_file(reference, Path("."), SHIPPED_CFD_SAMPLES))}
+
+
+def _build_grid(options, valve, base):
+    path = resolve_file(options.get("cfd", SHIPPED), base, SHIPPED_CFD_SAMPLES)
+    expected = options.get("cfd_sha256")
+    if expected is not None and path.is_file() and file_hash(path) != expected:
+        raise InputError(f"{path}: these CFD samples are not the ones the model was built from "
+                         f"(SHA-256 {file_hash(path)[:12]}…, the model records {expected[:12]}…); "
+                         "refit the model on them, or point cfd = ... at the original file")
+    # named by a model file (or checked already where the user named it, :func:`_grid_data`):
+    # its errors do not quote it, as it may be any file at all
+    return grid_maps_on(load_cfd_samples(path, named_by="the maps' cfd option"), valve)
+
+
+def _grid_accuracy(options, valve, base):
+    flow, _ = build_maps(MapSource.of("grid", **options), valve, base)
+    return flow.uncertainty.summary()
+
+
+register(MapKind(
+    "grid", "interpolation of the CFD samples (surrogate/maps/grid.py)", _build_grid,
+    (Option("cfd", "the CFD-sample file (default: the shipped one)", default=SHIPPED, path=True,
+            shipped=SHIPPED_CFD_SAMPLES),
+     Option("cfd_sha256", "SHA-256 of the CFD-sample file the model was built from",
+            sha256_hex)),
+    data=_grid_data, accuracy=_grid_accuracy))

@@ -14,30 +14,36 @@ training data (:class:`~surrogate.maps.domain.FeatureDomain`).
 
 Every learned map is saved as a folder holding ``surrogate.json`` (features, scalers,
 constraints, coverage, calibration, the hash of the training data, cross-validated accuracy) next
-to plain weight files; :func:`load_learned_maps` reads it back without executing any code (no
-pickle).
+to plain weight files (:mod:`.package`); :func:`load_learned_maps` reads it back without
+executing any code (no pickle).
+
+What the learned kinds share as map kinds (:mod:`.registry`) is here too: :func:`learned_kind`
+makes the kind of a predictor (:mod:`.nn`, :mod:`.gp`), whose maps are loaded from the folder of
+a trained surrogate (default: the committed one, :func:`trained_folder`) and record the SHA-256
+of its manifest.
 """
 
 from __future__ import annotations
 
-import json
 import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..features import FeatureSpec
-from ..fluid import FluidState
+from ..fluid import FluidState, broadcast_query
+from ..paths import SHIPPED_SURROGATES
 from . import package
-from .base import FlowMap, ForceMap, broadcast_query
+from .base import FlowMap, ForceMap
 from .calibration import Calibration
 from .coverage import DP_OUTSIDE, FEATURES_SPARSE, Coverage
 from .domain import FeatureDomain
+from .registry import (SHIPPED, MapKind, Option, learned_kinds, map_kind, resolve_path,
+                       sha256_hex)
 
 MANIFEST = package.MANIFEST
-FORMAT_VERSION = 2  # 2: network weights as .npz (1: PyTorch state_dicts, still read)
-_READABLE = (1, 2)
 
 
 class LearnedFlowMap(FlowMap):
@@ -133,44 +139,12 @@ def _inputs(learned_map, features: np.ndarray, p_B: np.ndarray):
     return spread, distances
 
 
-def write_manifest(folder: Path, manifest: dict) -> None:
-    manifest = {"format_version": FORMAT_VERSION, **manifest}
-    (folder / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
-
-
-def read_manifest(folder: str | Path) -> dict:
-    """The ``surrogate.json`` of a surrogate folder, checked for its format and for every value
-    the maps are built from (:func:`.package.check_manifest`)."""
-    path = Path(folder) / MANIFEST
-    if not path.is_file():
-        raise InputError(f"{folder}: not a surrogate folder (no {MANIFEST}); train one with "
-                         "`python training/train.py`")
-    try:
-        text = path.read_text("utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"{path}: cannot read the manifest "
-                         f"({getattr(error, 'strerror', None) or 'not UTF-8 text'})") from None
-    manifest = package.parse_json(text, str(path))
-    from .registry import MAP_KINDS
-
-    learned = [name for name, kind in MAP_KINDS.items() if kind.learned]
-    if not isinstance(manifest, dict):
-        raise InputError(f"{path}: must be a JSON object {{...}}, got "
-                         f"{package.json_type(manifest)}; not a surrogate manifest")
-    if manifest.get("format_version") not in _READABLE or manifest.get("kind") not in learned:
-        raise InputError(f"{path}: unknown surrogate format (need format_version "
-                         f"{FORMAT_VERSION} and a learned kind: {', '.join(learned)})")
-    return package.check_manifest(manifest, str(path))
-
-
 def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceMap]:
     """The flow and force map of a saved surrogate folder (NN or GP): its manifest checked, its
     weight files inside it and, when it records them, holding the bytes it records
     (:mod:`.package`); a folder without recorded hashes loads with a warning."""
-    from .registry import map_kind
-
     folder = Path(folder)
-    manifest = read_manifest(folder)
+    manifest = package.read_manifest(folder, learned_kinds())
     where = str(folder / MANIFEST)
     load = map_kind(manifest["kind"]).load_predictor
     spec = FeatureSpec.from_dict(manifest["features"])
@@ -189,3 +163,72 @@ def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceM
                         FeatureDomain.from_dict(entry["domain"]), manifest["kind"],
                         Calibration.from_dict(entry.get("calibration")), coverage))
     return tuple(maps)
+
+
+# --- the learned kinds ---------------------------------------------------------------------------
+
+def trained_folder(kind: str) -> Path:
+    """Folder of the committed surrogate of a learned kind."""
+    return SHIPPED_SURROGATES / map_kind(kind).name
+
+
+def learned_kind(name: str, description: str, *, trainer: str, save_predictor: Callable,
+                 load_predictor: Callable, constraints: Mapping[str, str]) -> MapKind:
+    """The map kind of a learned predictor (:class:`~.registry.MapKind`, to register): maps
+    loaded from the folder of a trained surrogate (``folder``, default the committed one), built
+    on the manifest whose SHA-256 a model records (``surrogate_sha256``)."""
+    return MapKind(name, description, _learned_builder(name),
+                   (_folder_option(name), _SURROGATE_HASH), trainer=trainer,
+                   data=_learned_data(name), accuracy=_learned_accuracy(name),
+                   save_predictor=save_predictor, load_predictor=load_predictor,
+                   constraints=constraints)
+
+
+def _folder_option(kind: str) -> Option:
+    return Option("folder", "the trained surrogate's folder (default: the committed one)",
+                  default=SHIPPED, path=True, shipped=SHIPPED_SURROGATES / kind)
+
+
+_SURROGATE_HASH = Option("surrogate_sha256",
+                         "SHA-256 of the surrogate's manifest the model was built on", sha256_hex)
+
+
+def _learned_folder(kind: str, folder: str, base: Path) -> Path:
+    return trained_folder(kind) if folder == SHIPPED else resolve_path(folder, base)
+
+
+def _learned_builder(kind: str):
+    def build(options, valve, base):
+        path = _learned_folder(kind, options.get("folder", SHIPPED), base)
+        expected = options.get("surrogate_sha256")
+        if expected is not None and (path / MANIFEST).is_file() and \
+                expected not in package.sealed_hashes(path / MANIFEST):
+            raise InputError(f"{path}: this {kind} surrogate is not the one the model was built "
+                             f"on (its {MANIFEST} has SHA-256 "
+                             f"{package.file_hash(path / MANIFEST)[:12]}…, the model records "
+                             f"{expected[:12]}…); refit the model on it, or point folder = ... at "
+                             "the original surrogate")
+        flow, force = load_learned_maps(path)
+        if flow.kind != kind:
+            raise InputError(f"{path}: holds a {flow.kind!r} surrogate, not {kind!r}")
+        return flow, force
+    return build
+
+
+def _learned_accuracy(kind: str):
+    def accuracy(options, valve, base):
+        folder = _learned_folder(kind, options.get("folder", SHIPPED), base)
+        manifest = package.read_manifest(folder, learned_kinds())
+        return manifest.get("metrics", {}).get("cross_validation")
+    return accuracy
+
+
+def _learned_data(kind: str):
+    def data(cfd, folder: str = SHIPPED, **options) -> dict:
+        if cfd is not None:
+            raise InputError(f"{kind} maps are trained from CFD samples beforehand "
+                             "(training/train.py --cfd); give their folder with --maps FOLDER")
+        path = _learned_folder(kind, folder, Path("."))
+        return {"folder": folder if folder == SHIPPED else str(path.resolve()),
+                "surrogate_sha256": package.file_hash(path / MANIFEST)}
+    return data

@@ -17,7 +17,9 @@ import numpy as np
 from ..errors import InputError
 from ..features import FEATURE_NAMES
 from . import package
+from .learned import learned_kind
 from .network import architecture_from_dict, network
+from .registry import register
 
 MANIFEST = package.MANIFEST
 
@@ -167,3 +169,16 @@ def _load_legacy(path: Path) -> dict[str, np.ndarray]:
 def _named(entry: dict) -> str:
     """The weight file a predictor entry names, for messages (never another value of it)."""
     return entry["file"] if isinstance(entry.get("file"), str) else "a map"
+
+
+register(learned_kind(
+    "nn", "neural-network ensembles on dimensionless features: a monotone flow network, a "
+          "force network bridged across openings",
+    trainer="surrogate.learn.training:train_networks",
+    save_predictor=save_ensemble, load_predictor=load_ensemble,
+    constraints={
+        "flow": "q non-decreasing in p_L and in u by construction: |dlnCd/dlnRe_q| <= 0.98, "
+                "|dlnCd/dln(u/U)| <= 0.98, dlnCd/dln(sigma_q) >= 0",
+        "force": "alpha < 0 (the flow force closes the valve) by construction when every "
+                 "sample's does; ln(-alpha) linear in ln u between sampled openings and held "
+                 "beyond them; monotonicity in p_L measured, not guaranteed"}))

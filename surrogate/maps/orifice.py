@@ -2,16 +2,19 @@
 
 These are the paper's BM components (Table 2, eqs. 4, 6 and 9): a constant discharge coefficient
 with a discharge area growing linearly with the opening, and a fluid force with no flow force.
-They need no data, so they never extrapolate.
+They need no data, so they never extrapolate. The kind ``orifice`` (:mod:`.registry`) builds them.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..fluid import FluidState
+from ..fluid import FluidState, broadcast_query
 from ..valve import ValveParameters
-from .base import FlowMap, ForceMap, broadcast_query
+from .base import FlowMap, ForceMap
+from .registry import MapKind, Option, number_in, register
+
+BASIC_DISCHARGE_COEFFICIENT = 0.4  # the paper's BMBE choice, from C_d at u = 0.63 mm
 
 
 class OrificeFlowMap(FlowMap):
@@ -70,3 +73,17 @@ class UniformPressureForceMap(ForceMap):
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         p_L, p_B, _, _ = broadcast_query(p_L, p_B, u, fluid)
         return p_L * self.A_L + p_B * self.back_area
+
+
+def _build_orifice(options, valve, base):
+    return (OrificeFlowMap(options.get("discharge_coefficient", BASIC_DISCHARGE_COEFFICIENT),
+                           valve.w), UniformPressureForceMap(valve))
+
+
+register(MapKind(
+    "orifice", "the paper's basic model: the orifice equation (eq. 4) with a constant discharge "
+               "coefficient, and a uniform pressure on the piston (eq. 6, no flow force)",
+    _build_orifice,
+    (Option("discharge_coefficient", "C_d [-], constant",
+            number_in(0.0, 1.0, "an orifice passes at most its ideal flow"),
+            BASIC_DISCHARGE_COEFFICIENT),)))

@@ -35,6 +35,8 @@ from ..features import FEATURE_NAMES
 from ..tomlio import nesting_depth
 
 MANIFEST = "surrogate.json"
+FORMAT_VERSION = 2  # 2: network weights as .npz (1: PyTorch state_dicts, still read)
+_READABLE = (1, 2)
 #: how deeply a manifest may nest its objects and arrays; the format needs 5 (a domain's points)
 MAX_DEPTH = 32
 
@@ -45,6 +47,35 @@ def file_hash(path: str | Path) -> str:
 
 
 # --- the manifest --------------------------------------------------------------------------------
+
+def write_manifest(folder: Path, manifest: dict) -> None:
+    """Write ``manifest`` as the ``surrogate.json`` of ``folder``, in this version's format."""
+    manifest = {"format_version": FORMAT_VERSION, **manifest}
+    (folder / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+
+
+def read_manifest(folder: str | Path, kinds: list[str]) -> dict:
+    """The ``surrogate.json`` of a surrogate folder, checked for its format, for naming one of
+    ``kinds`` (the registry's learned kinds, :func:`.registry.learned_kinds`) and for every value
+    the maps are built from (:func:`check_manifest`)."""
+    path = Path(folder) / MANIFEST
+    if not path.is_file():
+        raise InputError(f"{folder}: not a surrogate folder (no {MANIFEST}); train one with "
+                         "`python training/train.py`")
+    try:
+        text = path.read_text("utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(f"{path}: cannot read the manifest "
+                         f"({getattr(error, 'strerror', None) or 'not UTF-8 text'})") from None
+    manifest = parse_json(text, str(path))
+    if not isinstance(manifest, dict):
+        raise InputError(f"{path}: must be a JSON object {{...}}, got "
+                         f"{json_type(manifest)}; not a surrogate manifest")
+    if manifest.get("format_version") not in _READABLE or manifest.get("kind") not in kinds:
+        raise InputError(f"{path}: unknown surrogate format (need format_version "
+                         f"{FORMAT_VERSION} and a learned kind: {', '.join(kinds)})")
+    return check_manifest(manifest, str(path))
+
 
 def parse_json(text: str, where: str) -> object:
     """A JSON document whose nesting is at most :data:`MAX_DEPTH` deep."""
@@ -175,7 +206,7 @@ _COVERAGE_PER_OPENING = ("dp_low", "dp_high", "q_low", "q_high")
 
 def check_manifest(manifest: Mapping, path: str) -> dict:
     """Check what every learned kind reads from the manifest at ``path`` (an object of a known
-    format and kind, :func:`~.learned.read_manifest`): the feature scales, the coverage, and
+    format and kind, :func:`read_manifest`): the feature scales, the coverage, and
     each map's domain, calibration and predictor entry (an object; its contents are the kind's
     to check). Returns the manifest."""
     where = f"{path}:"

@@ -3,7 +3,10 @@
 A *map kind* is one :class:`MapKind` registered here: its options (with their checks), how to
 build its flow and force maps for a valve, and, for the learned kinds, how to train, save and load
 them. Nothing else in the package branches on kind names; a new kind is one module with its maps
-plus one :func:`register` call (see the README's extension section).
+plus one :func:`register` call (see the README's extension section), as each built-in kind is:
+:mod:`.orifice`, :mod:`.grid`, :mod:`.nn` and :mod:`.gp` (the learned kinds' shared parts in
+:mod:`.learned`), which the package imports in that order (``surrogate/maps/__init__.py``), so
+that every kind is registered whichever module is imported first.
 
 Where a model's maps come from is a :class:`MapSource` (a kind and its options); a model's two
 maps may come from different sources (:class:`MapsSpec`), as in the paper's ablations that pair
@@ -18,18 +21,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InputError
-from ..paths import SHIPPED_CFD_SAMPLES, shipped
+from ..paths import shipped
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
-from .package import file_hash  # SHA-256 of a file: which data a map was built from
+from .package import MANIFEST, package_files, read_manifest
 
-TRAINED = Path(__file__).resolve().parents[1] / "trained"
 SHIPPED = "shipped"  # an option value that names the file or folder the package ships
 
 
 # --- options ---------------------------------------------------------------------------------------
 
-def _number_in(low: float, high: float, what: str):
+def number_in(low: float, high: float, what: str):
+    """An option's check: a number in (low, high]; ``what`` says why, in the message."""
     def parse(value, where: str) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise InputError(f"{where}: must be a number, got {value!r}")
@@ -45,7 +48,8 @@ def _text(value, where: str) -> str:
     return value
 
 
-def _sha256(value, where: str) -> str:
+def sha256_hex(value, where: str) -> str:
+    """An option's check: a SHA-256 in hex, as files record which data maps were built from."""
     text = _text(value, where)
     if len(text) != 64 or any(c not in "0123456789abcdef" for c in text):
         raise InputError(f"{where}: must be a SHA-256 in hex (64 characters), got {value!r}")
@@ -102,7 +106,7 @@ class MapKind:
         and its hash; None for kinds that need no data.
     accuracy : callable or None
         ``accuracy(options, valve, base)`` -> the maps' cross-validation summary per scheme
-        (:func:`surrogate.crossval.summary`); None for kinds without data.
+        (:func:`.crossval.summary`); None for kinds without data.
     """
 
     name: str
@@ -164,6 +168,11 @@ def register(kind: MapKind) -> MapKind:
     return kind
 
 
+def learned_kinds() -> list[str]:
+    """The names of the registered kinds that are trained (:attr:`MapKind.learned`)."""
+    return [name for name, kind in MAP_KINDS.items() if kind.learned]
+
+
 def map_kind(name: str) -> MapKind:
     """The registered kind called ``name``."""
     try:
@@ -195,14 +204,12 @@ class MapSource:
         """The files and folders these maps read, each with what it is: the value of every
         ``path`` option (the shipped file or folder for ``"shipped"``) and, for the folder of a
         trained surrogate, the files its manifest names."""
-        from .package import MANIFEST, package_files
-
         found = []
         for option in map_kind(self.kind).options:
             value = self.settings.get(option.name, option.default)
             if not option.path or not isinstance(value, str):
                 continue
-            path = option.shipped if value == SHIPPED else _resolve(value, base)
+            path = option.shipped if value == SHIPPED else resolve_path(value, base)
             if path is None:
                 continue
             role = f"the {self.kind} maps' {option.name}"
@@ -228,14 +235,13 @@ class MapSource:
         options = {key: value for key, value in table.items() if key != "kind"}
         if kind not in MAP_KINDS and not options and _is_surrogate_folder(kind, base):
             folder = kind  # a surrogate folder as the kind: the learned kind it holds
-            from .learned import read_manifest
-
-            kind, options = read_manifest(_resolve(folder, base))["kind"], {"folder": folder}
+            kind = read_manifest(resolve_path(folder, base), learned_kinds())["kind"]
+            options = {"folder": folder}
         return cls.of(kind, **map_kind(kind).parse_options(options, where))
 
 
 def _is_surrogate_folder(text: str, base: Path) -> bool:
-    return (_resolve(text, base) / "surrogate.json").is_file()
+    return (resolve_path(text, base) / MANIFEST).is_file()
 
 
 def refuse_ambiguous_kind(text: str, base: Path, where: str, *, command_line: bool = True
@@ -251,7 +257,9 @@ def refuse_ambiguous_kind(text: str, base: Path, where: str, *, command_line: bo
     if text not in MAP_KINDS or not _is_surrogate_folder(text, base):
         return
     kind = MAP_KINDS[text]
-    shipped_one = trained_folder(text) if kind.learned else None
+    # the committed surrogate of a learned kind: what "shipped" names for its folder option
+    shipped_one = (next((option.shipped for option in kind.options if option.path), None)
+                   if kind.learned else None)
     if command_line:
         folder, other = f"{where} ./{text}", (f"{where} {shipped_one} for the shipped one"
                                               if shipped_one else "rename the folder to use "
@@ -262,8 +270,8 @@ def refuse_ambiguous_kind(text: str, base: Path, where: str, *, command_line: bo
                  else "rename the folder to use the kind")
     what = f"the shipped surrogate, {shipped_one}" if shipped_one else kind.description
     raise InputError(f"{where} {text}: ambiguous: {text!r} is the map kind ({what}) and "
-                     f"{_resolve(text, base)} is a trained surrogate folder here; write {folder} "
-                     f"for the folder, or {other}")
+                     f"{resolve_path(text, base)} is a trained surrogate folder here; write "
+                     f"{folder} for the folder, or {other}")
 
 
 @dataclass(frozen=True)
@@ -335,7 +343,7 @@ def _fingerprint(source: MapSource, base: Path) -> tuple:
     stamps = []
     for _, value in source.options:
         if isinstance(value, str) and value != SHIPPED:
-            path = _resolve(value, base)
+            path = resolve_path(value, base)
             for file in (sorted(path.iterdir()) if path.is_dir() else [path]):
                 if file.exists():
                     stat = file.stat()
@@ -343,7 +351,8 @@ def _fingerprint(source: MapSource, base: Path) -> tuple:
     return tuple(stamps)
 
 
-def _resolve(text: str, base: Path) -> Path:
+def resolve_path(text: str, base: Path) -> Path:
+    """The path an option's value names: absolute, or relative to ``base``."""
     path = Path(text).expanduser()
     return path if path.is_absolute() else base / path
 
@@ -352,173 +361,12 @@ def resolve_file(value: str, base: Path, shipped_path: Path) -> Path:
     """The path an option names: the shipped file for ``"shipped"``, else relative to ``base``."""
     if value == SHIPPED:
         return shipped(shipped_path)
-    return _resolve(value, base)
-
-
-# --- the built-in kinds ----------------------------------------------------------------------------
-
-def _build_orifice(options, valve, base):
-    from .orifice import OrificeFlowMap, UniformPressureForceMap
-
-    return (OrificeFlowMap(options.get("discharge_coefficient", BASIC_DISCHARGE_COEFFICIENT),
-                           valve.w), UniformPressureForceMap(valve))
-
-
-def _grid_data(cfd, **options) -> dict:
-    if cfd is not None:  # a file the user names: checked here, where its errors may quote it
-        from ..data.loaders import load_cfd_samples
-
-        load_cfd_samples(cfd)
-    reference = SHIPPED if cfd is None else str(Path(cfd).resolve())
-    return {"cfd": reference,
-            "cfd_sha256": file_hash(resolve_file(reference, Path("."), SHIPPED_CFD_SAMPLES))}
-
-
-def _build_grid(options, valve, base):
-    from ..data.loaders import load_cfd_samples
-    from .grid import grid_maps_on
-
-    path = resolve_file(options.get("cfd", SHIPPED), base, SHIPPED_CFD_SAMPLES)
-    expected = options.get("cfd_sha256")
-    if expected is not None and path.is_file() and file_hash(path) != expected:
-        raise InputError(f"{path}: these CFD samples are not the ones the model was built from "
-                         f"(SHA-256 {file_hash(path)[:12]}…, the model records {expected[:12]}…); "
-                         "refit the model on them, or point cfd = ... at the original file")
-    # named by a model file (or checked already where the user named it, :func:`_grid_data`):
-    # its errors do not quote it, as it may be any file at all
-    return grid_maps_on(load_cfd_samples(path, named_by="the maps' cfd option"), valve)
-
-
-def _grid_accuracy(options, valve, base):
-    flow, _ = build_maps(MapSource.of("grid", **options), valve, base)
-    return flow.uncertainty.summary()
+    return resolve_path(value, base)
 
 
 def cross_validation_summary(source: MapSource, valve: ValveParameters,
                              base: str | Path = ".") -> dict | None:
     """How accurate the maps of ``source`` are by cross-validation, per scheme
-    (:func:`surrogate.crossval.summary`); None for kinds without data."""
+    (:func:`.crossval.summary`); None for kinds without data."""
     kind = map_kind(source.kind)
     return None if kind.accuracy is None else kind.accuracy(source.settings, valve, Path(base))
-
-
-def trained_folder(kind: str) -> Path:
-    """Folder of the committed surrogate of a learned kind."""
-    return TRAINED / map_kind(kind).name
-
-
-def _learned_folder(kind: str, folder: str, base: Path) -> Path:
-    return trained_folder(kind) if folder == SHIPPED else _resolve(folder, base)
-
-
-def _learned_builder(kind: str):
-    def build(options, valve, base):
-        from .learned import MANIFEST, load_learned_maps
-        from .package import sealed_hashes
-
-        path = _learned_folder(kind, options.get("folder", SHIPPED), base)
-        expected = options.get("surrogate_sha256")
-        if expected is not None and (path / MANIFEST).is_file() and \
-                expected not in sealed_hashes(path / MANIFEST):
-            raise InputError(f"{path}: this {kind} surrogate is not the one the model was built "
-                             f"on (its {MANIFEST} has SHA-256 {file_hash(path / MANIFEST)[:12]}…, "
-                             f"the model records {expected[:12]}…); refit the model on it, or "
-                             "point folder = ... at the original surrogate")
-        flow, force = load_learned_maps(path)
-        if flow.kind != kind:
-            raise InputError(f"{path}: holds a {flow.kind!r} surrogate, not {kind!r}")
-        return flow, force
-    return build
-
-
-def _learned_accuracy(kind: str):
-    def accuracy(options, valve, base):
-        from .learned import read_manifest
-
-        manifest = read_manifest(_learned_folder(kind, options.get("folder", SHIPPED), base))
-        return manifest.get("metrics", {}).get("cross_validation")
-    return accuracy
-
-
-def _learned_data(kind: str):
-    def data(cfd, folder: str = SHIPPED, **options) -> dict:
-        from .learned import MANIFEST
-
-        if cfd is not None:
-            raise InputError(f"{kind} maps are trained from CFD samples beforehand "
-                             "(training/train.py --cfd); give their folder with --maps FOLDER")
-        path = _learned_folder(kind, folder, Path("."))
-        return {"folder": folder if folder == SHIPPED else str(path.resolve()),
-                "surrogate_sha256": file_hash(path / MANIFEST)}
-    return data
-
-
-BASIC_DISCHARGE_COEFFICIENT = 0.4  # the paper's BMBE choice, from C_d at u = 0.63 mm
-
-def _folder_option(kind: str) -> Option:
-    return Option("folder", "the trained surrogate's folder (default: the committed one)",
-                  default=SHIPPED, path=True, shipped=TRAINED / kind)
-
-
-_SURROGATE_HASH = Option("surrogate_sha256",
-                         "SHA-256 of the surrogate's manifest the model was built on", _sha256)
-
-
-def _load_network(folder, entry):
-    from .nn import load_ensemble
-
-    return load_ensemble(folder, entry)
-
-
-def _save_network(folder, name, predictor):
-    from .nn import save_ensemble
-
-    return save_ensemble(folder, name, predictor)
-
-
-def _load_process(folder, entry):
-    from .gp import load_predictor
-
-    return load_predictor(folder, entry)
-
-
-def _save_process(folder, name, predictor):
-    from .gp import save_predictor
-
-    return save_predictor(folder, name, predictor)
-
-
-register(MapKind(
-    "orifice", "the paper's basic model: the orifice equation (eq. 4) with a constant discharge "
-               "coefficient, and a uniform pressure on the piston (eq. 6, no flow force)",
-    _build_orifice,
-    (Option("discharge_coefficient", "C_d [-], constant",
-            _number_in(0.0, 1.0, "an orifice passes at most its ideal flow"),
-            BASIC_DISCHARGE_COEFFICIENT),)))
-register(MapKind(
-    "grid", "interpolation of the CFD samples (surrogate/maps/grid.py)", _build_grid,
-    (Option("cfd", "the CFD-sample file (default: the shipped one)", default=SHIPPED, path=True,
-            shipped=SHIPPED_CFD_SAMPLES),
-     Option("cfd_sha256", "SHA-256 of the CFD-sample file the model was built from", _sha256)),
-    data=_grid_data, accuracy=_grid_accuracy))
-register(MapKind(
-    "nn", "neural-network ensembles on dimensionless features: a monotone flow network, a "
-          "force network bridged across openings", _learned_builder("nn"),
-    (_folder_option("nn"), _SURROGATE_HASH), trainer="surrogate.learn.training:train_networks",
-    data=_learned_data("nn"), accuracy=_learned_accuracy("nn"),
-    save_predictor=_save_network, load_predictor=_load_network,
-    constraints={
-        "flow": "q non-decreasing in p_L and in u by construction: |dlnCd/dlnRe_q| <= 0.98, "
-                "|dlnCd/dln(u/U)| <= 0.98, dlnCd/dln(sigma_q) >= 0",
-        "force": "alpha < 0 (the flow force closes the valve) by construction when every "
-                 "sample's does; ln(-alpha) linear in ln u between sampled openings and held "
-                 "beyond them; monotonicity in p_L measured, not guaranteed"}))
-register(MapKind(
-    "gp", "Gaussian processes on dimensionless features (the force's bridged across openings), "
-          "with a standard deviation",
-    _learned_builder("gp"), (_folder_option("gp"), _SURROGATE_HASH),
-    trainer="surrogate.learn.training:train_processes", data=_learned_data("gp"),
-    accuracy=_learned_accuracy("gp"),
-    save_predictor=_save_process, load_predictor=_load_process,
-    constraints={"flow": "none (monotonicity measured, not guaranteed)",
-                 "force": "none (monotonicity measured, not guaranteed)"}))

@@ -16,6 +16,7 @@ from ..errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import run_rows
 from ..maps.registry import MapsSpec
+from ..presets import TABLE6_FRICTION_START
 from ..spec import ValveSource
 from ..units import from_si
 from .median import median_line
@@ -25,7 +26,6 @@ TABLE5_P_PE_BAR = (50.0, 65.0, 80.0)
 TABLE6_P_PE_BAR = (65.0, 50.0)
 TEMPERATURES_C = (20.0, 40.0, 60.0)
 _TEMPERATURE_MATCH = 5.0  # [K] a run belongs to a nominal temperature within this
-_FRICTION_START = {"K1": 8.0, "K2": 0.05}  # [N], [N/bar] roughly the paper's Table 6
 
 
 def category(mean_abs_bar: float) -> str:
@@ -126,7 +126,7 @@ def reproduce(valve: ValveSource, maps: MapsSpec, log: BenchLog,
 def fit_friction(models: PaperModels, run: BenchRun, log: BenchLog):
     """K1 and K2 of CFDA's Coulomb friction, fitted to every sample of ``run`` by replaying it
     as the workbench replays a log (:func:`surrogate.fitting.logfit.fit_to_log`)."""
-    start = models.cfda_with_friction(_FRICTION_START["K1"], _FRICTION_START["K2"])
+    start = models.cfda_with_friction(**TABLE6_FRICTION_START)
     return fit_to_log(start, log.take(run_rows(log, run.run)),
                       ["friction_constant.K1", "friction_load_pressure.K2"], tolerance=1e-8,
                       max_evaluations=200)

@@ -21,11 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
+from ..effects import DischargeScale, FlowForceScale
 from ..leastsquares import fit
-from ..maps.registry import BASIC_DISCHARGE_COEFFICIENT, MapsSpec
+from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
+from ..maps.registry import MapsSpec
 from ..model import ValveModel
-from ..presets import basic_maps, bmbe
+from ..presets import basic_maps, bmbe, cfda_friction
 from ..solver import solve_steady
 from ..spec import EffectSpec, ModelSpec, ValveSource
 from .median import median_points
@@ -56,9 +57,7 @@ class PaperModels:
 
     def cfda_with_friction(self, K1: float, K2: float) -> ValveModel:
         """CFDA plus Coulomb friction s·(K1 + K2·p_L), K1 [N], K2 [N/bar]."""
-        spec = self.cfda.to_spec().adding(EffectSpec.start(ConstantFriction, K1=K1),
-                                          EffectSpec.start(LoadPressureFriction, K2=K2),
-                                          name="CFDA with friction")
+        spec = ModelSpec.of(self.cfda).adding(*cfda_friction(K1, K2), name="CFDA with friction")
         return spec.build()
 
 

@@ -148,7 +148,8 @@ def simulate(truth: ValveModel, sequence: BenchLog, *, noise: SensorNoise | None
     return BenchLog(frame, f"simulated by {truth.name!r} (seed {seed})")
 
 
-#: CFDA's values fitted to the shipped bench: flow-force scale [-], K1 [N], K2 [N/bar]
+#: the reference valve's own values, not start values: CFDA fitted to the shipped bench,
+#: flow-force scale [-], K1 [N], K2 [N/bar] (the fits start from presets.CFDA_START)
 REFERENCE_VALUES = {"scale": 0.83, "K1": 6.3, "K2": 0.08}
 
 

@@ -277,7 +277,7 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
                                                       "equation with C_d = 0.4 and a uniform "
                                                       "pressure on the piston")
         for make, added, category, reason in paper_steps(spec.valve, maps_spec):
-            spec = make(staircase.last.model.to_spec())  # from the fitted previous step
+            spec = make(ModelSpec.of(staircase.last.model))  # from the fitted previous step
             staircase.record(spec.build(library), added, category, reason)
     else:
         staircase.record(start, [], "", f"the starting model {start.name!r}")

@@ -1,4 +1,4 @@
-"""How the CFD samples are divided for cross-validation (:mod:`surrogate.crossval`): by sweep,
+"""How the CFD samples are divided for cross-validation (:mod:`.crossval`): by sweep,
 opening, temperature and back pressure. All splits are deterministic, so figures can be
 reproduced and the committed surrogates checked."""
 

@@ -24,12 +24,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .data.loaders import CfdSamples
-from .features import FeatureSpec
-from .fluid import FluidState
-from .learn import splits
-from .maps.calibration import Calibration, coverage_of
-from .valve import ValveParameters
+from ..data.loaders import CfdSamples
+from ..features import FeatureSpec
+from ..fluid import FluidState
+from ..valve import ValveParameters
+from . import splits
+from .calibration import Calibration, coverage_of
+from .registry import MAP_KINDS, cross_validation_summary, map_kind
 
 SCHEMES = ("k-fold by sweep", "leave one opening out", "leave one temperature out",
            "back-pressure set out")
@@ -204,8 +205,6 @@ def flow_force_score(summary_of_kind: dict | None) -> float:
 def most_accurate_kind(valve: ValveParameters, kinds=None) -> tuple[str, dict[str, float]]:
     """The map kind built from the shipped CFD samples whose flow force is the most accurate by
     cross-validation (:func:`flow_force_score`), and every kind's score."""
-    from .maps.registry import MAP_KINDS, cross_validation_summary, map_kind
-
     kinds = kinds or [name for name, kind in MAP_KINDS.items() if kind.accuracy is not None]
     scores = {kind: flow_force_score(cross_validation_summary(map_kind(kind).source(), valve))
               for kind in kinds}
