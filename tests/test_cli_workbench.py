@@ -66,9 +66,14 @@ def test_diagnose_json_contract_names_the_hidden_effect(capsys, small_log):
     assert best["inclusion"] > 0.5
     assert best["gains_in_own_view"]  # a friction narrowing the runs' hysteresis half-width
     assert "friction_viscous" in result["summary"]
-    # ranked by ΔBIC against the maps' own error, best first
-    ranked = [c["delta_bic"] for c in result["candidates"]]
+    # ranked by ΔBIC against the maps' own error, best first; beside a library finding, the
+    # shape-free terms that generalise it follow the library's candidates, never added
+    library = [c for c in result["candidates"] if "shape" not in c]
+    ranked = [c["delta_bic"] for c in library]
     assert ranked == sorted(ranked)
+    shapes = [c for c in result["candidates"] if "shape" in c]
+    assert result["candidates"][:len(library)] == library
+    assert not any(c["significant"] for c in shapes)
     assert all(c["category"] in ("physics", "map correction", "sensor")
                for c in result["candidates"])
 
