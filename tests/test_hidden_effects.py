@@ -13,7 +13,7 @@ import pytest
 from surrogate.diagnosis.diagnose import diagnose
 from surrogate.effects import LIBRARY, load_effects_file
 from surrogate.fitting.logfit import fit_to_log
-from surrogate.reporting.prose import summarise
+from surrogate.reporting.prose import diagnosis_document, summarise
 from surrogate.synthetic.simulate import (REALISTIC_MAGNITUDES, hidden_effect_case, identified,
                                           noise_free_sequence, random_settings)
 from surrogate.testing import check_effect
@@ -64,7 +64,15 @@ def test_indistinguishable_candidates_are_reported_as_one_group(sequence):
     diagnosis = find(case)
     best = diagnosis.candidates[0]
     assert set(best.group) >= {"pilot_transducer_offset", "spring_preload_offset"}
-    assert "cannot tell apart" in summarise(diagnosis)
+    summary = summarise(diagnosis)
+    assert "cannot tell apart" in summary
+    # both explanations, with their categories and sizes, and neither preferred
+    assert "(spring_preload_offset, physics: delta_F = " in summary
+    assert "(pilot_transducer_offset, sensor: delta = " in summary
+    assert "most likely" not in summary
+    finding = diagnosis_document(diagnosis)["finding"]
+    assert finding["look_alikes"] and {e["category"] for e in finding["explanations"]} == {
+        "physics", "sensor"}
 
 
 def test_nothing_is_discovered_when_nothing_is_hidden(sequence):

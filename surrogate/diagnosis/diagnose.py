@@ -46,7 +46,7 @@ from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
 from .judge import Judge
-from .lookalikes import grouped, look_alike_separation
+from .lookalikes import absorbed, grouped, look_alike_separation
 from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
 from .result import Candidate, Diagnosis
 from .rule import RULE, SignificanceRule, gains_in_own_view
@@ -183,7 +183,8 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
                           judge.heldout.get(HEADLINE, float("nan")),
                           judge.expected_rms(base), judge.map_limits(),
                           sensor_checks(results, judge.schemes), median_before, half_before,
-                          heldout_by_scheme=judge.heldout)
+                          heldout_by_scheme=judge.heldout,
+                          absorbed=absorbed(results, own_matrix, [c.key for c in own_columns]))
     return replace(diagnosis, separation=look_alike_separation(diagnosis, log))
 
 

@@ -92,6 +92,27 @@ def grouped(candidates: list[Candidate], rule: SignificanceRule = RULE,
             for candidate, group in zip(candidates, groups)]
 
 
+def absorbed(candidates: list[Candidate], own: np.ndarray, own_keys: list[str]
+             ) -> dict[str, tuple[str, float]]:
+    """The candidates of one parameter whose column at the model's point is collinear with one
+    of the model's own parameters' (|cosine| above :data:`COLLINEAR`): on this log that
+    parameter already does what the candidate would, and carries it if it acts (a pilot-pressure
+    friction in K1 when each run holds its pilot pressure nearly constant). {candidate name:
+    (own parameter, cosine)}."""
+    found = {}
+    norms = np.linalg.norm(own, axis=0)
+    for candidate in candidates:
+        if candidate.probe is None or candidate.per_run or candidate.probe.shape[1] != 1:
+            continue
+        column = candidate.probe[:, 0]
+        size = np.linalg.norm(column) * norms
+        cosines = np.divide(own.T @ column, size, out=np.zeros(len(norms)), where=size > 0)
+        if cosines.size and np.max(np.abs(cosines)) > COLLINEAR:
+            best = int(np.argmax(np.abs(cosines)))
+            found[candidate.name] = (own_keys[best], float(cosines[best]))
+    return found
+
+
 def look_alike_separation(diagnosis: Diagnosis, log: BenchLog) -> Separation | None:
     """The bench run that would tell the best candidate from its first look-alike, or None
     without a best candidate or a look-alike."""

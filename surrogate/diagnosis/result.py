@@ -145,6 +145,9 @@ class Diagnosis:
     #: the bench run that would tell the best candidate from its first look-alike, if any
     separation: Separation | None = None
     heldout_by_scheme: dict = field(default_factory=dict)  # [Pa] per held-out scheme
+    #: candidates the model's own parameters already mimic on this log (:func:`.lookalikes.
+    #: absorbed`): {candidate: (parameter, cosine of their columns)}
+    absorbed: dict = field(default_factory=dict)
 
     @property
     def best(self) -> Candidate | None:

@@ -55,10 +55,28 @@ def diagnosis_document(diagnosis: Diagnosis) -> dict:
                               for check in diagnosis.sensor_checks],
             "separating_run": (diagnosis.separation.to_json()
                                if diagnosis.separation is not None else None),
+            "finding": finding_document(diagnosis),
+            "absorbed": {name: {"parameter": key, "cosine": round(cosine, 4)}
+                         for name, (key, cosine) in diagnosis.absorbed.items()},
             "summary": summarise(diagnosis),
             "candidates": [c.to_json() for c in diagnosis.candidates],
             "residual_correlations": {k: round(v, 3)
                                       for k, v in diagnosis.correlations.items()}}
+
+
+def finding_document(diagnosis: Diagnosis) -> dict | None:
+    """The finding as JSON: every explanation the log cannot tell apart, with its category and
+    fitted parameters (display units), none preferred; None without a finding."""
+    best = diagnosis.best
+    if best is None:
+        return None
+    members = [c for c in diagnosis.candidates if c.name in best.group]
+    return {"look_alikes": len(members) > 1,
+            "chosen_in": round(diagnosis.group_inclusion(best), 3),
+            "explanations": [{"name": c.name, "title": c.title, "category": c.category,
+                              "shape_free": c.shape_free, "text": explanation(c),
+                              "params": {p.name: p.to_record() for p in c.params if p.vary}}
+                             for c in members]}
 
 
 def hysteresis_share(diagnosis: Diagnosis, candidate: Candidate) -> float:
@@ -154,6 +172,7 @@ def summarise(diagnosis: Diagnosis) -> str:
         if best.category == "map correction":
             sentence += (" It patches the CFD maps rather than adding valve physics: "
                          "more CFD where the bench operates would replace it.")
+    sentence += absorbed_sentence(diagnosis)
     if diagnosis.map_limits:
         sentence += (" The maps' error shows most " + "; ".join(map_limit_texts(diagnosis))
                      + ": `suggest-cfd` lists the CFD runs that would settle it.")
@@ -161,6 +180,24 @@ def summarise(diagnosis: Diagnosis) -> str:
         sentence += (" Sensor check (never part of the model): "
                      + "; ".join(map(sensor_check_text, diagnosis.sensor_checks[:3])) + ".")
     return sentence
+
+
+def absorbed_sentence(diagnosis: Diagnosis) -> str:
+    """Which candidates the model's own parameters already mimic on this log, by parameter."""
+    by_parameter: dict[str, list[str]] = {}
+    for name, (key, _) in diagnosis.absorbed.items():
+        by_parameter.setdefault(key, []).append(name)
+    parameters = diagnosis.model.parameters()
+    words = []
+    for key, names in by_parameter.items():
+        parameter = parameters[key]
+        cosine = max(abs(diagnosis.absorbed[name][1]) for name in names)
+        words.append(f" On this log {' and '.join(names)} would act almost as {key} does "
+                     f"(cosine of their effects up to {cosine:.2f}): {key} = "
+                     f"{parameter.display_value:.4g} {parameter.unit} may carry part of "
+                     f"{'them' if len(names) > 1 else 'it'}, and the log cannot tell how much; "
+                     "runs that move what sets them apart would.")
+    return "".join(words)
 
 
 def explanation(candidate: Candidate) -> str:
