@@ -17,9 +17,8 @@ Procedure
 5. Group the candidates the data cannot tell apart (:mod:`.lookalikes`), apply the significance
    rule (:mod:`.rule`), and flag per-run readings that look like a sensor fault (:mod:`.sensors`).
 6. Fit the shape-free terms (:mod:`.shapes`), judge them the same way, and rank and group them
-   with the library's, the bootstrap over runs choosing among all of them: every one when no
-   library term is significant; otherwise only those that generalise the library's finding,
-   one of which replaces it only when it fits decisively better.
+   with the library's, the bootstrap over runs choosing among all of them. When a library term
+   is significant, a shape replaces it only when it fits decisively better.
 7. When the best candidate has a look-alike, replay both over the runs the bench could make
    next and name the one where they differ most, or say that none within reach decides
    (:mod:`~surrogate.planning.bench_runs`).
@@ -51,7 +50,6 @@ from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
 from .result import Candidate, Diagnosis
 from .rule import RULE, SignificanceRule, gains_in_own_view
 from .sensors import sensor_checks
-from .naming import generalised_by
 from .shapes import shape_free_candidates
 
 
@@ -159,14 +157,12 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     _say_scores(say, results, refined)
     results = ranked(results)
     # shape-free terms only after the library: a library term that explains the log says it
-    # with fewer parameters and a name (and shapes of other variables, which soak up part of
-    # any effect, would split the bootstrap's votes with it). With a library finding, only the
-    # shapes that generalise it are tried, and one replaces it only when it fits decisively
-    # better (:meth:`.rule.SignificanceRule.replaces`): a detent taken for a progressive spring
+    # with fewer parameters and a name (and shapes, which soak up part of any effect, would
+    # split the bootstrap's votes with it). A shape replaces a library finding only when it
+    # fits decisively better (:meth:`.rule.SignificanceRule.replaces`): a detent taken for a
+    # progressive spring, a friction rising with the flow taken for a pilot-pressure friction
     finding = next((c for c in results if c.significant), None)
     shaped = shape_candidates(model, candidates, library) if shapes else []
-    if finding is not None:
-        shaped = [cls for cls in shaped if generalised_by(cls.name) & set(finding.group)]
     if shaped:
         found = with_views(shape_free_candidates(model, problem, own_columns, judge, shaped,
                                                  steps=steps, workers=workers, say=say))

@@ -38,13 +38,6 @@ LIBRARY_SHAPES: dict[str, tuple[tuple[str, tuple], ...]] = {
 }
 
 
-def generalised_by(shape_name: str) -> set[str]:
-    """The library effects that are special cases of shape-free term ``shape_name`` (the same
-    kind on the same variable): a shape that fits can take each of their shapes."""
-    return {part.strip() for name, _ in LIBRARY_SHAPES.get(shape_name, ())
-            for part in name.split("+")}
-
-
 @dataclass(frozen=True)
 class ShapeMatch:
     """A library term fitted to a found shape.

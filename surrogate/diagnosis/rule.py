@@ -97,13 +97,12 @@ class SignificanceRule:
         return (candidate.delta_bic + self.handicap(candidate), candidate.rms_after)
 
     def replaces(self, shape, finding) -> bool:
-        """Whether shape-free term ``shape`` replaces the library ``finding`` it generalises
-        (:func:`~surrogate.diagnosis.naming.generalised_by`): the finding is nested in the
-        shape, so their ΔBICs compare directly, and the shape must beat it by the threshold on
-        top of its handicap. A detent at 0.23 mm taken for a progressive spring (grid maps, map
-        mismatch; eval/offlibrary.py case 4243): the force of free shape beat the spring by
-        ΔBIC 23; a hidden pilot-differential friction under GP maps (stress case 215): the
-        friction of free shape of p_P beat it by 10, not decisively."""
+        """Whether shape-free term ``shape`` replaces the library ``finding``: both are judged
+        against the same model, so their ΔBICs compare directly, and the shape must beat it by
+        the threshold on top of its handicap. A detent at 0.23 mm taken for a progressive spring
+        (grid maps, map mismatch; eval/offlibrary.py case 4243): the force of free shape beat
+        the spring by ΔBIC 23; a hidden pilot-differential friction under GP maps (stress case
+        215): a friction of free shape of the flow beat it by 12, not decisively."""
         return shape.delta_bic + self.handicap(shape) - finding.delta_bic < self.bic
 
     def stable(self, group_share: float) -> bool:
