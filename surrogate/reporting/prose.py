@@ -155,6 +155,8 @@ def summarise(diagnosis: Diagnosis) -> str:
                          f"it is chosen in only {100 * share:.0f} % of resamples "
                          "over runs: which runs the log holds decides it, so it is not a "
                          "finding; more runs where it acts would settle it.")
+        else:
+            sentence += maps_or_shape_sentence(diagnosis)
     elif best.shape_free:
         sentence = shape_sentence(diagnosis, best)
     elif len(best.group) > 1:
@@ -229,6 +231,24 @@ def look_alike_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
     else:
         sentence += f" {advice[0].upper()}{advice[1:]}"
     return sentence + hysteresis_sentence(diagnosis, best)
+
+
+def maps_or_shape_sentence(diagnosis: Diagnosis) -> str:
+    """When a shape-free term would predict held-out runs better but the maps' own error could
+    do as much: the log cannot tell that shape from the maps' error (empty otherwise)."""
+    shape = next((c for c in diagnosis.candidates if c.shape_free and not c.per_run
+                  and RULE.predicts_unseen(c, diagnosis.heldout_by_scheme)
+                  and diagnosis.rms_before - c.rms_after > RULE.gain_fraction
+                  * diagnosis.noise_floor), None)
+    if shape is None:
+        return ""
+    return (f" A term of free shape, {shape.title} ({shape.name}), would lower the RMS to "
+            f"{from_si(shape.rms_after, 'bar'):.2f} bar and the held-out RMS to "
+            f"{from_si(shape.heldout_rms, 'bar'):.2f} bar, but the maps' own error could do "
+            f"nearly as much there (ΔBIC {shape.delta_bic:.1f} against it): this log cannot "
+            f"tell a {shape.effect.quantity} of {shape.curve.label} from the maps' error. "
+            "Runs at other pilot pressures and temperatures at the same operating points, or "
+            "CFD runs where the maps are least sure (`suggest-cfd`), would.")
 
 
 def shape_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
