@@ -36,6 +36,7 @@ from ..parallel import map_threads
 from ..units import LPM, from_si, to_si
 from .refit import candidate_of
 from .result import ShapeCurve
+from .rule import delta_bic
 
 #: λ tried, relative to the columns' mean square (so that the choice does not depend on units)
 ROUGHNESS_WEIGHTS = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
@@ -225,6 +226,8 @@ class RoughnessChoice:
     heldout: dict  # [Pa] per scheme and "pooled"
     coefficients: np.ndarray  # [SI]
     rms: float  # [Pa] of the linear fit, in sample
+    objective: float = float("nan")  # its sum of squares with the maps' discrepancy [Pa²]
+    extra: float = float("nan")  # its effective number of parameters
 
 
 def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
@@ -258,8 +261,11 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
                            (rough[:, active], rough @ theta))
         heldout = blocks.heldout_rms(schemes)
         if best is None or heldout["pooled"] < best.heldout["pooled"]:
+            mine = np.arange(p, int(active.sum()))
             best = RoughnessChoice(weight, heldout, theta[p:] * shape.steps,
-                                   float(np.sqrt(np.mean(fitted**2))))
+                                   float(np.sqrt(np.mean(fitted**2))),
+                                   blocks.objective(np.ones(len(blocks.labels))),
+                                   blocks.effective_parameters(mine))
     return best
 
 
@@ -271,7 +277,7 @@ CURVE_POINTS = 41
 
 def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                           classes=SHAPE_FREE, *, steps: int, workers: int | None = None,
-                          say=None) -> list:
+                          say=None, must_beat: float | None = None) -> list:
     """Every shape-free effect of ``classes`` fitted beside the model's own parameters and
     judged like a library candidate (:mod:`surrogate.diagnosis.judge`), with its roughness.
 
@@ -281,7 +287,8 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
     better by the rule's held-out gain are refitted for real (the others cannot pass the rule;
     they are left out, at no replay). ``problem`` is the diagnosis' :class:`~surrogate.
     diagnosis.refit.DiagnosisProblem`, ``own_columns`` its model's columns, ``judge`` its
-    :class:`~surrogate.diagnosis.judge.Judge`.
+    :class:`~surrogate.diagnosis.judge.Judge`. With ``must_beat`` (a ΔBIC), only the shapes
+    whose linear fit's ΔBIC is below it are refitted.
     """
     say = say or (lambda message: None)
     base, ok = problem.base, problem.ok
@@ -298,8 +305,17 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                                   judge.runs, judge.discrepancy, judge.penalty, judge.schemes)
         return cls, columns, choice
 
-    fits = [fit for fit in map_threads(linear, classes, workers=workers)
-            if judge.rule.predicts_unseen(_Scores(fit[2].heldout), judge.heldout)]
+    def promising(fit) -> bool:
+        cls, _, choice = fit
+        if not judge.rule.predicts_unseen(_Scores(choice.heldout), judge.heldout):
+            return False
+        if must_beat is None:
+            return True
+        linear_bic = delta_bic(choice.objective, judge.objective_before, problem.n_eff,
+                               choice.extra)
+        return linear_bic < must_beat
+
+    fits = [fit for fit in map_threads(linear, classes, workers=workers) if promising(fit)]
     say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
         "better")
     return list(map_threads(lambda fit: _refitted(model, problem, own_columns, judge, *fit,
