@@ -40,6 +40,7 @@ from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.presets import maps
+from surrogate.reporting.prose import summarise
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.offlibrary import (OFF_LIBRARY, RMS_RATIO, off_library_outcome,
                                             off_library_suite)
@@ -67,7 +68,8 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
         outcome = off_library_outcome(workflow, case.hidden, twin)
         seconds = time.perf_counter() - began
         records.append({**outcome.to_json(), "seed": case.seed,
-                        "values": case.values, "seconds": round(seconds, 1)})
+                        "values": case.values, "seconds": round(seconds, 1),
+                        "final_summary": summarise(workflow.final_diagnosis)})
         verdict = ("found" if outcome.found else "as twin" if outcome.right_term
                    and outcome.as_twin else "right term" if outcome.right_term else "MISSED")
         print(f"  {kind} {case.seed}: {case.hidden or 'nothing hidden':<20} -> "
