@@ -8,8 +8,8 @@ of the package is imported first.
 from .base import FlowMap, ForceMap, MapResult
 from .orifice import OrificeFlowMap, UniformPressureForceMap  # the kind "orifice"
 from .grid import GridFlowMap, GridForceMap  # the kind "grid"
-from . import nn  # the kind "nn"
-from . import gp  # the kind "gp"
+from . import nn  # noqa: F401 -- registers the kind "nn"
+from . import gp  # noqa: F401 -- registers the kind "gp"
 
 __all__ = ["FlowMap", "ForceMap", "GridFlowMap", "GridForceMap", "MapResult", "OrificeFlowMap",
            "UniformPressureForceMap"]
