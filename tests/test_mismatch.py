@@ -50,7 +50,7 @@ CLEAN_SHARE = 0.9
 #: and perhaps a map correction); more would only cost time
 ADDITIONS = 3
 #: the hidden-effect cases of CI's slice (`pytest -m stress` runs the whole suite)
-SLICE_CASES = 3
+SLICE_CASES = 2
 
 
 @pytest.fixture(scope="module")
@@ -112,7 +112,7 @@ def test_the_cavitation_term_keeps_the_effect_contract():
 @pytest.mark.slow
 def test_a_slice_of_the_stress_suite_is_found_cleanly(sequence):
     """CI's slice of the suite below: its first hidden-effect cases (a spring, a flow-force
-    scale, a discharge scale) and its first control, on grid maps."""
+    scale) and its first control, on grid maps."""
     suite = stress_suite(CASES, CONTROLS, settings=SETTINGS)
     cases = ([case for case in suite if case.hidden][:SLICE_CASES]
              + [case for case in suite if case.hidden is None][:1])

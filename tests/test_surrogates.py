@@ -234,12 +234,10 @@ def test_missing_or_foreign_folder_is_a_clear_error(tmp_path):
         load_learned_maps(tmp_path)
 
 
-#: the kinds the retraining test trains in CI: the GP's (half a minute); the network's training
-#: takes minutes on 2 cores, so it runs with the stress suites (`pytest -m stress`, with the
-#: tolerance's float-level and broken-training checks of both kinds; eval/retraining.py
-#: measures the same)
-RETRAINED = [pytest.param(kind, marks=pytest.mark.stress) if kind == "nn" else kind
-             for kind in LEARNED]
+#: the retraining tests run with the stress suites (`pytest -m stress`; eval/retraining.py
+#: measures the same): the network's training takes minutes on 2 cores, the GP's half a minute,
+#: and CI must stay under ten minutes
+RETRAINED = [pytest.param(kind, marks=pytest.mark.stress) for kind in LEARNED]
 
 
 @pytest.fixture(scope="module")
