@@ -119,6 +119,6 @@ def look_alike_separation(diagnosis: Diagnosis, log: BenchLog) -> Separation | N
     best = diagnosis.best
     if best is None or len(best.group) < 2:
         return None
-    other = next(c for c in diagnosis.candidates if c.name in best.group and c is not best)
+    other = next(c for c in diagnosis.explanations if c is not best)
     return separating_run(best.model, other.model, log, diagnosis.noise_floor, (best.name,
                                                                                 other.name))

@@ -154,6 +154,13 @@ class Diagnosis:
         """The best significant candidate, or None."""
         return next((c for c in self.candidates if c.significant), None)
 
+    @property
+    def explanations(self) -> tuple[Candidate, ...]:
+        """The finding's explanations: the best candidate and the look-alikes this log cannot
+        tell from it, in rank order (empty without a finding)."""
+        best = self.best
+        return () if best is None else tuple(c for c in self.candidates if c.name in best.group)
+
     def group_inclusion(self, candidate: Candidate) -> float:
         """The share of resamples over runs that add ``candidate`` or a look-alike of its
         group."""

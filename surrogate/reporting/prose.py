@@ -70,7 +70,7 @@ def finding_document(diagnosis: Diagnosis) -> dict | None:
     best = diagnosis.best
     if best is None:
         return None
-    members = [c for c in diagnosis.candidates if c.name in best.group]
+    members = diagnosis.explanations
     return {"look_alikes": len(members) > 1,
             "chosen_in": round(diagnosis.group_inclusion(best), 3),
             "explanations": [{"name": c.name, "title": c.title, "category": c.category,
@@ -211,7 +211,7 @@ def explanation(candidate: Candidate) -> str:
 def look_alike_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
     """A finding the log cannot attribute: every explanation with its category and size, none
     preferred, and what would decide."""
-    members = [c for c in diagnosis.candidates if c.name in best.group]
+    members = diagnosis.explanations
     categories = sorted({c.category for c in members})
     sentence = (f"The log holds one finding with {len(members)} explanations it cannot tell "
                 f"apart: " + ", or ".join(map(explanation, members)) + ". On this log they "

@@ -225,8 +225,7 @@ class _Staircase:
             if best is None or additions == max_additions:
                 return diagnosis
             # the diagnosis already refitted every parameter with the effect added: polish that
-            categories = dict.fromkeys(c.category for c in diagnosis.candidates
-                                       if c.name in best.group)
+            categories = dict.fromkeys(c.category for c in diagnosis.explanations)
             step = self.record(best.model.copy(name=f"{current.model.name}+{best.name}"),
                                [best.name], " or ".join(categories), summary, diagnosis,
                                near=best.replay)
