@@ -38,6 +38,19 @@ def test_non_negative_coefficients_make_a_rising_non_negative_shape_zero_at_the_
     assert np.allclose(rising_basis(KNOTS, [0.0]) @ np.array(c), 0.0)
 
 
+@pytest.mark.parametrize("cls", SHAPE_FREE, ids=lambda cls: cls.name)
+def test_a_shape_is_its_basis_times_its_coefficients_whenever_they_change(cls):
+    # the shape is evaluated as one cached spline; a fit changes the parameters in place
+    rng = np.random.default_rng(3)
+    effect = cls.on_knots(quantile_knots(rng.uniform(0.0, 4.0, 100)))
+    x = rng.uniform(-1.0, 5.0, 300)
+    for _ in range(3):
+        for name in effect.coefficient_names():
+            effect.params[name].value = abs(rng.normal())
+        assert np.allclose(effect.shape(x), effect.basis(x) @ effect.coefficients,
+                           rtol=1e-12, atol=1e-12)
+
+
 def test_knots_follow_the_data_but_never_collapse_onto_a_held_value():
     held = np.r_[np.full(1000, 5.0), np.linspace(0.0, 10.0, 50)]
     knots = quantile_knots(held)

@@ -226,7 +226,25 @@ class ShapeFreeEffect(Effect):
     def shape(self, x: np.ndarray) -> np.ndarray:
         """The shape's values at ``x`` [SI of the variable] in SI units of ``value_unit``."""
         x = np.asarray(x, float)
-        return (self.basis(x.ravel()) @ self.coefficients).reshape(x.shape)
+        spline, low, high = self._spline()
+        return spline(np.clip(x, low, high))
+
+    def _spline(self) -> tuple[BSpline, float, float]:
+        """The shape as one scalar cubic spline with its end knots, built again only when a
+        parameter has changed. A solver evaluates the shape thousands of times per fit (a
+        leakage at every step of the flow split), and building the basis each time cost more
+        than the maps."""
+        values = tuple(parameter.value for parameter in self.params.values())
+        if getattr(self, "_cached", (None,))[0] != values:
+            knots = self.knots
+            coefficients = self.coefficients
+            if self.rising:
+                # Σ_k c_k·R_k with R_k = Σ_{j>k} B_j is Σ_j B_j·(c_1 + … + c_j), B_0's weight 0
+                coefficients = np.r_[0.0, np.cumsum(coefficients)]
+            padded = np.r_[[knots[0]] * DEGREE, knots, [knots[-1]] * DEGREE]
+            spline = BSpline(padded, coefficients, DEGREE, extrapolate=False)
+            self._cached = (values, (spline, float(knots[0]), float(knots[-1])))
+        return self._cached[1]
 
     def roughness(self) -> np.ndarray:
         """Differences of neighbouring coefficients whose squares the penalty sums: second
