@@ -10,6 +10,9 @@ Steps
 5. Then, until nothing significant is left: diagnose (:mod:`~surrogate.diagnosis.diagnose`), add
    the best significant
    candidate, refit every free parameter together.
+6. ``calibrated maps``: what the maps' own error explains of the rest, fitted as map corrections
+   per opening within the maps' uncertainty (:mod:`.calibration`), kept only if it predicts the
+   held-out runs better.
 
 Every step refits all free parameters against every sample of the log
 (:func:`~surrogate.fitting.logfit.fit_to_log`);
@@ -45,6 +48,7 @@ from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..reporting.prose import summarise
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
+from .calibration import calibrate_maps
 
 MAX_ADDITIONS = 8  # effects the loop may add after the paper's steps
 
@@ -184,8 +188,11 @@ class _Staircase:
         return self.steps[-1]
 
     def record(self, model: ValveModel, added: list[str], category: str, reason: str,
-               diagnosis: Diagnosis | None = None, near: LogReplay | None = None) -> Step:
-        """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step."""
+               diagnosis: Diagnosis | None = None, near: LogReplay | None = None,
+               calibration=None) -> Step:
+        """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step
+        (``calibration``: the :class:`.calibration.Calibration` it adds, which its held-out
+        figure refits too)."""
         if near is None and self.steps and self.last.model.flow_map is model.flow_map:
             near = self.last.played
         fitted = None
@@ -193,7 +200,8 @@ class _Staircase:
             fitted = fit_to_log(model, self.log, start=near)
             model = fitted.model
         played = replay_log(model, self.log, guess=near)
-        check = heldout_rms(fitted, played, self.schemes)
+        check = (heldout_rms(fitted, played, self.schemes) if calibration is None
+                 else calibration.heldout_rms(fitted, played, self.schemes))
         best = None if diagnosis is None else diagnosis.best
         pushed = (pushed_to_bounds(self.last.model, model, added) if self.steps else [])
         step = Step(model, added, reason, played, played.rms(), diagnosis, category,
@@ -241,11 +249,28 @@ class _Staircase:
                 return diagnosis
             additions += 1
 
+    def calibrate(self) -> None:
+        """Add the maps' calibration (:mod:`.calibration`) unless it predicts the held-out runs
+        no better than the step before."""
+        current = self.last
+        self.say(f"calibrating the maps of {current.model.name} to the bench ...")
+        calibration = calibrate_maps(current.model, self.log, current.played)
+        if calibration is None:
+            return
+        step = self.record(calibration.model.copy(name=f"{current.model.name}+calibrated maps"),
+                           calibration.names, "map correction", calibration.describe(),
+                           near=calibration.replay, calibration=calibration)
+        if step.heldout_check > current.heldout_check:
+            self.steps.pop()
+            self.say(f"  the calibration was not kept: it predicts the held-out runs worse "
+                     f"({from_si(current.heldout_check, 'bar'):.3f} -> "
+                     f"{from_si(step.heldout_check, 'bar'):.3f} bar)")
+
 
 def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
                  library: EffectLibrary = LIBRARY, candidates: list[str] | None = None,
                  valve: ValveSource | None = None, maps_spec: MapsSpec | None = None,
-                 max_additions: int = MAX_ADDITIONS,
+                 max_additions: int = MAX_ADDITIONS, calibrate: bool = True,
                  progress: Callable[[str], None] | None = None) -> Workflow:
     """Run the loop on ``log`` (see the module docstring).
 
@@ -264,6 +289,9 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
         The CFD maps of the paper's steps (default: grid maps of the shipped samples).
     max_additions : int
         Effects added by diagnosis at most.
+    calibrate : bool
+        End with the maps calibrated to the bench (:mod:`.calibration`), when that predicts the
+        held-out runs better.
     progress : callable, optional
         Called with a line of text at every stage.
     """
@@ -281,6 +309,8 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     else:
         staircase.record(start, [], "", f"the starting model {start.name!r}")
     diagnosis = staircase.add_diagnosed(library, candidates, max_additions)
+    if calibrate:
+        staircase.calibrate()
     steps = staircase.steps
     floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs,
                         source=steps[-1].played.log.source)

@@ -1,0 +1,119 @@
+"""The maps calibrated to the bench per opening: the effects, their prior, and the workflow's step.
+
+The logs come from a virtual valve whose CFD differs from the shipped samples like a real valve's
+(:mod:`surrogate.synthetic.mismatch`); the model under test runs on the shipped grid maps. With
+nothing hidden, what is left after the physics is the maps' own error: the calibration must take
+it back, predict the held-out runs better and stay within the maps' uncertainty. With perfect
+maps there is no error to take back, and it must not invent one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from surrogate.effects import KNOWN
+from surrogate.effects.calibration import (CALIBRATIONS, CalibratedDischarge,
+                                           CalibratedFlowForce, hat_basis)
+from surrogate.fitting.discrepancy import knots
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.fitting.residuals import replay_log
+from surrogate.modelfile import load_model, save_model
+from surrogate.presets import maps
+from surrogate.synthetic.mismatch import MapMismatch
+from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
+from surrogate.testing import check_effect
+from surrogate.workbench.calibration import calibrate_maps
+from surrogate.workbench.workflow import run_workflow
+
+KNOTS = np.array([0.015e-3, 0.05e-3, 0.08e-3, 0.2e-3, 0.31e-3, 0.63e-3])
+
+
+@pytest.mark.parametrize("cls", CALIBRATIONS, ids=lambda cls: cls.name)
+def test_every_calibration_keeps_the_effect_contract(cls):
+    check_effect(cls)
+
+
+def test_the_hat_basis_is_linear_in_ln_u_and_held_beyond_the_end_knots():
+    u = np.geomspace(0.005e-3, 1.0e-3, 80)
+    basis = hat_basis(KNOTS, u)
+    assert np.allclose(basis.sum(axis=1), 1.0) and np.all(basis >= 0.0)
+    assert np.allclose(basis[u < KNOTS[0]], hat_basis(KNOTS, KNOTS[:1]))
+    assert np.allclose(basis[u > KNOTS[-1]], hat_basis(KNOTS, KNOTS[-1:]))
+    middle = np.sqrt(KNOTS[2] * KNOTS[3])  # halfway in ln u
+    assert np.allclose(hat_basis(KNOTS, [middle])[0, 2:4], 0.5)
+
+
+@pytest.mark.parametrize("cls", CALIBRATIONS, ids=lambda cls: cls.name)
+def test_a_calibration_is_its_basis_times_its_values_and_reads_back_from_a_model_file(
+        cls, tmp_path):
+    effect = cls.on_knots(KNOTS)
+    for index, name in enumerate(effect.coefficient_names()):
+        effect.params[name].value = 0.03 * np.sin(index + 1.0)
+    u = np.geomspace(0.005e-3, 1.0e-3, 50)
+    assert np.allclose(effect.shape(u), effect.basis(u) @ effect.coefficients, atol=1e-15)
+    model = load_model("cfda")
+    model.effects.append(effect)
+    save_model(model, tmp_path / "calibrated.toml")
+    again = load_model(str(tmp_path / "calibrated.toml"), library=KNOWN).effect(cls.name)
+    assert np.array_equal(again.shape(u), effect.shape(u))
+
+
+@pytest.fixture(scope="module")
+def sequence(bench_log):
+    return noise_free_sequence(bench_log, every=8)
+
+
+def _fitted(case):
+    fitted = fit_to_log(case.start, case.log).model
+    return fitted, replay_log(fitted, case.log)
+
+
+@pytest.mark.slow
+def test_the_workflow_takes_the_maps_error_back_within_their_uncertainty(sequence):
+    """A log with nothing hidden, from a valve whose CFD errs like a real one's: the workflow
+    adds no physics, and its last step, the calibration, lowers the RMS to the noise's level and
+    the held-out RMS with it; no value lies beyond 3σ of its prior."""
+    case = hidden_effect_case(None, sequence=sequence, seed=4743, mismatch=MapMismatch(),
+                              maps_under_test=maps("grid"))
+    workflow = run_workflow(case.log, start=case.start, max_additions=3)
+    before, last = workflow.steps[-2], workflow.final
+    assert last.added == [cls.name for cls in CALIBRATIONS], [s.added for s in workflow.steps]
+    assert last.category == "map correction"
+    assert all(step.category == "map correction" for step in workflow.steps[1:])
+    assert before.rms > 1.3 * workflow.noise_floor  # the maps' error is there to take back
+    assert last.rms < 1.2 * workflow.noise_floor
+    assert last.heldout_check < 0.85 * before.heldout_check
+    values = np.concatenate([last.model.effect(cls.name).coefficients for cls in CALIBRATIONS])
+    assert np.all(np.abs(values) > 0) and np.max(np.abs(values)) < 0.5
+
+
+@pytest.mark.slow
+def test_with_perfect_maps_the_calibration_stays_within_its_prior_and_gains_nothing(sequence):
+    """The valve is its CFD: nothing for the calibration to find. Its values stay well inside
+    their prior, and in-sample and held-out RMS barely move (a calibration fitted to noise would
+    show as values of several σ)."""
+    case = hidden_effect_case(None, sequence=sequence, seed=4743, maps_under_test=maps("grid"))
+    model, played = _fitted(case)
+    calibration = calibrate_maps(model, case.log, played)
+    assert calibration is not None
+    z = calibration.values / calibration.sigma
+    assert np.sqrt(np.mean(z**2)) < 0.5, z
+    assert calibration.replay.rms() > 0.97 * played.rms()
+
+
+@pytest.mark.slow
+def test_the_calibration_prior_is_the_maps_own_uncertainty(sequence):
+    """Each value's prior σ is at least the CFD's own error, and more where the maps' own
+    calibrated σ says they are unsure; never beyond the values' bounds (±50 %)."""
+    case = hidden_effect_case(None, sequence=sequence, seed=4743, mismatch=MapMismatch(),
+                              maps_under_test=maps("grid"))
+    model, played = _fitted(case)
+    calibration = calibrate_maps(model, case.log, played)
+    count = len(knots(model))
+    force, flow = calibration.sigma[:count], calibration.sigma[count:]
+    assert np.all(force >= 0.025 - 1e-12) and np.all(flow >= 0.0075 - 1e-12)
+    assert np.all(force < 0.5) and np.all(flow < 0.5) and np.any(force > 0.05)
+    assert calibrate_maps(calibration.model, case.log, calibration.replay) is None
+    assert CalibratedFlowForce.name in calibration.names
+    assert CalibratedDischarge.name in calibration.names
