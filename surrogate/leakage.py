@@ -97,7 +97,8 @@ def _power_law_step(share, drop, exponent, q, leak, newton_steps: int = 3) -> np
         with np.errstate(divide="ignore", invalid="ignore"):
             pressure = drop * (x / share) ** exponent
             nudge = 1e-6 * pressure
-            slope = (leak(pressure + nudge) - leak(pressure)) / nudge  # d leak / dΔp
+            leaking = leak(pressure)  # once: a leak of free shape costs as much as a map call
+            slope = (leak(pressure + nudge) - leaking) / nudge  # d leak / dΔp
             derivative = 1.0 + slope * exponent * pressure / x
-            x = x - (x + leak(pressure) - q) / derivative
+            x = x - (x + leaking - q) / derivative
     return x
