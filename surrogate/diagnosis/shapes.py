@@ -182,13 +182,15 @@ def last_moving(x: np.ndarray, moving: np.ndarray, runs: np.ndarray) -> np.ndarr
 
 def shape_columns(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray],
                   sensitivities: np.ndarray, ok: np.ndarray, moving: np.ndarray,
-                  runs: np.ndarray) -> ShapeColumns:
+                  runs: np.ndarray, effect: ShapeFreeEffect | None = None) -> ShapeColumns:
     """The effect on knots at the values its variable takes where the piston moves (``moving``;
-    where it rests on a stop or friction holds it, a shape's value changes nothing), and its
-    columns at the solved samples ``ok`` (``runs``: each sample's run)."""
+    where it rests on a stop or friction holds it, a shape's value changes nothing), or
+    ``effect`` on its own knots, and its columns at the solved samples ``ok`` (``runs``: each
+    sample's run)."""
     x = variable_values(cls, state)
-    where = ok & moving & np.isfinite(x)
-    effect = cls.on_knots(cls.knots_for(x[where if where.any() else ok & np.isfinite(x)]))
+    if effect is None:
+        where = ok & moving & np.isfinite(x)
+        effect = cls.on_knots(cls.knots_for(x[where if where.any() else ok & np.isfinite(x)]))
     steps = np.array([float(to_si(1.0, cls.value_unit) - to_si(0.0, cls.value_unit))]
                      * len(effect.coefficients))
     # A held piston stays where the shape's output put it when it last moved: that part of a
@@ -282,10 +284,11 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
     judged like a library candidate (:mod:`surrogate.diagnosis.judge`), with its roughness.
 
     Each shape's coefficients are linearised from one probe replay of its hook
-    (:func:`sensitivity`; five replays in all), its roughness weight chosen by held-out runs
+    (:func:`sensitivity`; five replays in all, fewer where a column of the model's own stands in
+    for a probe, :data:`PROBE_TWINS`), its roughness weight chosen by held-out runs
     (:func:`choose_roughness`), and only the shapes whose linear fit predicts the runs left out
     better by the rule's held-out gain are refitted for real (the others cannot pass the rule;
-    they are left out, at no replay). ``problem`` is the diagnosis' :class:`~surrogate.
+    they are left out, at no replay), the front runners among them (:func:`front_runners`). ``problem`` is the diagnosis' :class:`~surrogate.
     diagnosis.refit.DiagnosisProblem`, ``own_columns`` its model's columns, ``judge`` its
     :class:`~surrogate.diagnosis.judge.Judge`. With ``must_beat`` (a ΔBIC), only the shapes
     whose linear fit's ΔBIC is below it are refitted.
@@ -294,8 +297,10 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
     base, ok = problem.base, problem.ok
     state = state_at_samples(model, base)
     probes = list(dict.fromkeys(probe_of(cls) for cls in classes))
+    sensitivities = reused_sensitivities(probes, own_columns, ok)
+    probes = [probe for probe in probes if probe not in sensitivities]
     say(f"probing how Δp answers {len(probes)} kind(s) of shape-free term")
-    sensitivities = dict(zip(probes, map_threads(
+    sensitivities.update(zip(probes, map_threads(
         lambda probe: sensitivity(model, probe, base), probes, workers=workers)))
 
     def linear(cls):
@@ -315,11 +320,54 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                                choice.extra)
         return linear_bic < must_beat
 
-    fits = [fit for fit in map_threads(linear, classes, workers=workers) if promising(fit)]
+    fits = front_runners([fit for fit in map_threads(linear, classes, workers=workers)
+                          if promising(fit)], judge, problem.n_eff)
     say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
         "better")
     return list(map_threads(lambda fit: _refitted(model, problem, own_columns, judge, *fit,
                                                   steps=steps), fits, workers=workers))
+
+
+#: shape-free terms refitted for real at most (with any whose linear fit comes within
+#: :data:`FRONT_MARGIN` of the last of them), as the library's front runners
+#: (:data:`surrogate.diagnosis.refit.REFINED`)
+FRONT = 4
+#: ΔBIC: the linear fit understates a shape's gain by up to about this much (a detent's ΔBIC
+#: -117 linear, -155 refitted), so a shape this close to the front runners is refitted too
+FRONT_MARGIN = 40.0
+
+#: a model parameter whose Jacobian column is a probe's sensitivity times its step: a constant
+#: friction widens the band as the friction probe does, a flow-force scale adds (scale − 1)·f_ff
+#: as the flow-force probe does. Where the model has it free, its column (already replayed for
+#: the diagnosis) stands in for the probe's replay.
+PROBE_TWINS = {_FrictionProbe: "friction_constant.K1", _FlowForceProbe: "flow_force_scale.scale"}
+
+
+def reused_sensitivities(probes, own_columns, ok: np.ndarray) -> dict:
+    """The sensitivities of ``probes`` that the model's own columns already hold
+    (:data:`PROBE_TWINS`), in :func:`sensitivity`'s form: per SI unit, at every sample, 0 where
+    the model has no solution."""
+    columns = {column.key: column for column in own_columns}
+    found = {}
+    for probe in probes:
+        column = columns.get(PROBE_TWINS.get(probe, ""))
+        if column is not None and column.felt:
+            everywhere = np.zeros(len(ok))
+            everywhere[ok] = column.change / column.step
+            found[probe] = everywhere
+    return found
+
+
+def front_runners(fits: list, judge, n_eff: float) -> list:
+    """The fits worth refitting for real: the :data:`FRONT` best by their linear fit's ΔBIC, and
+    any within :data:`FRONT_MARGIN` of the last of them. A refit takes several replays; a shape
+    far behind the front cannot overtake it."""
+    if len(fits) <= FRONT:
+        return fits
+    scores = [delta_bic(choice.objective, judge.objective_before, n_eff, choice.extra)
+              for _, _, choice in fits]
+    cut = sorted(scores)[FRONT - 1] + FRONT_MARGIN
+    return [fit for fit, score in zip(fits, scores) if score <= cut]
 
 
 @dataclass
