@@ -61,6 +61,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     guard_outputs(args, Output("--out", args.out, "folder"))
     formats = list(dict.fromkeys(args.format))
+    if not (np.isfinite(args.grid_scale) and 0.25 <= args.grid_scale <= 8):
+        raise InputError(f"--grid-scale {args.grid_scale:g}: expected a number in [0.25, 8]")
     if not (np.isfinite(args.tolerance) and args.tolerance > 0):
         raise InputError(f"--tolerance {args.tolerance}: expected a number of bar > 0")
     progress = progress_for(args)
