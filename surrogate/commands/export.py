@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 
@@ -86,8 +87,7 @@ def run(args) -> int:
         grid = _grid(args, points)
         refuse_untabulable(physics.model, grid, source)
         tables = tabulate(physics.model, grid, progress)
-        tables = type(tables)(tables.model, tables.edges, tables.dp, physics.left_out,
-                              tables.failed_nodes)
+        tables = dataclasses.replace(tables, left_out=physics.left_out)
         progress(f"{tables.node_count():,} table nodes; measuring their resolution error on "
                  f"{log.source}")
         error = resolution_error(tables, physics.model, points, runs)
