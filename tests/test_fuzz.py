@@ -116,6 +116,22 @@ def effect_file(kind: str, body: str, signature: str = "state, k=1.0", decorator
             f"    return {body}\n")
 
 
+#: a custom force that reads its whole batch: fine for a fit, not a function of one state
+BATCH_EFFECT = effect_file("force", "k * state.p_L / np.mean(state.p_L)",
+                           signature="state, k=0.0").replace("fuzzed_force", "batch_force")
+BATCH_EFFECT_ENTRY = """
+[[effects]]
+name = "batch_force"
+[effects.parameters]
+k = { value = 2.0, unit = "1", min = 0.0, max = 10.0, vary = false }
+"""
+SENSOR_ENTRY = """[[effects]]
+name = "pilot_transducer_offset"
+[effects.parameters]
+delta = { value = 0.5, unit = "bar", min = -5.0, max = 5.0, vary = true }
+"""
+
+
 @dataclass(frozen=True)
 class Case:
     """A command line run on the good files with ``files`` replacing or adding some."""
@@ -773,6 +789,35 @@ CASES = [
          ("model.toml", "ambiguous", 'folder = "./nn"'),
          {"model.toml": replace(MODEL_V1, 'maps = { kind = "grid" }', 'maps = "nn"'),
           **surrogate("nn")}),
+
+    # export ---------------------------------------------------------------------------------------
+    Case("export: a custom effect that reads its batch cannot be tabulated",
+         ("export", "--model", "batch.toml", "--effects-file", "fx.py", "--data", "log.csv",
+          "--format", "fmu", "--out", "out"),
+         ("batch.toml", "batch_force", "fx.py", "cannot be tabulated", "elementwise"),
+         {"fx.py": BATCH_EFFECT, "batch.toml": MODEL + BATCH_EFFECT_ENTRY}),
+    Case("export: a model of sensor terms only",
+         ("export", "--model", "sensor.toml", "--data", "log.csv", "--format", "tables",
+          "--out", "out"),
+         ("sensor.toml", "pilot_transducer_offset", "belongs to the bench"),
+         {"sensor.toml": MODEL.split("[[effects]]")[0] + SENSOR_ENTRY}),
+    Case("export: an output folder holding its bench log",
+         ("export", "--model", "cfda", "--data", "log.csv", "--format", "tables", "--out", "."),
+         ("--out", "holds the input", "log.csv")),
+    Case("export: a grid too coarse for the tolerance asked",
+         ("export", "--model", "cfda", "--data", "log.csv", "--format", "fmu",
+          "--grid-scale", "0.25", "--tolerance", "0.001", "--out", "out"),
+         ("--grid-scale 0.25", "too coarse", "--tolerance 0.001", "log.csv")),
+    Case("export: onnx of a model on grid maps",
+         ("export", "--model", "cfda", "--data", "log.csv", "--format", "onnx", "--out", "out"),
+         ("cfda", "onnx", "nn", "gp")),
+    Case("export: a grid scale out of range",
+         ("export", "--model", "cfda", "--data", "log.csv", "--format", "tables",
+          "--grid-scale", "100", "--out", "out"),
+         ("--grid-scale", "[0.25, 8]")),
+    Case("steady: an empty flow range",
+         ("steady", "--model", "cfda", "--p-P-bar", "65", "--q-lpm", "5", "1", "--out", "out"),
+         ("--q-lpm", "LOW < HIGH")),
 
     # files a model names are not echoed; nesting -------------------------------------------------
     Case("leak: a model's cfd naming a file that is no CSV",

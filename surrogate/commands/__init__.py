@@ -1,6 +1,7 @@
 """The subcommands of ``python -m surrogate``, one module each."""
 
-from . import (check_data, compare, diagnose, fit, paper, predict, simulate, suggest_cfd,
-               workflow)
+from . import (check_data, compare, diagnose, export, fit, paper, predict, simulate, steady,
+               suggest_cfd, workflow)
 
-COMMANDS = (check_data, paper, predict, compare, diagnose, fit, workflow, suggest_cfd, simulate)
+COMMANDS = (check_data, paper, predict, compare, diagnose, fit, workflow, suggest_cfd, simulate,
+            steady, export)

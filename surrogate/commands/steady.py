@@ -1,0 +1,88 @@
+"""``steady``: the steady characteristic of a model, Δp(q) on its up and down branches."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..errors import InputError
+from ..export.characteristic import steady_characteristic
+from ..export.valve_only import valve_physics
+from ..outputs import Output, atomic_directory
+from ..reporting.report import figure_png
+from ..units import from_si, to_si
+from .common import (add_command, effect_library, guard_outputs, maps_from_args, maps_help_text,
+                     print_json, progress_for, required)
+
+
+def register(subparsers) -> None:
+    parser = add_command(
+        subparsers, "steady",
+        help="the steady characteristic of a model: up and down branches of dp(q)",
+        description="Solve the model's force balance at rising flow (piston opening, friction "
+                    "holding it back: the up branch) and falling flow (the down branch) at a "
+                    "pilot pressure, back pressure and temperature held, the curve a catalogue "
+                    "shows. The model's sensor and per-run terms are left out (they belong to "
+                    "the bench). Writes steady.csv, steady.json and steady.png into --out.")
+    options = required(parser)
+    options.add_argument("--model", required=True, help="a preset or a model file (TOML)")
+    options.add_argument("--p-P-bar", type=float, required=True, help="pilot pressure [bar]")
+    options.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--p-B-bar", type=float, default=5.0,
+                        help="back pressure [bar] (default 5)")
+    parser.add_argument("--temperature-C", type=float, default=40.0,
+                        help="oil temperature [°C] (default 40)")
+    parser.add_argument("--q-lpm", nargs=2, type=float, default=(0.5, 12.0),
+                        metavar=("LOW", "HIGH"), help="flow range [L/min] (default 0.5 12)")
+    parser.add_argument("--points", type=int, default=60, help="flows per branch (default 60)")
+    parser.add_argument("--maps", metavar="KIND", help=f"replace the model's maps: "
+                                                       f"{maps_help_text()}")
+    parser.add_argument("--effects-file", action="append", default=[], metavar="FILE",
+                        help="Python file defining custom effects (repeatable)")
+    parser.add_argument("--valve", help="valve file (default: the model's, or the shipped one)")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    guard_outputs(args, Output("--out", args.out, "folder"))
+    low, high = args.q_lpm
+    if not (np.isfinite(low) and np.isfinite(high) and 0 < low < high):
+        raise InputError(f"--q-lpm {low:g} {high:g}: expected 0 < LOW < HIGH [L/min]")
+    if not 2 <= args.points <= 10_000:
+        raise InputError(f"--points {args.points}: expected 2 to 10000 flows per branch")
+    for option, value in (("--p-P-bar", args.p_P_bar), ("--p-B-bar", args.p_B_bar),
+                          ("--temperature-C", args.temperature_C)):
+        if not np.isfinite(value):
+            raise InputError(f"{option} {value}: expected a finite number")
+    progress = progress_for(args)
+    from ..modelfile import PRESETS, load_spec
+
+    spec = load_spec(args.model, args.valve)
+    if args.maps:
+        spec = spec.with_maps(maps_from_args(args.maps), f"{spec.name} ({args.maps} maps)")
+    where = args.model if args.model not in PRESETS else f"preset {args.model!r}"
+    model = spec.build(effect_library(args, progress), where)
+    physics = valve_physics(model, args.model)
+    q = np.geomspace(*to_si(np.array([low, high]), "L/min"), args.points)
+    progress(f"solving {physics.model.name}'s steady branches at {args.points} flows")
+    curve = steady_characteristic(physics.model, q, to_si(args.p_P_bar, "bar"),
+                                  to_si(args.p_B_bar, "bar"), to_si(args.temperature_C, "degC"))
+    document = curve.to_json() | {"left_out": physics.left_out, "failures": curve.failures}
+    with atomic_directory(args.out) as staging:
+        curve.to_frame().to_csv(staging / "steady.csv", index=False, float_format="%.6g")
+        (staging / "steady.json").write_text(json.dumps(document, indent=2, allow_nan=False)
+                                             + "\n")
+        (staging / "steady.png").write_bytes(figure_png(curve.figure()))
+    if curve.failures:
+        progress(f"no equilibrium at some flows: {curve.failures}")
+    progress(f"wrote steady.csv, steady.json and steady.png to {args.out}")
+    if args.json:
+        print_json(document)
+    else:
+        frame = curve.to_frame()
+        for branch in ("up", "down"):
+            rows = frame[frame.branch == branch]
+            print(f"{branch:>4}: dp {rows.dp_bar.min():.1f} to {rows.dp_bar.max():.1f} bar over "
+                  f"{from_si(q[0], 'L/min'):.2f} to {from_si(q[-1], 'L/min'):.2f} L/min")
+    return 0

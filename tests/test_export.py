@@ -1,0 +1,217 @@
+"""Exporting a fitted valve: the FMU against the solver's replay, the tables' files, the steady
+characteristic, and what cannot be exported.
+
+One export of ``cfda`` (grid maps, the roughest the package has) at the default grid serves the
+FMU and table tests (about 7 s); the source-only FMU is written on a coarse grid.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from surrogate.cli import main
+from surrogate.data import load_bench_log
+from surrogate.effects import custom_effect
+from surrogate.errors import InputError
+from surrogate.export.tables import TableGrid, interpolate
+from surrogate.export.tabulable import refuse_untabulable
+from surrogate.export.valve_only import valve_physics
+from surrogate.modelfile import load_model
+from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.points import OperatingPoints
+from surrogate.solver.replay import replay
+from surrogate.units import from_si
+
+fmpy = pytest.importorskip("fmpy")  # the test extra installs it
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    out = tmp_path_factory.mktemp("export") / "cfda"
+    assert main(["export", "--model", "cfda", "--format", "fmu", "--format", "tables",
+                 "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def shipped_log():
+    log = load_bench_log(SHIPPED_BENCH_LOG)
+    return log, OperatingPoints.from_bench(log.frame), log.frame["run"].to_numpy()
+
+
+def simulate_runs(fmu, points, runs, output="dp"):
+    """The FMU's ``output`` for every sample, each run simulated from rest. A communication
+    step commits the play for the inputs set at its start, so the output recorded at t_(k+1)
+    answers sample k."""
+    from fmpy import extract, read_model_description, simulate_fmu
+
+    description = read_model_description(fmu)
+    folder = extract(fmu)
+    found = np.full(len(points), np.nan)
+    for run in dict.fromkeys(runs):
+        index = np.flatnonzero(runs == run)
+        step = 0.01
+        signals = np.zeros(len(index), dtype=[("time", float), ("q", float), ("p_B", float),
+                                              ("p_P", float), ("T", float)])
+        signals["time"] = np.arange(len(index)) * step
+        signals["q"], signals["p_B"] = points.q[index], points.p_B[index]
+        signals["p_P"], signals["T"] = points.p_P[index], points.temperature[index]
+        result = simulate_fmu(folder, model_description=description, start_time=0.0,
+                              stop_time=len(index) * step, output_interval=step,
+                              input=signals, output=[output])
+        found[index] = result[output][1:len(index) + 1]
+    return found
+
+
+def test_the_fmu_validates(exported):
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(exported / "cfda.fmu")) == []
+
+
+def test_the_fmu_reproduces_the_replay_of_the_shipped_log(exported, shipped_log):
+    log, points, runs = shipped_log
+    model = valve_physics(load_model("cfda")).model
+    reference = replay(model, points, runs, diagnostics=False)  # the classic play
+    dp = simulate_runs(str(exported / "cfda.fmu"), points, runs)
+    error = from_si(dp - reference.dp, "bar")
+    rms, largest = float(np.sqrt(np.mean(error ** 2))), float(np.max(np.abs(error)))
+    print(f"FMU against the replay: {rms:.4f} bar RMS, {largest:.3f} bar at most")
+    assert rms < 0.1
+    assert largest < 1.0
+    # and the export's own measurement of the tables' resolution says the same
+    summary = json.loads((exported / "export.json").read_text())
+    assert summary["resolution_error_bar"]["rms"] == pytest.approx(rms, abs=2e-4)
+
+
+def test_the_fmu_plays_friction_as_state(exported):
+    """Up and down the same flows, the FMU's Δp differs by the friction band: its state."""
+    q = np.r_[np.linspace(1, 10, 40), np.linspace(10, 1, 40)] / 60_000
+    points = OperatingPoints.create(q, 65e5, 5e5, 313.15)
+    runs = np.zeros(len(q))
+    dp = simulate_runs(str(exported / "cfda.fmu"), points, runs)
+    up, down = dp[:40], dp[40:][::-1]
+    assert np.all(up[5:-5] > down[5:-5] + 5e5)  # cfda's friction: > 5 bar of hysteresis
+
+
+def test_the_fmu_holds_its_inputs_to_the_tables(exported):
+    """Far outside the grid the FMU answers with the edge's values, never NaN."""
+    points = OperatingPoints.create(np.array([1e-9, 1.0]), 1e9, -1e6, 1000.0)
+    dp = simulate_runs(str(exported / "cfda.fmu"), points, np.zeros(2))
+    assert np.all(np.isfinite(dp)) and np.all(dp > 0)
+
+
+def test_the_tables_files_say_what_they_hold(exported):
+    from scipy.io import loadmat
+
+    manifest = json.loads((exported / "manifest.json").read_text())
+    edges = pd.read_csv(exported / "edges.csv")
+    assert list(edges.columns) == ["q_lpm", "p_B_bar", "p_P_bar", "temperature_C", "u_open_mm",
+                                   "u_close_mm", "dp_open_bar", "dp_close_bar"]
+    shape = manifest["tables"]["u_open"]["shape"]
+    assert len(edges) == np.prod(shape)
+    assert np.all(edges.u_open_mm <= edges.u_close_mm + 1e-9)  # friction: opening needs more
+    mat = loadmat(exported / "valve_tables.mat")
+    assert list(mat["dp_open"].shape) == shape
+    np.testing.assert_allclose(mat["dp_open"].ravel(), edges.dp_open_bar, rtol=1e-9)
+    np.testing.assert_allclose(mat["u_open_q"].ravel(), np.unique(edges.q_lpm), rtol=1e-9)
+    ranges = manifest["grid"]["ranges"]
+    assert ranges["q"][0] == pytest.approx(edges.q_lpm.min(), rel=1e-6)
+    assert ranges["p_P"][1] == pytest.approx(edges.p_P_bar.max(), rel=1e-6)
+    for name in ("edges.csv", "dp.csv", "valve_tables.mat"):
+        assert name in manifest["files"]
+    with zipfile.ZipFile(exported / "cfda.fmu") as fmu:
+        names = fmu.namelist()
+        inside = json.loads(fmu.read("resources/manifest.json"))
+    assert {"modelDescription.xml", "sources/fmu_valve.c", "resources/tables.bin",
+            "binaries/linux64/cfda.so"} <= set(names)
+    assert inside["left_out"] == {} and inside["grid"] == manifest["grid"]
+
+
+def test_a_source_only_fmu_without_a_compiler_leaving_out_the_sensor_terms(tmp_path,
+                                                                            monkeypatch, capsys):
+    model = tmp_path / "with_sensor.toml"
+    model.write_text(_with_sensor_term())
+    monkeypatch.setenv("PATH", str(tmp_path))  # no compiler on it
+    monkeypatch.delenv("CC", raising=False)
+    out = tmp_path / "out"
+    assert main(["export", "--model", str(model), "--format", "fmu", "--out", str(out),
+                 "--grid-scale", "0.25", "--tolerance", "50"]) == 0
+    captured = capsys.readouterr()
+    assert "source-only" in captured.err and "no C compiler" in captured.err
+    (fmu,) = out.glob("*.fmu")
+    with zipfile.ZipFile(fmu) as archive:
+        names = archive.namelist()
+        inside = json.loads(archive.read("resources/manifest.json"))
+    assert "sources/fmu_valve.c" in names
+    assert not any(name.startswith("binaries/") for name in names)
+    assert list(inside["left_out"]) == ["pilot_transducer_offset"]
+    assert "sensor" in inside["left_out"]["pilot_transducer_offset"]
+
+
+def _with_sensor_term() -> str:
+    from surrogate.effects import LIBRARY
+    from surrogate.presets import preset
+    from surrogate.spec import EffectSpec
+
+    return preset("cfda").adding(EffectSpec.start(LIBRARY["pilot_transducer_offset"],
+                                                  delta=0.5), name="cfda+offset").to_toml()
+
+
+def test_the_steady_characteristic(tmp_path):
+    out = tmp_path / "steady"
+    assert main(["steady", "--model", "cfda", "--p-P-bar", "65", "--p-B-bar", "5",
+                 "--temperature-C", "40", "--points", "12", "--out", str(out), "--quiet"]) == 0
+    frame = pd.read_csv(out / "steady.csv")
+    document = json.loads((out / "steady.json").read_text())
+    up, down = frame[frame.branch == "up"], frame[frame.branch == "down"]
+    assert len(up) == len(down) == 12 and set(frame.status) == {"ok"}
+    # friction holds the piston back going up: more pressure at every flow
+    assert np.all(up.dp_bar.to_numpy() > down.dp_bar.to_numpy())
+    np.testing.assert_allclose(document["branches"]["up"]["dp_bar"], up.dp_bar, rtol=1e-5)
+    assert document["p_P_bar"] == 65 and (out / "steady.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_interpolation_is_exact_for_quadratics_and_at_the_nodes():
+    nodes = [np.linspace(0, 1, 7), np.linspace(-2, 3, 5)]
+    x, y = np.meshgrid(*nodes, indexing="ij")
+    values = 3 * x ** 2 - x * y + 0.5 * y ** 2 + 1
+    at = [np.random.default_rng(1).uniform(0.17, 0.83, 50),
+          np.random.default_rng(2).uniform(-0.75, 1.75, 50)]  # inner cells
+    np.testing.assert_allclose(interpolate(nodes, values, at),
+                               3 * at[0] ** 2 - at[0] * at[1] + 0.5 * at[1] ** 2 + 1, rtol=1e-12)
+    np.testing.assert_allclose(interpolate(nodes, values, [x.ravel(), y.ravel()]),
+                               values.ravel(), rtol=1e-12)
+    linear = interpolate(nodes, values, at, cubic=False)
+    assert not np.allclose(linear, 3 * at[0] ** 2 - at[0] * at[1] + 0.5 * at[1] ** 2 + 1)
+
+
+@custom_effect("force", units={"k": "N"})
+def batch_mean_force(state, k=1.0):
+    """A force that reads its whole batch."""
+    return k * state.p_L / np.mean(state.p_L)
+
+
+@custom_effect("force", units={"k": "N"})
+def elementwise_force(state, k=1.0):
+    """A force of the state alone."""
+    return k * state.p_L / 1e7
+
+
+@pytest.mark.parametrize("effect, refused", [(batch_mean_force, True),
+                                             (elementwise_force, False)])
+def test_custom_terms_must_be_functions_of_the_state(effect, refused):
+    model = load_model("cfda")
+    model = model.with_effects([*model.effects, effect(k=2.0)])
+    points = OperatingPoints.create(np.array([1e-4]), 7e6, 5e5, 313.15)
+    grid = TableGrid.around(points)
+    if refused:
+        with pytest.raises(InputError, match="batch_mean_force.*cannot be tabulated"):
+            refuse_untabulable(model, grid, "model.toml")
+    else:
+        refuse_untabulable(model, grid, "model.toml")
