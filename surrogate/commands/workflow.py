@@ -36,7 +36,8 @@ def register(subparsers) -> None:
         description="Start from the paper's basic model (BMBE), take the paper's steps (fitted "
                     "C_d, CFD maps with a flow-force scale, Coulomb friction K1 + K2*p_L), then "
                     "repeatedly diagnose the model and add the best significant effect, until "
-                    "nothing significant is left. Writes the staircase (table and figure), the "
+                    "nothing significant is left; last, calibrate the maps to the bench per "
+                    "opening within their own uncertainty. Writes the staircase (table and figure), the "
                     "final model file, its comparison with the data and an HTML report.")
     add_data_options(parser, model=False, out_help=f"output folder (default {DEFAULT_OUT})",
                      maps_help="the maps of the CFD steps, whose final model and diagnosis the "
@@ -48,6 +49,9 @@ def register(subparsers) -> None:
                              f"(default: {' '.join(COMPARED_KINDS)}; none: just the main one)")
     parser.add_argument("--max-additions", type=non_negative_int, default=MAX_ADDITIONS,
                         help=f"effects the loop may add at most (default {MAX_ADDITIONS})")
+    parser.add_argument("--no-calibration", action="store_true",
+                        help="end without the last step, the maps calibrated to the bench per "
+                             "opening within their own uncertainty")
     parser.set_defaults(func=run)
 
 
@@ -81,7 +85,7 @@ def run(args) -> int:
         progress(f"workflow on {kind} maps")
         workflows[kind] = run_workflow(
             log, library=library, valve=valve, max_additions=args.max_additions,
-            maps_spec=main_maps if kind == main else maps(kind), progress=progress)
+            calibrate=not args.no_calibration, maps_spec=main_maps if kind == main else maps(kind), progress=progress)
     workflow = workflows[main]
     final = workflow.final
     comparison = compare(final.model, log, played=final.played)
