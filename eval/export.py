@@ -90,27 +90,13 @@ def fmu_error(fmu: Path, model, points: OperatingPoints, runs: np.ndarray) -> di
 
 def onnx_parity(kind: str) -> dict:
     """Largest relative difference of the ONNX graphs from the package on 10,000 states."""
-    import onnxruntime as ort
-
-    sys.path.insert(0, str(PROJECT_ROOT / "tests"))
-    from test_export_onnx import random_states
-
-    from surrogate.export.onnx_maps import flow_graph, force_graph
-    from surrogate.fluid import FluidState
+    from surrogate.export.onnx_maps import parity, random_states
     from surrogate.maps.learned import load_learned_maps, trained_folder
 
     flow, force = load_learned_maps(trained_folder(kind))
-    states = random_states(flow.coverage)
-    query = (states["p_L"], states["p_B"], states["u"], FluidState(states["nu"], states["rho"]))
-    expected = {"q": flow.flow(*query), "q_std": flow.flow_std(*query),
-                "f_sim": force.force(*query), "f_sim_std": force.force_std(*query)}
-    found = {}
-    for graph in (flow_graph(flow), force_graph(force)):
-        session = ort.InferenceSession(graph.SerializeToString(),
-                                       providers=["CPUExecutionProvider"])
-        found.update(zip([o.name for o in session.get_outputs()], session.run(None, states)))
-    return {name: float(np.max(np.abs(found[name] - value) / np.abs(value)))
-            for name, value in expected.items()}
+    compared = parity(flow, force, random_states(flow.coverage))
+    return {name: float(np.max(np.abs(found - value) / np.abs(value)))
+            for name, (found, value) in compared.items()}
 
 
 def main() -> None:

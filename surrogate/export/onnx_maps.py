@@ -453,3 +453,38 @@ def write_onnx(maps: LearnedMaps, folder: Path, progress=None) -> list[Path]:
     path.write_text(json.dumps(document, indent=2) + "\n")
     written.append(path)
     return written
+
+
+# --- parity with the package ---------------------------------------------------------------------
+
+def random_states(coverage, count: int = 10_000, seed: int = 0) -> dict[str, np.ndarray]:
+    """States [SI] spread over the CFD samples' openings, pressure drops, back pressures and
+    viscosities (log-uniform where the samples span decades), as the graphs' inputs."""
+    rng = np.random.default_rng(seed)
+    u = np.exp(rng.uniform(*np.log(coverage.openings[[0, -1]]), count))
+    dp = np.exp(rng.uniform(np.log(coverage.dp_low.min()), np.log(coverage.dp_high.max()),
+                            count))
+    p_B = rng.uniform(*coverage.p_B_range, count)
+    nu = np.exp(rng.uniform(*np.log(coverage.nu_range), count))
+    rho = rng.uniform(840.0, 880.0, count)
+    return {"u": u, "p_L": p_B + dp, "p_B": p_B, "nu": nu, "rho": rho}
+
+
+def parity(flow_map: LearnedFlowMap, force_map: LearnedForceMap,
+           states: dict[str, np.ndarray]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each output of the graphs (q, q_std, f_sim, f_sim_std) as onnxruntime computes it at
+    ``states`` [SI], beside the package's own value: {name: (graph's, package's)}."""
+    import onnxruntime  # the export extra's
+
+    from ..fluid import FluidState
+
+    query = (states["p_L"], states["p_B"], states["u"], FluidState(states["nu"], states["rho"]))
+    expected = {"q": flow_map.flow(*query), "q_std": flow_map.flow_std(*query),
+                "f_sim": force_map.force(*query), "f_sim_std": force_map.force_std(*query)}
+    found = {}
+    for graph in (flow_graph(flow_map), force_graph(force_map)):
+        session = onnxruntime.InferenceSession(graph.SerializeToString(),
+                                               providers=["CPUExecutionProvider"])
+        names = [output.name for output in session.get_outputs()]
+        found.update(zip(names, session.run(None, states)))
+    return {name: (found[name], value) for name, value in expected.items()}
