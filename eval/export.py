@@ -74,14 +74,12 @@ def timed_export(model: Path, formats: list[str], out: Path) -> tuple[float, dic
 
 def fmu_error(fmu: Path, model, points: OperatingPoints, runs: np.ndarray) -> dict:
     """The FMU's Δp in FMPy against the solver's replay (classic play) [bar]."""
-    sys.path.insert(0, str(PROJECT_ROOT / "tests"))
-    from test_export import simulate_runs  # one simulation per run, from rest
-
+    from surrogate.export.fmu import simulate_log  # one simulation per run, from rest
     from surrogate.export.valve_only import valve_physics
 
     physics = valve_physics(model).model
     reference = replay(physics, points, runs, diagnostics=False)
-    dp = simulate_runs(str(fmu), points, runs)
+    dp = simulate_log(str(fmu), points, runs)
     error = from_si(dp - reference.dp, "bar")
     ok = np.isfinite(error)
     return {"rms": round(float(np.sqrt(np.mean(error[ok] ** 2))), 4),

@@ -18,6 +18,7 @@ from surrogate.cli import main
 from surrogate.data import load_bench_log
 from surrogate.effects import custom_effect
 from surrogate.errors import InputError
+from surrogate.export.fmu import simulate_log
 from surrogate.export.tables import TableGrid, interpolate
 from surrogate.export.tabulable import refuse_untabulable
 from surrogate.export.valve_only import valve_physics
@@ -44,30 +45,6 @@ def shipped_log():
     return log, OperatingPoints.from_bench(log.frame), log.frame["run"].to_numpy()
 
 
-def simulate_runs(fmu, points, runs, output="dp"):
-    """The FMU's ``output`` for every sample, each run simulated from rest. A communication
-    step commits the play for the inputs set at its start, so the output recorded at t_(k+1)
-    answers sample k."""
-    from fmpy import extract, read_model_description, simulate_fmu
-
-    description = read_model_description(fmu)
-    folder = extract(fmu)
-    found = np.full(len(points), np.nan)
-    for run in dict.fromkeys(runs):
-        index = np.flatnonzero(runs == run)
-        step = 0.01
-        signals = np.zeros(len(index), dtype=[("time", float), ("q", float), ("p_B", float),
-                                              ("p_P", float), ("T", float)])
-        signals["time"] = np.arange(len(index)) * step
-        signals["q"], signals["p_B"] = points.q[index], points.p_B[index]
-        signals["p_P"], signals["T"] = points.p_P[index], points.temperature[index]
-        result = simulate_fmu(folder, model_description=description, start_time=0.0,
-                              stop_time=len(index) * step, output_interval=step,
-                              input=signals, output=[output])
-        found[index] = result[output][1:len(index) + 1]
-    return found
-
-
 def test_the_fmu_validates(exported):
     from fmpy.validation import validate_fmu
 
@@ -78,7 +55,7 @@ def test_the_fmu_reproduces_the_replay_of_the_shipped_log(exported, shipped_log)
     log, points, runs = shipped_log
     model = valve_physics(load_model("cfda")).model
     reference = replay(model, points, runs, diagnostics=False)  # the classic play
-    dp = simulate_runs(str(exported / "cfda.fmu"), points, runs)
+    dp = simulate_log(str(exported / "cfda.fmu"), points, runs)
     error = from_si(dp - reference.dp, "bar")
     rms, largest = float(np.sqrt(np.mean(error ** 2))), float(np.max(np.abs(error)))
     print(f"FMU against the replay: {rms:.4f} bar RMS, {largest:.3f} bar at most")
@@ -94,7 +71,7 @@ def test_the_fmu_plays_friction_as_state(exported):
     q = np.r_[np.linspace(1, 10, 40), np.linspace(10, 1, 40)] / 60_000
     points = OperatingPoints.create(q, 65e5, 5e5, 313.15)
     runs = np.zeros(len(q))
-    dp = simulate_runs(str(exported / "cfda.fmu"), points, runs)
+    dp = simulate_log(str(exported / "cfda.fmu"), points, runs)
     up, down = dp[:40], dp[40:][::-1]
     assert np.all(up[5:-5] > down[5:-5] + 5e5)  # cfda's friction: > 5 bar of hysteresis
 
@@ -102,7 +79,7 @@ def test_the_fmu_plays_friction_as_state(exported):
 def test_the_fmu_holds_its_inputs_to_the_tables(exported):
     """Far outside the grid the FMU answers with the edge's values, never NaN."""
     points = OperatingPoints.create(np.array([1e-9, 1.0]), 1e9, -1e6, 1000.0)
-    dp = simulate_runs(str(exported / "cfda.fmu"), points, np.zeros(2))
+    dp = simulate_log(str(exported / "cfda.fmu"), points, np.zeros(2))
     assert np.all(np.isfinite(dp)) and np.all(dp > 0)
 
 
