@@ -106,3 +106,15 @@ def test_with_perfect_maps_the_calibration_stays_within_its_prior_and_gains_noth
     assert np.all(force >= 0.025 - 1e-12) and np.all(flow >= 0.0075 - 1e-12)
     assert np.all(force < 0.5) and np.all(flow < 0.5) and np.any(force > 0.05)
     assert calibrate_maps(calibration.model, case.log, calibration.replay) is None
+
+
+def test_the_calibration_is_no_diagnosis_candidate_unless_named():
+    """A model file may name it (KNOWN), so the command line's library holds it; a diagnosis
+    must not try it as a library term: it is fitted once, last, under its prior."""
+    from surrogate.diagnosis.diagnose import candidate_effects
+
+    model = load_model("cfda")
+    default = {cls.name for cls in candidate_effects(model, KNOWN)}
+    assert default and not default & {cls.name for cls in CALIBRATIONS}
+    named = candidate_effects(model, KNOWN, ["calibrated_flow_force"])
+    assert [cls.name for cls in named] == ["calibrated_flow_force"]

@@ -57,7 +57,8 @@ def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
                       names: Iterable[str] | None = None) -> list[type[Effect]]:
     """The effects of ``library`` the model does not have (or those of them named), shape-free
     ones included only when named (by default the diagnosis tries every shape-free term on its
-    own, :func:`shape_candidates`).
+    own, :func:`shape_candidates`), and no effect that is no candidate by default
+    (:attr:`~surrogate.effects.Effect.candidate`: the maps' calibration) unless named.
 
     Raises
     ------
@@ -66,7 +67,7 @@ def candidate_effects(model: ValveModel, library: EffectLibrary = LIBRARY,
     """
     known = library + EffectLibrary(cls for cls in SHAPE_FREE if cls.name not in library)
     chosen = ({name: cls for name, cls in library.items()
-               if not getattr(cls, "shape_free", False)} if names is None
+               if not getattr(cls, "shape_free", False) and cls.candidate} if names is None
               else {name: known.effect(name) for name in names})
     return [cls for name, cls in chosen.items() if not model.has_effect(name)]
 

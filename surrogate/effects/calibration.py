@@ -44,7 +44,8 @@ class _PerOpening(ShapeFreeEffect):
     """A relative map correction of the opening, piecewise linear in ln u through one value per
     knot; the knots are the discrepancy's (:func:`surrogate.fitting.discrepancy.knots`)."""
 
-    shape_free = False  # no diagnosis candidate: the workflow fits it last, with its prior
+    shape_free = False
+    candidate = False  # no diagnosis candidate: the workflow fits it once, last, with its prior
     category = "map correction"
     variable = VARIABLES["u"]
     value_unit = "1"
