@@ -10,9 +10,10 @@ from pathlib import Path
 from ..data import load_bench_log
 from ..effects import KNOWN, EffectLibrary, load_effects_file
 from ..errors import InputError
-from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, refuse_ambiguous_kind
+from ..maps.registry import (MAP_KINDS, MapsSpec, MapSource, is_surrogate_folder, kind_named,
+                             refuse_ambiguous_kind)
 from ..model import ValveModel
-from ..modelfile import PRESETS, load_spec
+from ..modelfile import PRESETS, load_spec, model_name
 from ..outputs import Output, check_outputs
 from ..paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES, shipped
 from ..presets import maps
@@ -109,9 +110,9 @@ def add_data_options(parser, *, model: bool = True, out_help: str = "output fold
     """--model, --maps, --data, --effects-file, --valve and --out of the workbench commands."""
     if model:
         required(parser).add_argument(
-            "--model", required=True,
+            "--model", required=True, type=model_option,
             help=f"a preset ({', '.join(PRESETS)}) or a model file (TOML)")
-    parser.add_argument("--maps", metavar="KIND",
+    parser.add_argument("--maps", metavar="KIND", type=maps_option,
                         help=f"{maps_help}: {maps_help_text()}")
     parser.add_argument("--data", help="bench log CSV (default: the shipped one)")
     parser.add_argument("--effects-file", action="append", default=[], metavar="FILE",
@@ -119,6 +120,21 @@ def add_data_options(parser, *, model: bool = True, out_help: str = "output fold
     parser.add_argument("--valve", help="valve file (default: the model's, or the shipped valve)")
     (required(parser) if out_required else parser).add_argument("--out", required=out_required,
                                                                 help=out_help)
+
+
+def model_option(text: str) -> str:
+    """argparse type of --model: a preset in any case is read as its name (``CFDA`` is cfda, as
+    reports write it), so that every message and file names it one way; a path stays as
+    given."""
+    return model_name(text)
+
+
+def maps_option(text: str) -> str:
+    """argparse type of --maps: a kind in any case is read as its name (``GP`` is gp), unless a
+    folder of that name here holds a trained surrogate: :func:`maps_from_args` refuses that as
+    ambiguous, naming the folder as the user wrote it."""
+    kind = kind_named(text)
+    return kind if kind is not None and not is_surrogate_folder(text, Path.cwd()) else text
 
 
 def maps_help_text() -> str:
@@ -136,8 +152,8 @@ def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
     someone, and ``./nn`` or the shipped folder's path says which is meant.
     """
     refuse_ambiguous_kind(kind, Path.cwd(), "--maps")
-    if kind in MAP_KINDS:
-        return maps(kind, cfd)
+    if kind_named(kind) is not None:
+        return maps(kind_named(kind), cfd)
     # the folder of a trained surrogate: its kind, with the folder and its hash recorded
     folder = MapSource.from_dict(kind, "--maps", Path.cwd())
     return maps(folder.kind, cfd, folder=folder.settings["folder"])

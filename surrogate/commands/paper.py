@@ -10,7 +10,8 @@ from ..paper.comparison import reproduce
 from ..paper.report import write_report
 from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..spec import ValveSource
-from .common import add_command, guard_outputs, maps_from_args, maps_help_text, progress_for
+from .common import (add_command, guard_outputs, maps_from_args, maps_help_text, maps_option,
+                     progress_for)
 
 DEFAULT_OUT = "results/paper"
 
@@ -21,7 +22,8 @@ def register(subparsers) -> None:
         description="Fit BMBEBF and CFDA to the 40 °C, p_Pe = 65 bar median line, compare all "
                     "models with the median lines (Table 5), fit friction per temperature "
                     "(Table 6) and draw Figures 16–21.")
-    parser.add_argument("--maps", default="grid", help=f"{maps_help_text()} (default grid)")
+    parser.add_argument("--maps", default="grid", type=maps_option,
+                        help=f"{maps_help_text()} (default grid)")
     parser.add_argument("--out", help=f"output folder (default {DEFAULT_OUT}, none with --json)")
     parser.add_argument("--data", help="bench log (default: the shipped one)")
     parser.add_argument("--cfd", help="CFD samples for grid maps (default: the shipped ones)")

@@ -13,7 +13,8 @@ from ..synthetic.mismatch import MapMismatch
 from ..synthetic.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
                                   noise_free_sequence, reference_spec)
 from .common import (add_command, effect_library, guard_outputs, maps_from_args, maps_help_text,
-                     non_negative_int, positive_int, print_json, progress_for, required)
+                     maps_option, non_negative_int, positive_int, print_json, progress_for,
+                     required)
 
 #: largest --mismatch: ten times the CFD's own error is already far beyond any real valve's
 MISMATCH_MAX = 10.0
@@ -45,7 +46,7 @@ def register(subparsers) -> None:
                         help="keep every n-th sample of the sequence (default 1: all)")
     parser.add_argument("--sequence", help="bench log whose test sequence to use "
                                            "(default: the shipped one)")
-    parser.add_argument("--maps", metavar="KIND",
+    parser.add_argument("--maps", metavar="KIND", type=maps_option,
                         help=f"maps the valve runs on: {maps_help_text()} (default: grid maps "
                              "of the shipped CFD samples); use the kind you will diagnose with")
     parser.add_argument("--mismatch", type=float, metavar="SCALE",

@@ -13,7 +13,7 @@ from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..planning.cfd_runs import suggest_cfd, suggestion_figure
 from ..reporting.report import figure_png
 from .common import (add_command, add_data_options, effect_library, guard_outputs, maps_from_args,
-                     positive_int, print_json, progress_for)
+                     model_option, positive_int, print_json, progress_for)
 
 DEFAULT_RUNS = 8
 
@@ -33,7 +33,7 @@ def register(subparsers) -> None:
                                                    "suggestions.json into this folder",
                      maps_help="the maps whose uncertainty to reduce (default: the kind whose "
                                "flow force is the most accurate by cross-validation)")
-    parser.add_argument("--model", default="cfda",
+    parser.add_argument("--model", default="cfda", type=model_option,
                         help=f"the model replayed over the log: a preset ({', '.join(PRESETS)}) "
                              "or a model file (default cfda)")
     parser.add_argument("--cfd", help="CFD samples for grid maps (default: the shipped ones)")
