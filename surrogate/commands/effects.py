@@ -7,6 +7,7 @@ import math
 from ..effects import CALIBRATION, LIBRARY, SHAPES
 from ..effects.base import Effect, Parameter
 from ..effects.per_run import PerRunEffect
+from ..effects.shapes import ShapeFreeEffect
 from ..units import label
 from .common import add_command, effect_library, print_json, progress_for
 
@@ -65,11 +66,12 @@ def effect_record(cls: type[Effect]) -> dict:
         record["source"] = cls.source
     if issubclass(cls, PerRunEffect):
         record["parameters"] = [_parameter(cls.template, per_run=True)]
-    elif getattr(cls, "shape_free", False):
+    elif issubclass(cls, ShapeFreeEffect):
         # its knots and coefficients are made where the data are: their number and place too
         record["parameters"] = []
-        record["parameters_note"] = (f"knots along {cls.variable.label} and coefficients in "
-                                     f"{label(cls.value_unit)}, placed when it is fitted")
+        unit = "dimensionless" if cls.value_unit == "1" else f"in {label(cls.value_unit)}"
+        record["parameters_note"] = (f"knots along {cls.variable.label} and coefficients "
+                                     f"({unit}), placed when it is fitted")
     else:
         record["parameters"] = [_parameter(spec) for spec in cls.parameter_specs]
     return record
