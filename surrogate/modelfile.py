@@ -10,12 +10,21 @@ from __future__ import annotations
 from pathlib import Path
 
 from .effects import KNOWN, EffectLibrary
-from .errors import InputError
+from .errors import InputError, did_you_mean
 from .model import ValveModel
-from .presets import PRESETS, preset
+from .presets import PRESETS, preset, preset_named
 from .spec import ModelSpec, ValveSource
 
-__all__ = ["PRESETS", "load_model", "load_spec", "save_model"]
+__all__ = ["PRESETS", "load_model", "load_spec", "model_name", "save_model"]
+
+
+def model_name(text: str) -> str:
+    """``text`` as a model is named: the preset it names in any case (``"CFDA"`` is cfda), or
+    the text itself, a model file's path. A file of that name wins over a preset in another
+    case, as an exact preset name wins over a file."""
+    if text in PRESETS or Path(text).is_file():
+        return text
+    return preset_named(text) or text
 
 
 def load_spec(name_or_path: str, valve_path: str | None = None) -> ModelSpec:
@@ -24,12 +33,14 @@ def load_spec(name_or_path: str, valve_path: str | None = None) -> ModelSpec:
     ``valve_path`` replaces the model's valve (for presets, the shipped one otherwise).
     """
     valve = ValveSource.read(valve_path) if valve_path else None
-    if name_or_path in PRESETS:
-        return preset(name_or_path, valve)
+    name = model_name(name_or_path)
+    if name in PRESETS:
+        return preset(name, valve)
     path = Path(name_or_path)
     if not path.is_file():
-        raise InputError(f"unknown model {name_or_path!r}: give a preset ({', '.join(PRESETS)}) "
-                         "or the path of a model file")
+        raise InputError(f"unknown model {name_or_path!r}"
+                         f"{did_you_mean(name_or_path, PRESETS)}: give a preset "
+                         f"({', '.join(PRESETS)}) or the path of a model file")
     spec = ModelSpec.read(path)
     return spec.with_valve(valve) if valve else spec
 
@@ -38,7 +49,8 @@ def load_model(name_or_path: str, valve_path: str | None = None,
                library: EffectLibrary = KNOWN) -> ValveModel:
     """A preset by name, or a model file by path, built with the effects of ``library``."""
     spec = load_spec(name_or_path, valve_path)
-    where = name_or_path if name_or_path not in PRESETS else f"preset {name_or_path!r}"
+    name = model_name(name_or_path)
+    where = name if name not in PRESETS else f"preset {name!r}"
     return spec.build(library, where)
 
 

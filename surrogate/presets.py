@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
-from .errors import InputError
+from .errors import InputError, did_you_mean, named
 from .maps.orifice import BASIC_DISCHARGE_COEFFICIENT
 from .maps.registry import MAP_KINDS, MapsSpec, map_kind
 from .spec import EffectSpec, ModelSpec, ValveSource
@@ -96,8 +96,15 @@ PRESET_DESCRIPTIONS = {
 PRESETS = tuple(PRESET_DESCRIPTIONS)
 
 
+def preset_named(text: str) -> str | None:
+    """The preset ``text`` names, in any case (``"CFDA"`` is cfda, as reports write it), or
+    None."""
+    return named(text, PRESETS)
+
+
 def preset(name: str, valve: ValveSource | None = None) -> ModelSpec:
-    """A preset by name (see the module docstring)."""
+    """A preset by name, in any case (see the module docstring)."""
+    name = preset_named(name) or name
     if name == "bmbe":
         return bmbe(valve)
     if name == "cfda":
@@ -105,4 +112,5 @@ def preset(name: str, valve: ValveSource | None = None) -> ModelSpec:
     if name in PRESET_DESCRIPTIONS and name.startswith("cfda-"):
         kind = name.removeprefix("cfda-")
         return cfda(valve, maps(kind), name)
-    raise InputError(f"unknown preset {name!r}; presets: {', '.join(PRESETS)}")
+    raise InputError(f"unknown preset {name!r}{did_you_mean(name, PRESETS)}; presets: "
+                     f"{', '.join(PRESETS)}")

@@ -2,7 +2,8 @@
 
 Everything inside the package is SI: pressures in [Pa], lengths in [m], areas in [m^2], flows in
 [m^3/s], kinematic viscosity in [m^2/s], density in [kg/m^3], forces in [N] and temperatures in
-[K]. Files and printed output use the units engineers read: bar, mm, L/min, cSt and degC. Any
+[K]. Files and printed output use the units engineers read: bar, mm, L/min, cSt and degC (a bench log
+may also come in psi, kPa, MPa, US gpm and degF, converted here as it is read). Any
 conversion between the two goes through :func:`to_si` and :func:`from_si` (or the named constants
 below, which are the same factors), so a unit is defined exactly once.
 
@@ -22,12 +23,17 @@ LPM = 1e-3 / 60.0  # [m^3/s] per L/min
 CST = 1e-6  # [m^2/s] per cSt (= mm^2/s)
 ZERO_CELSIUS = 273.15  # [K]
 P_ATM = 1.013 * BAR  # [Pa] atmospheric pressure, to turn gauge into absolute pressure
+PSI = 6894.757293168  # [Pa] per pound-force per square inch (0.45359237 kgf / 0.0254² m²)
+US_GALLON = 3.785411784e-3  # [m^3] (231 cubic inches, exact)
 
 # unit -> (scale, offset) with  si = value * scale + offset
 _UNITS: dict[str, tuple[float, float]] = {
     # pressure
     "Pa": (1.0, 0.0),
     "bar": (BAR, 0.0),
+    "kPa": (1e3, 0.0),
+    "MPa": (1e6, 0.0),
+    "psi": (PSI, 0.0),
     # length and area
     "m": (1.0, 0.0),
     "mm": (MM, 0.0),
@@ -36,6 +42,7 @@ _UNITS: dict[str, tuple[float, float]] = {
     # flow
     "m^3/s": (1.0, 0.0),
     "L/min": (LPM, 0.0),
+    "gpm": (US_GALLON / 60.0, 0.0),  # US gallons per minute, as US benches log flow
     # viscosity and density
     "m^2/s": (1.0, 0.0),
     "cSt": (CST, 0.0),
@@ -44,6 +51,7 @@ _UNITS: dict[str, tuple[float, float]] = {
     # temperature
     "K": (1.0, 0.0),
     "degC": (1.0, ZERO_CELSIUS),
+    "degF": (5.0 / 9.0, ZERO_CELSIUS - 32.0 * 5.0 / 9.0),
     # quantities whose file unit already is SI
     "N": (1.0, 0.0),
     "N/m": (1.0, 0.0),
@@ -56,7 +64,7 @@ _UNITS: dict[str, tuple[float, float]] = {
 }
 
 #: Display spelling of each unit, for messages and axis labels.
-UNIT_LABELS = {"degC": "°C", "m^2": "m²", "mm^2": "mm²", "m^3/s": "m³/s", "m^2/s": "m²/s",
+UNIT_LABELS = {"degC": "°C", "degF": "°F", "gpm": "US gpm", "m^2": "m²", "mm^2": "mm²", "m^3/s": "m³/s", "m^2/s": "m²/s",
                "mm^2/s": "mm²/s", "kg/m^3": "kg/m³"}
 
 

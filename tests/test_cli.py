@@ -75,3 +75,90 @@ def test_per_run_parameters_of_runs_the_log_lacks_are_refused(small_log, tmp_pat
     assert main(["compare", "--model", str(model), "--data", str(small_log), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "run(s) R99," in err and "lacks (its runs: R01)" in err
+
+
+# --- names in any case, with a did-you-mean ------------------------------------------------------
+
+@pytest.mark.parametrize("argv, option, expected", [
+    (["compare", "--model", "CFDA"], "model", "cfda"),
+    (["compare", "--model", "Cfda-GP", "--maps", "GP"], "model", "cfda-gp"),
+    (["compare", "--model", "cfda", "--maps", "GP"], "maps", "gp"),
+    (["paper", "--maps", "Grid"], "maps", "grid"),
+    (["predict", "--maps", "NN", "--input", "q.csv", "--output", "o.csv"], "maps", "nn"),
+    (["suggest-cfd", "--model", "BMBE"], "model", "bmbe"),
+    (["steady", "--model", "CFDA", "--maps", "ORIFICE", "--p-P-bar", "80", "--out", "o.csv"],
+     "maps", "orifice"),
+])
+def test_presets_and_kinds_are_read_in_any_case_as_their_names(argv, option, expected, tmp_path,
+                                                                monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert getattr(build_parser().parse_args(argv), option) == expected
+
+
+def test_the_python_api_reads_names_in_any_case_too():
+    from surrogate.maps.registry import MapSource, map_kind
+    from surrogate.modelfile import load_spec
+
+    assert load_spec("CFDA").name == "cfda"
+    assert map_kind("GP").name == "gp"
+    assert MapSource.from_dict({"kind": "Grid"}, "test").kind == "grid"
+
+
+def test_a_file_named_like_a_preset_in_another_case_is_the_file(tmp_path, monkeypatch):
+    from surrogate.modelfile import model_name
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "CFDA").write_text("")
+    assert model_name("CFDA") == "CFDA" and model_name("cfda") == "cfda"
+    assert model_name("Bmbe") == "bmbe"
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["compare", "--model", "cfad"], "unknown model 'cfad' (did you mean 'cfda'?)"),
+    (["compare", "--model", "cfda-np"], "did you mean 'cfda-nn'?"),
+    (["predict", "--maps", "gird", "--input", "q.csv", "--output", "o.csv"],
+     "unknown map kind 'gird' (did you mean 'grid'?)"),
+])
+def test_a_near_miss_gets_a_did_you_mean(argv, words, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    assert words in capsys.readouterr().err
+
+
+def test_a_name_far_from_every_choice_gets_no_guess(capsys):
+    assert main(["compare", "--model", "xyz"]) == 2
+    assert "did you mean" not in capsys.readouterr().err
+
+
+# --- the data a command reads are never chosen silently -----------------------------------------
+
+class _Stop(Exception):
+    """Raised where the log would be read: what was said before is all a test needs."""
+
+
+@pytest.mark.parametrize("argv", [
+    ["compare", "--model", "cfda"], ["diagnose", "--model", "cfda"],
+    ["fit", "--model", "cfda", "--out", "m.toml"], ["workflow", "--out", "w"],
+    ["suggest-cfd"], ["paper", "--out", "p"],
+    ["export", "--model", "cfda", "--format", "tables", "--out", "e"],
+], ids=lambda argv: argv[0])
+def test_the_shipped_log_is_named_in_the_first_progress_line(argv, tmp_path, monkeypatch,
+                                                              capsys):
+    from surrogate.commands import common, paper, suggest_cfd
+    from surrogate.errors import InputError
+
+    def stop(path, progress=None):
+        raise InputError(f"stopped before reading {path}")
+
+    for module in (common, paper, suggest_cfd):
+        monkeypatch.setattr(module, "load_bench_log", stop)
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    first = capsys.readouterr().err.splitlines()[0]
+    assert first.endswith("no --data given: using the shipped log "
+                          "measurements/bench_measurements.csv"), first
+
+
+def test_a_given_log_is_read_without_that_line(small_log, capsys):
+    assert main(["compare", "--model", "cfda", "--data", str(small_log)]) == 0
+    assert "no --data given" not in capsys.readouterr().err

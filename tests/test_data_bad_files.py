@@ -104,7 +104,7 @@ WHOLE_FILE_CASES = [
     ("blank lines only", b"\n  \n\n", "the file is empty"),
     ("binary file", b"PK\x03\x04\x00\x00\x14\x00binary spreadsheet", "binary"),
     ("not UTF-8", b"case,oil\nC1,\xe9l\xe8ve\n", "UTF-8"),
-    ("semicolon separated", b"case;oil;temperature_C\nC1;x;20\n", "separated by semicolons"),
+    ("tab separated", b"case\toil\ttemperature_C\nC1\tx\t20\n", "separated by tabs"),
     ("JSON, not CSV", b'{"case": "C1", "u_mm": 0.1}\n', "not a CSV file"),
     ("unrelated CSV", b"name,age,city\nAnn,31,Oslo\n", "the header of a CFD-sample file"),
 ]

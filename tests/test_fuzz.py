@@ -103,6 +103,34 @@ def drop_column(text: str, column: str) -> str:
     return "\n".join(",".join(c for i, c in enumerate(row) if i != index) for row in rows) + "\n"
 
 
+def in_unit(text: str, column: str, name: str, function) -> str:
+    """``text`` with a numeric column renamed ``name`` and its values mapped by ``function``:
+    the column as a bench logging in another unit writes it."""
+    return replace(map_column(text, column, function), column, name)
+
+
+def copy_column(text: str, column: str, name: str, function) -> str:
+    """``text`` with a column ``name`` added: ``function`` of the values of ``column``."""
+    rows = text.splitlines()
+    index = rows[0].split(",").index(column)
+    return "\n".join([rows[0] + "," + name] + [
+        row + "," + repr(function(float(row.split(",")[index]))) for row in rows[1:]]) + "\n"
+
+
+def semicolons(text: str) -> str:
+    """``text`` as a spreadsheet exports it where the comma is the decimal separator."""
+    def cell(value: str) -> str:
+        try:
+            float(value)
+        except ValueError:
+            return value
+        return value.replace(".", ",")
+    return "\n".join(";".join(cell(c) for c in row.split(",")) for row in text.splitlines()) + "\n"
+
+
+PSI = 14.503773773  # psi per bar
+
+
 def replace(text: str, old: str, new: str) -> str:
     assert old in text, old
     return text.replace(old, new, 1)
@@ -282,7 +310,8 @@ CASES = [
                     + [r + ",fine" for r in CFD.splitlines()[1:]]) + "\n",
           words=("'mesh'", "only the documented"), id="cfd: extra column"),
     check(set_cell(CFD, 2, "u_mm", '"0,05"'), words=("decimal point",), id="cfd: decimal comma"),
-    check(CFD.replace(",", ";"), words=("semicolons",), id="cfd: semicolons"),
+    check(semicolons(CFD).replace("0,05", "0.05", 1), words=("decimal point", "decimal commas"),
+          id="cfd: semicolons mixing decimal commas and points"),
     check(CFD.replace(",", "\t"), words=("tabs",), id="cfd: tabs"),
     check("", words=("empty",), id="cfd: empty file"),
     check(CFD.splitlines()[0] + "\n", words=("at least one data row",), id="cfd: header only"),
@@ -343,6 +372,44 @@ CASES = [
     with_log(CFD, words=("CFD-sample file",), id="log: CFD samples where a log belongs"),
     with_log("\n".join(LOG.splitlines()[:4]) + "\n", words=("log.csv: the noise floor", "3"),
              id="log: too short for a noise floor"),
+    # bench logs as benches and spreadsheets write them: new input paths, new ways to fail
+    with_log(map_column(map_column(map_column(LOG, "p_L_bar", lambda v: v * PSI),
+                                   "p_B_bar", lambda v: v * PSI),
+                        "p_P_bar", lambda v: v * PSI),
+             words=("column 'p_L_bar'", "rows rejected alike", "first on lines 2, 3, 4", "psi"),
+             id="log: psi under _bar names, one verdict per column"),
+    with_log(copy_column(LOG, "p_B_bar", "p_B_kPa", lambda v: v * 100),
+             words=("'p_B_kPa'", "one column for the back pressure", "'p_B_bar' and 'p_B_kPa'"),
+             id="log: a pressure given in two units"),
+    with_log(set_cell(in_unit(LOG, "p_L_bar", "p_L_psi", lambda v: v * PSI), 8, "p_L_psi",
+                      "1e30"), words=("line 8", "'p_L_psi'", "14503.8 psi"),
+             id="log: p_L_psi 1e30"),
+    with_log(set_cell(in_unit(LOG, "p_L_bar", "p_L_psi", lambda v: v * PSI), 9, "p_L_psi",
+                      "7"), words=("line 9", "'p_L_psi'", "load pressure >= back",
+                                   "converted to bar"),
+             id="log: p_L_psi below p_B"),
+    with_log(set_cell(in_unit(LOG, "q_lpm", "q_gpm", lambda v: v / 3.785411784), 11, "q_gpm",
+                      "-1"), words=("line 11", "'q_gpm'", "US gpm"), id="log: negative q_gpm"),
+    with_log(set_cell(in_unit(LOG, "temperature_C", "temperature_F", lambda v: v * 1.8 + 32), 5,
+                      "temperature_F", "1000"), words=("line 5", "'temperature_F'",
+                                                       "-40 to 392 °F"),
+             id="log: temperature_F of 1000 °F"),
+    with_log(replace(LOG, "q_lpm", "Q_lpm"), words=("'q_lpm'", "missing", "is 'Q_lpm' it"),
+             id="log: misspelt column, kept as an extra one"),
+    with_log(set_cell(LOG, 7, "direction", "+2"), words=("line 7", "+1 (up), -1 (down)"),
+             id="log: direction +2"),
+    with_log(semicolons(set_cell(LOG, 5, "q_lpm", "abc")), words=("line 5", "'q_lpm'", "a number"),
+             id="log: semicolons with decimal commas, a bad cell"),
+    with_log(semicolons(set_cell(LOG, 7, "q_lpm", "abc")).replace("\nR01;", '\n"R01, rig 2";',
+                                                                 5).replace('"R01, rig 2"',
+                                                                            "R01", 4),
+             words=("line 7", "'q_lpm'", "a number"),
+             id="log: semicolons with a quoted comma in a run id, a bad cell"),
+    with_log(semicolons(LOG).replace("1,4", "1.4", 1),
+             words=("line", "decimal point", "decimal commas"),
+             id="log: semicolons mixing decimal commas and points"),
+    with_log(semicolons(LOG).replace(";", "\t"), words=("tabs",),
+             id="log: tab-separated with decimal commas"),
     Case("log: too few samples to fit", (*FIT, "--add", "friction_viscous"),
          ("log.csv: fitting", "needs more than 4 samples"),
          {"log.csv": "\n".join(LOG.splitlines()[:3]) + "\n"}),
@@ -784,6 +851,16 @@ CASES = [
     Case("maps: --maps grid beside a surrogate folder grid",
          ("predict", "--maps", "grid", "--input", "queries.csv", "--output", "out.csv"),
          ("--maps grid", "ambiguous", "--maps ./grid", "rename"), surrogate("nn", "grid")),
+    Case("maps: predict --maps NN beside a surrogate folder NN",
+         ("predict", "--maps", "NN", "--input", "queries.csv", "--output", "out.csv"),
+         ("--maps NN", "ambiguous", "--maps ./NN", "for the folder"), surrogate("nn", "NN")),
+    Case("maps: a near miss of a kind", ("predict", "--maps", "gpp", "--input", "queries.csv",
+                                         "--output", "out.csv"),
+         ("unknown map kind 'gpp'", "did you mean 'gp'?")),
+    Case("model: a near miss of a preset", ("compare", "--model", "CFAD", "--data", "log.csv"),
+         ("unknown model 'CFAD'", "did you mean 'cfda'?")),
+    Case("effects: a broken effects file listed", ("effects", "--effects-file", "fx.py"),
+         ("fx.py",), {"fx.py": effect_file("force", "float('nan') * state.p_L")}),
     Case("maps: a format-1 model's maps = \"nn\" beside a surrogate folder nn",
          ("compare", "--model", "model.toml", "--data", "log.csv"),
          ("model.toml", "ambiguous", 'folder = "./nn"'),

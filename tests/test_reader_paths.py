@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_fuzz import BAD_NUMBERS, CASES, CFD, LOG, set_cell
+from test_fuzz import BAD_NUMBERS, CASES, CFD, LOG, PSI, in_unit, semicolons, set_cell
 
 from surrogate.data import reader
 from surrogate.data.errors import DataFileError
@@ -46,9 +46,11 @@ def test_both_readers_agree_on_every_fuzz_file(index, tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("text", [LOG, CFD, "\n\n\n" + LOG, LOG.replace("\n", "\r\n"),
-                                  LOG + "\n\n", "\ufeff" + LOG],
+                                  LOG + "\n\n", "\ufeff" + LOG, semicolons(LOG),
+                                  "\ufeff\n" + semicolons(LOG).replace("\n", "\r\n"),
+                                  in_unit(LOG, "p_L_bar", "p_L_psi", lambda v: v * PSI)],
                          ids=["log", "cfd", "blank lines first", "CRLF", "blank lines last",
-                              "byte-order mark"])
+                              "byte-order mark", "semicolons", "semicolons, BOM, CRLF", "psi"])
 def test_both_readers_agree_on_good_files(text, tmp_path, monkeypatch):
     path = tmp_path / "file.csv"
     path.write_text(text, encoding="utf-8")

@@ -10,11 +10,13 @@ from pathlib import Path
 from ..data import load_bench_log
 from ..effects import KNOWN, EffectLibrary, load_effects_file
 from ..errors import InputError
-from ..maps.registry import MAP_KINDS, MapsSpec, MapSource, refuse_ambiguous_kind
+from ..maps.registry import (MAP_KINDS, MapsSpec, MapSource, is_surrogate_folder, kind_named,
+                             refuse_ambiguous_kind)
 from ..model import ValveModel
-from ..modelfile import PRESETS, load_spec
+from ..modelfile import PRESETS, load_spec, model_name
 from ..outputs import Output, check_outputs
-from ..paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES, shipped
+from ..paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES,
+                     shipped)
 from ..presets import maps
 from ..progress import Progress
 from ..valve import shipped_valve_path
@@ -109,16 +111,32 @@ def add_data_options(parser, *, model: bool = True, out_help: str = "output fold
     """--model, --maps, --data, --effects-file, --valve and --out of the workbench commands."""
     if model:
         required(parser).add_argument(
-            "--model", required=True,
+            "--model", required=True, type=model_option,
             help=f"a preset ({', '.join(PRESETS)}) or a model file (TOML)")
-    parser.add_argument("--maps", metavar="KIND",
+    parser.add_argument("--maps", metavar="KIND", type=maps_option,
                         help=f"{maps_help}: {maps_help_text()}")
-    parser.add_argument("--data", help="bench log CSV (default: the shipped one)")
+    parser.add_argument("--data", help="bench log CSV (default: the shipped one, said so in the "
+                                       "first progress line)")
     parser.add_argument("--effects-file", action="append", default=[], metavar="FILE",
                         help="Python file defining custom effects (repeatable)")
     parser.add_argument("--valve", help="valve file (default: the model's, or the shipped valve)")
     (required(parser) if out_required else parser).add_argument("--out", required=out_required,
                                                                 help=out_help)
+
+
+def model_option(text: str) -> str:
+    """argparse type of --model: a preset in any case is read as its name (``CFDA`` is cfda, as
+    reports write it), so that every message and file names it one way; a path stays as
+    given."""
+    return model_name(text)
+
+
+def maps_option(text: str) -> str:
+    """argparse type of --maps: a kind in any case is read as its name (``GP`` is gp), unless a
+    folder of that name here holds a trained surrogate: :func:`maps_from_args` refuses that as
+    ambiguous, naming the folder as the user wrote it."""
+    kind = kind_named(text)
+    return kind if kind is not None and not is_surrogate_folder(text, Path.cwd()) else text
 
 
 def maps_help_text() -> str:
@@ -136,8 +154,8 @@ def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
     someone, and ``./nn`` or the shipped folder's path says which is meant.
     """
     refuse_ambiguous_kind(kind, Path.cwd(), "--maps")
-    if kind in MAP_KINDS:
-        return maps(kind, cfd)
+    if kind_named(kind) is not None:
+        return maps(kind_named(kind), cfd)
     # the folder of a trained surrogate: its kind, with the folder and its hash recorded
     folder = MapSource.from_dict(kind, "--maps", Path.cwd())
     return maps(folder.kind, cfd, folder=folder.settings["folder"])
@@ -200,8 +218,21 @@ def effect_library(args, progress: Progress | None = None) -> EffectLibrary:
     return library
 
 
+def bench_log_path(args, progress, option: str = "data") -> Path | str:
+    """The bench log a command reads: the one its ``--data`` (or ``option``) names, else the
+    shipped one, and then the first progress line says so: data are never chosen silently."""
+    given = getattr(args, option, None)
+    if given:
+        return given
+    path = shipped(SHIPPED_BENCH_LOG)
+    shown = path.relative_to(PROJECT_ROOT) if path.is_relative_to(PROJECT_ROOT) else path
+    progress(f"no --{option} given: using the shipped log {shown}")
+    return path
+
+
 def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, EffectLibrary]:
     """The model (if the command takes one), the bench log and the effect library."""
+    data = bench_log_path(args, progress)  # first: which data is the first thing said
     library = effect_library(args, progress)
     model = None
     if getattr(args, "model", None):
@@ -210,7 +241,7 @@ def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, Ef
         if getattr(args, "maps", None):
             spec = spec.with_maps(maps_from_args(args.maps), f"{spec.name} ({args.maps} maps)")
         model = spec.build(library, where)
-    log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG), progress)
+    log = load_bench_log(data, progress)
     progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")
     if model is not None:
         _refuse_foreign_runs(model, log, args.model)

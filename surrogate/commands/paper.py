@@ -8,9 +8,9 @@ from ..data import load_bench_log
 from ..outputs import Output
 from ..paper.comparison import reproduce
 from ..paper.report import write_report
-from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..spec import ValveSource
-from .common import add_command, guard_outputs, maps_from_args, maps_help_text, progress_for
+from .common import (add_command, bench_log_path, guard_outputs, maps_from_args, maps_help_text,
+                     maps_option, progress_for)
 
 DEFAULT_OUT = "results/paper"
 
@@ -21,9 +21,11 @@ def register(subparsers) -> None:
         description="Fit BMBEBF and CFDA to the 40 °C, p_Pe = 65 bar median line, compare all "
                     "models with the median lines (Table 5), fit friction per temperature "
                     "(Table 6) and draw Figures 16–21.")
-    parser.add_argument("--maps", default="grid", help=f"{maps_help_text()} (default grid)")
+    parser.add_argument("--maps", default="grid", type=maps_option,
+                        help=f"{maps_help_text()} (default grid)")
     parser.add_argument("--out", help=f"output folder (default {DEFAULT_OUT}, none with --json)")
-    parser.add_argument("--data", help="bench log (default: the shipped one)")
+    parser.add_argument("--data", help="bench log (default: the shipped one, said so in the first "
+                                       "progress line)")
     parser.add_argument("--cfd", help="CFD samples for grid maps (default: the shipped ones)")
     parser.add_argument("--valve", help="valve file (default: the shipped valve)")
     parser.set_defaults(func=run)
@@ -34,7 +36,7 @@ def run(args) -> int:
     guard_outputs(args, Output("--out", out, "folder"))
     progress = progress_for(args)
     valve = ValveSource.read(args.valve)
-    log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
+    log = load_bench_log(bench_log_path(args, progress), progress)
     comparison = reproduce(valve, maps_from_args(args.maps, args.cfd), log, progress)
     if out:
         progress(f"writing tables and figures to {out}")

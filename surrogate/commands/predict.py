@@ -12,7 +12,8 @@ from ..maps.registry import build_maps
 from ..outputs import Output, atomic_file
 from ..units import from_si
 from ..valve import load_valve
-from .common import (add_command, guard_outputs, maps_from_args, maps_help_text, print_json,
+from .common import (add_command, guard_outputs, maps_from_args, maps_help_text, maps_option,
+                     print_json,
                      progress_for, required)
 
 
@@ -25,7 +26,7 @@ def register(subparsers) -> None:
                     "standard deviations; empty for maps without data), extrapolating and "
                     "outside_samples (why a state lies outside the CFD samples).")
     options = required(parser)
-    options.add_argument("--maps", required=True, help=maps_help_text())
+    options.add_argument("--maps", required=True, type=maps_option, help=maps_help_text())
     options.add_argument("--input", required=True, help="query CSV")
     options.add_argument("--output", required=True, help="output CSV")
     parser.add_argument("--valve", help="valve file (default: the shipped valve)")

@@ -8,12 +8,12 @@ from ..data import load_bench_log
 from ..data.writer import write_bench_log
 from ..errors import InputError
 from ..outputs import Output
-from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..synthetic.mismatch import MapMismatch
 from ..synthetic.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
                                   noise_free_sequence, reference_spec)
-from .common import (add_command, effect_library, guard_outputs, maps_from_args, maps_help_text,
-                     non_negative_int, positive_int, print_json, progress_for, required)
+from .common import (add_command, bench_log_path, effect_library, guard_outputs, maps_from_args,
+                     maps_help_text, maps_option, non_negative_int, positive_int, print_json,
+                     progress_for, required)
 
 #: largest --mismatch: ten times the CFD's own error is already far beyond any real valve's
 MISMATCH_MAX = 10.0
@@ -45,7 +45,7 @@ def register(subparsers) -> None:
                         help="keep every n-th sample of the sequence (default 1: all)")
     parser.add_argument("--sequence", help="bench log whose test sequence to use "
                                            "(default: the shipped one)")
-    parser.add_argument("--maps", metavar="KIND",
+    parser.add_argument("--maps", metavar="KIND", type=maps_option,
                         help=f"maps the valve runs on: {maps_help_text()} (default: grid maps "
                              "of the shipped CFD samples); use the kind you will diagnose with")
     parser.add_argument("--mismatch", type=float, metavar="SCALE",
@@ -85,7 +85,7 @@ def run(args) -> int:
         if not key.strip() or not math.isfinite(number):
             raise InputError(f"--set {item!r}: expected PARAM=NUMBER with a finite number")
         values[key.strip()] = number
-    source = load_bench_log(args.sequence or shipped(SHIPPED_BENCH_LOG))
+    source = load_bench_log(bench_log_path(args, progress, "sequence"), progress)
     sequence = noise_free_sequence(source, every=args.every)
     mismatch = None if args.mismatch is None else MapMismatch().scaled(args.mismatch)
     if mismatch is not None:

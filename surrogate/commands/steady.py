@@ -13,7 +13,7 @@ from ..outputs import Output, atomic_directory
 from ..reporting.report import figure_png
 from ..units import from_si, to_si
 from .common import (add_command, effect_library, guard_outputs, maps_from_args, maps_help_text,
-                     print_json, progress_for, required)
+                     maps_option, model_option, print_json, progress_for, required)
 
 
 def register(subparsers) -> None:
@@ -26,7 +26,8 @@ def register(subparsers) -> None:
                     "shows. The model's sensor and per-run terms are left out (they belong to "
                     "the bench). Writes steady.csv, steady.json and steady.png into --out.")
     options = required(parser)
-    options.add_argument("--model", required=True, help="a preset or a model file (TOML)")
+    options.add_argument("--model", required=True, type=model_option,
+                         help="a preset or a model file (TOML)")
     options.add_argument("--p-P-bar", type=float, required=True, help="pilot pressure [bar]")
     options.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--p-B-bar", type=float, default=5.0,
@@ -36,8 +37,8 @@ def register(subparsers) -> None:
     parser.add_argument("--q-lpm", nargs=2, type=float, default=(0.5, 12.0),
                         metavar=("LOW", "HIGH"), help="flow range [L/min] (default 0.5 12)")
     parser.add_argument("--points", type=int, default=60, help="flows per branch (default 60)")
-    parser.add_argument("--maps", metavar="KIND", help=f"replace the model's maps: "
-                                                       f"{maps_help_text()}")
+    parser.add_argument("--maps", metavar="KIND", type=maps_option,
+                        help=f"replace the model's maps: {maps_help_text()}")
     parser.add_argument("--effects-file", action="append", default=[], metavar="FILE",
                         help="Python file defining custom effects (repeatable)")
     parser.add_argument("--valve", help="valve file (default: the model's, or the shipped one)")

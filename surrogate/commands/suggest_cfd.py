@@ -9,11 +9,10 @@ from ..errors import InputError
 from ..maps.crossval import most_accurate_kind
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, atomic_directory
-from ..paths import SHIPPED_BENCH_LOG, shipped
 from ..planning.cfd_runs import suggest_cfd, suggestion_figure
 from ..reporting.report import figure_png
-from .common import (add_command, add_data_options, effect_library, guard_outputs, maps_from_args,
-                     positive_int, print_json, progress_for)
+from .common import (add_command, add_data_options, bench_log_path, effect_library, guard_outputs,
+                     maps_from_args, model_option, positive_int, print_json, progress_for)
 
 DEFAULT_RUNS = 8
 
@@ -33,7 +32,7 @@ def register(subparsers) -> None:
                                                    "suggestions.json into this folder",
                      maps_help="the maps whose uncertainty to reduce (default: the kind whose "
                                "flow force is the most accurate by cross-validation)")
-    parser.add_argument("--model", default="cfda",
+    parser.add_argument("--model", default="cfda", type=model_option,
                         help=f"the model replayed over the log: a preset ({', '.join(PRESETS)}) "
                              "or a model file (default cfda)")
     parser.add_argument("--cfd", help="CFD samples for grid maps (default: the shipped ones)")
@@ -45,8 +44,9 @@ def register(subparsers) -> None:
 def run(args) -> int:
     guard_outputs(args, Output("--out", args.out, "folder"))
     progress = progress_for(args)
+    data = bench_log_path(args, progress)
     library = effect_library(args, progress)
-    log = load_bench_log(args.data or shipped(SHIPPED_BENCH_LOG))
+    log = load_bench_log(data, progress)
     spec = load_spec(args.model, args.valve)
     kind = args.maps
     if kind is None:

@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 from ..errors import InputError
 
-_SHOWN = 25  # problems printed in a message; all of them stay in DataFileError.problems
+_SHOWN = 25  # lines printed in a message; all the problems stay in DataFileError.problems
+#: a column with this many problems of one kind gets one verdict (a unit mistake fails every
+#: row alike: thousands of near-identical lines would bury the one fact, and other problems)
+GROUPED_FROM = 4
+#: the rows a verdict quotes
+FIRST_ROWS = 3
+_NUMBER = re.compile(r"[+-]?\d+(\.\d*)?([eE][+-]?\d+)?")
 
 
 @dataclass(frozen=True)
@@ -86,9 +93,42 @@ class DataFileError(InputError):
         count = len(self.problems)
         noun = "problem" if count == 1 else "problems"
         head = f"{self.file}: rejected as {self.kind} ({count} {noun}):"
-        lines = [head, *(f"  - {problem}" for problem in self.problems[:_SHOWN])]
-        if count > _SHOWN:
-            lines.append(f"  ... and {count - _SHOWN} more of the same kinds")
+        shown = verdicts(self.problems)
+        lines = [head, *(f"  - {text}" for text, _ in shown[:_SHOWN])]
+        if len(shown) > _SHOWN:
+            left = sum(size for _, size in shown[_SHOWN:])
+            lines.append(f"  ... and {left} more of the same kinds")
         if self.note:
             lines.append(f"  {self.note}")
         return "\n".join(lines)
+
+
+def verdicts(problems: list[Problem]) -> list[tuple[str, int]]:
+    """The problems as printed lines, each with how many problems it stands for: a column's
+    problems of one kind (the same expectation but for the numbers in it) become one verdict
+    when there are :data:`GROUPED_FROM` or more, quoting the first rows and the count; the
+    others stay one line each. Lines come in the order of each group's first problem."""
+    groups: dict[tuple, list[Problem]] = {}
+    for index, problem in enumerate(problems):
+        if problem.column is None or problem.line is None:
+            key = (index,)
+        else:  # the kind of a row's problem: the part before any hint, numbers left out
+            key = (problem.column, _NUMBER.sub("#", problem.expected.split("; ")[0]))
+        groups.setdefault(key, []).append(problem)
+    lines = []
+    for members in groups.values():
+        if len(members) < GROUPED_FROM:
+            lines += [(str(problem), 1) for problem in members]
+        else:
+            lines.append((_verdict(members), len(members)))
+    return lines
+
+
+def _verdict(members: list[Problem]) -> str:
+    """One line for many rows of one column alike: where, how many, the first values."""
+    first = members[0]
+    rows = ", ".join(str(problem.line) for problem in members[:FIRST_ROWS])
+    values = [problem.value for problem in members[:FIRST_ROWS] if problem.value is not None]
+    got = f"got {', '.join(repr(v) for v in values)}; " if values else ""
+    return (f"{first.file}, column '{first.column}': {len(members)} rows rejected alike, "
+            f"first on lines {rows}: {got}expected {first.expected}")

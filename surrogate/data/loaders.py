@@ -7,7 +7,7 @@ the file, the line, the column, the value and what was expected (see :mod:`.erro
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +35,7 @@ class CfdSamples:
 
     frame: pd.DataFrame
     source: str
+    notes: tuple[str, ...] = field(default=(), compare=False)  # what the reading did
 
     def __len__(self) -> int:
         return len(self.frame)
@@ -75,10 +76,13 @@ class BenchLog:
 
     ``frame`` columns: ``run``, ``time`` [s], ``temperature`` [K], ``p_Pe_nominal`` [Pa], ``q``
     [m^3/s], ``p_L``, ``p_B``, ``p_P`` [Pa], ``direction`` (``"up"`` or ``"down"``) and ``line``.
+    ``notes`` says what reading the file did that its user should know of (columns ignored or
+    converted, separators), one line each.
     """
 
     frame: pd.DataFrame
     source: str
+    notes: tuple[str, ...] = field(default=(), compare=False)
 
     def __len__(self) -> int:
         return len(self.frame)
@@ -117,27 +121,28 @@ def load_cfd_samples(path: str | Path, *, named_by: str | None = None) -> CfdSam
         With every problem found: file, line, column, value and what was expected.
     """
     try:
-        frame = _load(path, CFD_SCHEMA, _check_cfd_rows)
+        frame, notes = _load(path, CFD_SCHEMA, _check_cfd_rows)
     except DataFileError as error:
         if named_by is None:
             raise
         raise error.redacted({column.name: column.describe_expected()
                               for column in CFD_SCHEMA.columns}, named_by) from None
-    return CfdSamples(frame, str(path))
+    return CfdSamples(frame, str(path), tuple(notes))
 
 
 def load_bench_log(path: str | Path, progress: Callable[[str], None] | None = None
                    ) -> BenchLog:
     """Load and validate a bench log (schema: ``measurements/README.md``); ``progress`` is
-    told how far the reading and checking got, for big logs.
+    told how far the reading and checking got, for big logs, and the log's notes (columns
+    ignored or converted from other units, a ``;``-separated file), one line each.
 
     Raises
     ------
     DataFileError
         With every problem found: file, line, column, value and what was expected.
     """
-    frame = _load(path, BENCH_SCHEMA, _check_bench_runs, progress)
-    return BenchLog(frame, str(path))
+    frame, notes = _load(path, BENCH_SCHEMA, _check_bench_runs, progress)
+    return BenchLog(frame, str(path), tuple(notes))
 
 
 def load_any(path: str | Path, progress: Callable[[str], None] | None = None
@@ -149,12 +154,13 @@ def load_any(path: str | Path, progress: Callable[[str], None] | None = None
     parsed = _parse(table, schema, progress)
     del table  # the file's bytes: the values are all that is needed from here
     if schema is CFD_SCHEMA:
-        return CfdSamples(_validate(*parsed, CFD_SCHEMA, _check_cfd_rows), str(path))
-    return BenchLog(_validate(*parsed, BENCH_SCHEMA, _check_bench_runs), str(path))
+        return CfdSamples(*_validated(parsed, CFD_SCHEMA, _check_cfd_rows, progress), str(path))
+    frame, notes = _validated(parsed, BENCH_SCHEMA, _check_bench_runs, progress)
+    return BenchLog(frame, str(path), notes)
 
 
 def _load(path, schema: FileSchema, check: Callable,
-          progress: Callable[[str], None] | None = None) -> pd.DataFrame:
+          progress: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, tuple[str, ...]]:
     table = read_raw_table(path, progress)
     detected = detect_schema_or_none(table)
     if detected is not None and detected is not schema:
@@ -163,7 +169,19 @@ def _load(path, schema: FileSchema, check: Callable,
                                                  f"{detected.kind}")], schema.kind)
     parsed = _parse(table, schema, progress)
     del table
-    return _validate(*parsed, schema, check)
+    frame, notes = _validated(parsed, schema, check, progress)
+    return frame, notes
+
+
+def _validated(parsed, schema: FileSchema, check: Callable,
+               progress: Callable[[str], None] | None) -> tuple[pd.DataFrame, tuple[str, ...]]:
+    """The SI frame of a parsed file and its notes, told to ``progress`` once it is accepted."""
+    *cells, notes, renamed = parsed
+    frame = _validate(*cells, schema, check, renamed)
+    if progress is not None:
+        for note in notes:
+            progress(note)
+    return frame, tuple(notes)
 
 
 def detect_schema_or_none(table: RawTable) -> FileSchema | None:
@@ -173,16 +191,19 @@ def detect_schema_or_none(table: RawTable) -> FileSchema | None:
         return None
 
 
-def _parse(table: RawTable, schema: FileSchema, progress: Callable[[str], None] | None
-           ) -> tuple[str, Values, list[Problem], np.ndarray]:
-    """(file, values, problems, line of each row) of the table's cells against ``schema``."""
-    values, problems = parse_cells(table, schema, progress)
-    return table.file, values, problems, np.asarray(table.lines, dtype=int)
+def _parse(table: RawTable, schema: FileSchema, progress: Callable[[str], None] | None):
+    """(file, values, problems, line of each row, notes, {schema name: the file's name of the
+    columns given in another unit}) of the table's cells against ``schema``."""
+    values, problems, notes = parse_cells(table, schema, progress)
+    renamed = {column.name: name for column in schema.columns
+               for name in column.other_names() if name in table.header}
+    return table.file, values, problems, np.asarray(table.lines, dtype=int), notes, renamed
 
 
 def _validate(file: str, values: Values, problems: list[Problem], lines: np.ndarray,
-              schema: FileSchema, check: Callable) -> pd.DataFrame:
-    problems += check(file, values, lines)
+              schema: FileSchema, check: Callable, renamed: dict[str, str] | None = None
+              ) -> pd.DataFrame:
+    problems += [_as_named(problem, renamed, schema) for problem in check(file, values, lines)]
     if problems:
         raise DataFileError(file, _in_file_order(problems), schema.kind)
     columns = {}
@@ -194,6 +215,17 @@ def _validate(file: str, values: Values, problems: list[Problem], lines: np.ndar
     frame["line"] = lines
     release_freed(len(frame))
     return frame
+
+
+def _as_named(problem: Problem, renamed: dict[str, str] | None, schema: FileSchema) -> Problem:
+    """A problem of the checks across rows, which see every column in the schema's unit, named
+    by the file's column when the file gave it in another unit (the value, converted, says so)."""
+    if not renamed or problem.column not in renamed:
+        return problem
+    unit = schema.column(problem.column).unit
+    value = problem.value if problem.value is None else f"{problem.value} {unit}"
+    return Problem(problem.file, problem.line, renamed[problem.column], value,
+                   f"{problem.expected} (the column's values converted to {unit})")
 
 
 def _in_file_order(problems: list[Problem]) -> list[Problem]:

@@ -58,7 +58,7 @@ def load_queries(path: str | Path) -> Queries:
             "nu_cSt and rho_kg_m3 (any fluid), " + ("not both" if has_temperature else
                                                    "one of the two"))], "map query file")
     schema = QUERY_AT_TEMPERATURE if has_temperature else QUERY_WITH_FLUID
-    values, problems = parse_cells(table, schema)
+    values, problems, _ = parse_cells(table, schema)  # extra columns are the user's own
     if problems:
         raise DataFileError(table.file, problems, schema.kind)
     raw = pd.DataFrame(table.rows, columns=list(table.header))

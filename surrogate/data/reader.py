@@ -12,6 +12,10 @@ Two paths give the same values and the same problems:
 
 A file the columnar path cannot take as it is (a line of blanks or bare commas, a row with the
 wrong number of fields) goes the exact way, which words those problems.
+
+A ``;``-separated file (a spreadsheet's export where the comma is the decimal separator) is
+turned into the comma-separated, decimal-point text both paths read, line for line, before
+either sees it (:func:`_from_semicolons`).
 """
 
 from __future__ import annotations
@@ -22,12 +26,13 @@ import io
 import math
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from ..units import from_si, label, to_si
 from .errors import DataFileError, Problem
 from .schema import SCHEMAS, Column, FileSchema
 
@@ -40,6 +45,11 @@ CHUNK_ROWS = 200_000
 _NUMBER_BYTES = np.frombuffer(b"0123456789.eE+-", dtype=np.uint8)
 _NUMBER_CHARACTERS = set("0123456789.eE+- \t")
 _UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
+#: a comma that is no decimal comma (not between two digits), in a ``;``-separated file
+_OTHER_COMMA = re.compile(rb"(?<![0-9]),|,(?![0-9])")
+_DECIMAL_COMMA = re.compile(rb"[0-9],[0-9]")
+_DECIMAL_POINT = re.compile(rb"[0-9]\.[0-9]")
+_DECIMAL_COMMA_NUMBER = re.compile(r"^[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?$")
 
 
 @dataclass(frozen=True)
@@ -59,6 +69,7 @@ class RawTable:
     body: bytes | None = None  # the file's bytes, the data rows from ``body_start``
     body_start: int = 0
     spans: np.ndarray | None = None  # (2, rows): each data row's first and end byte in ``body``
+    notes: tuple[str, ...] = ()  # what the reading did that the user should know of
 
     def __len__(self) -> int:
         return len(self.lines)
@@ -76,14 +87,15 @@ def read_raw_table(path: str | Path, progress: Callable[[str], None] | None = No
     """Read ``path`` as comma-separated UTF-8 text.
 
     Blank lines are skipped (line numbers stay those of the file). A byte-order mark (as written
-    by spreadsheet programs) is accepted. ``progress`` is told how far the reading got.
+    by spreadsheet programs) is accepted, and so is a ``;``-separated file with decimal commas
+    or points (said in the table's ``notes``). ``progress`` is told how far the reading got.
     ``columnar=False`` keeps every row's cells (``rows``), for a caller that needs the text.
 
     Raises
     ------
     DataFileError
-        If the file cannot be read, is empty, is binary, UTF-16 or otherwise not UTF-8, or is
-        not comma-separated.
+        If the file cannot be read, is empty, is binary, UTF-16 or otherwise not UTF-8, is
+        neither comma- nor semicolon-separated, or mixes decimal commas and points.
     """
     name = str(path)
     if progress is not None:
@@ -121,11 +133,78 @@ def read_raw_table(path: str | Path, progress: Callable[[str], None] | None = No
                                            f"comma-separated text; this looks like {markup}, "
                                            "not a CSV file")])
 
+    notes = ()
+    if _semicolon_separated(text):
+        data, note = _from_semicolons(name, data, text)
+        notes = (note,)
     table = None
     if columnar and b'"' not in data:
         del text  # the columnar path reads the bytes
         table = _columnar_table(name, data, 3 if data.startswith(b"\xef\xbb\xbf") else 0)
-    return table if table is not None else _exact_table(name, data.decode("utf-8-sig"))
+    if table is None:
+        table = _exact_table(name, data.decode("utf-8-sig"))
+    return replace(table, notes=notes) if notes else table
+
+
+def _semicolon_separated(text: str) -> bool:
+    """Whether the header (the first line with content) is separated by ``;`` and not by
+    commas: a spreadsheet's export in a locale whose decimal separator is the comma."""
+    for line in io.StringIO(text):
+        if line.strip(" \t\r\n,;"):
+            return ";" in line and "," not in line
+    return False
+
+
+def _from_semicolons(name: str, data: bytes, text: str) -> tuple[bytes, str]:
+    """The bytes of a ``;``-separated file as comma-separated text with decimal points, line for
+    line (so every line number stays the file's), and the note that says so.
+
+    When every comma stands between two digits, each is a decimal comma and the bytes are
+    translated at once; otherwise (a quoted cell, a comma in a text cell) the :mod:`csv` reader
+    splits the rows and only cells that read as decimal-comma numbers are changed.
+
+    Raises
+    ------
+    DataFileError
+        If the file writes numbers with both decimal commas and decimal points: a point could be
+        a thousands separator, and guessing which would change values silently.
+    """
+    commas = _DECIMAL_COMMA.search(data)
+    if commas:
+        point = _DECIMAL_POINT.search(data)
+        if point:
+            line = data[: point.start()].count(b"\n") + 1
+            first = data[: commas.start()].count(b"\n") + 1
+            row = text.split("\n")[line - 1].split(";")
+            cell = next((c.strip() for c in row if _DECIMAL_POINT.search(c.encode())), None)
+            raise DataFileError(name, [Problem(
+                name, line, None, cell,
+                f"one decimal separator throughout: this ';'-separated file writes decimal "
+                f"commas (line {first}) and a decimal point here (a thousands separator?); "
+                "export it again with one of them")])
+    how = "decimal commas" if commas else "decimal points"
+    note = f"{name}: read as ';'-separated with {how} (a spreadsheet's export)"
+    if b'"' not in data and not _OTHER_COMMA.search(data):
+        return data.translate(bytes.maketrans(b",;", b".,")), note
+    out = io.StringIO(newline="")
+    writer = csv.writer(out, lineterminator="\n")
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=";")
+    written = 1  # lines written so far + 1: blank lines keep every record on its file line
+    try:
+        for record in reader:
+            out.write("\n" * (reader.line_num - (written + record_lines(record)) + 1))
+            writer.writerow([cell.replace(",", ".") if _DECIMAL_COMMA_NUMBER.match(cell.strip())
+                             else cell for cell in record])
+            written = reader.line_num + 1
+    except csv.Error as error:
+        raise DataFileError(name, [Problem(name, reader.line_num, None, None,
+                                           f"well-formed ';'-separated CSV ({error})")]) from None
+    return out.getvalue().encode("utf-8"), note
+
+
+def record_lines(record: list[str]) -> int:
+    """How many lines a record spans (its quoted cells may hold line breaks)."""
+    return 1 + sum(cell.count("\n") for cell in record)
 
 
 def _looks_like_utf16(head: bytes) -> bool:
@@ -256,20 +335,28 @@ def detect_schema(table: RawTable) -> FileSchema:
 
 def parse_cells(table: RawTable, schema: FileSchema,
                 progress: Callable[[str], None] | None = None
-                ) -> tuple[dict[str, np.ndarray], list[Problem]]:
+                ) -> tuple[dict[str, np.ndarray], list[Problem], list[str]]:
     """Check every cell of every row against ``schema``.
+
+    A column the header gives in another unit (``p_L_psi`` for ``p_L_bar``,
+    :meth:`Column.other_names`) is checked as written, in its own unit, then converted to the
+    schema's unit; columns the schema lacks are left unread where it allows them.
 
     Returns
     -------
     values : dict
-        Column name -> array of the parsed values (float for numbers, object for text), with NaN
-        or None where a cell was bad.
+        Schema column name -> array of the parsed values in the schema's file unit (float for
+        numbers, object for text), with NaN or None where a cell was bad.
     problems : list of Problem
         Header problems first, then cell problems in file order.
+    notes : list of str
+        What the reading did that the user should know of: columns ignored, columns converted,
+        the separators read (one line each).
     """
-    problems = _header_problems(table, schema)
+    read_as, problems, notes = resolve_header(table, schema)
+    notes = [*table.notes, *notes]
     position = {name: index for index, name in enumerate(table.header)}
-    present = [column for column in schema.columns if column.name in position]
+    present = list(read_as.values())  # as the file has them: names and units
     values = {column.name: (np.full(len(table), np.nan) if column.is_number
                             else np.full(len(table), None, dtype=object))
               for column in present}
@@ -278,7 +365,7 @@ def parse_cells(table: RawTable, schema: FileSchema,
             problems += _parse_columns(table, present, position, values, progress)
         except _RowsDiffer:  # pandas saw other rows than the line scan: take the exact path
             exact = _exact_table(table.file, table.body.decode("utf-8-sig"))
-            return parse_cells(exact, schema, progress)
+            return parse_cells(replace(exact, notes=table.notes), schema, progress)
     else:
         for row_index, (row, line) in enumerate(zip(table.rows, table.lines)):
             if len(row) != len(table.header):
@@ -297,7 +384,68 @@ def parse_cells(table: RawTable, schema: FileSchema,
     if not len(table):
         problems.append(Problem(table.file, None, None, None,
                                 "at least one data row below the header; found none"))
-    return values, problems
+    for name, column in read_as.items():  # other units to the schema's, through units.py
+        if column.name != name:
+            values[name] = from_si(to_si(values.pop(column.name), column.unit),
+                                   schema.column(name).unit)
+    return values, problems, notes
+
+
+def resolve_header(table: RawTable, schema: FileSchema
+                   ) -> tuple[dict[str, Column], list[Problem], list[str]]:
+    """How the header gives each column of ``schema``: schema name -> the column as the file has
+    it (its own name and unit when it is in another unit), the header's problems (a column
+    twice, missing, or unknown where the schema allows no other) and the notes on columns
+    converted and ignored."""
+    problems = []
+    seen = set()
+    line = table.header_line
+    for name in table.header:
+        if name in seen:
+            problems.append(Problem(table.file, line, name, name, "each column name once"))
+        seen.add(name)
+    read_as: dict[str, Column] = {}
+    converted = []
+    for column in schema.columns:
+        given = [name for name in (column.name, *column.other_names()) if name in seen]
+        if len(given) > 1:
+            problems.append(Problem(table.file, line, given[1], given[1],
+                                    f"one column for the {column.meaning}; the header has "
+                                    f"{' and '.join(repr(g) for g in given)}"))
+        if given and given[0] != column.name:
+            unit = column.other_names()[given[0]]
+            read_as[column.name] = column.in_unit(given[0], unit)
+            converted.append(f"{given[0]} from {label(unit)}")
+        elif given:
+            read_as[column.name] = column
+    known = {name for column in schema.columns for name in (column.name, *column.other_names())}
+    extra = [name for name in dict.fromkeys(table.header) if name not in known]
+    for column in schema.columns:
+        if column.name not in read_as:
+            close = difflib.get_close_matches(column.name, extra, n=1) if schema.allow_extra \
+                else []
+            hint = f" (is '{close[0]}' it, misspelt?)" if close else ""
+            others = "".join(f" or '{name}' (in {label(unit)})"
+                             for name, unit in column.other_names().items())
+            problems.append(Problem(table.file, line, column.name, None,
+                                    f"a column '{column.name}' ({column.meaning}"
+                                    f"{', in ' + column.unit if column.unit else ''}){others}; "
+                                    f"it is missing from the header{hint}"))
+    notes = []
+    if converted:
+        notes.append(f"{table.file}: converted to the documented units: {', '.join(converted)}")
+    if extra and schema.allow_extra:
+        noun = "column" if len(extra) == 1 else "columns"
+        notes.append(f"{table.file}: {len(extra)} {noun} not in the {schema.kind} schema kept "
+                     f"in the file and ignored: {', '.join(extra)}")
+    elif extra and not schema.allow_extra:
+        for name in extra:
+            close = difflib.get_close_matches(name, schema.names, n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            problems.append(Problem(table.file, line, name, name,
+                                    f"only the documented columns of a {schema.kind}{hint}: "
+                                    f"{', '.join(schema.names)}"))
+    return read_as, problems, notes
 
 
 def _parse_columns(table: RawTable, present: list[Column], position: dict[str, int],
@@ -405,38 +553,13 @@ def _text_column(texts: np.ndarray, column: Column, target: np.ndarray, start: i
     """Check a chunk of a text column, each distinct value once, into ``target[start:]``;
     return the rows whose cells the cell-by-cell checker must word."""
     distinct, inverse = np.unique(texts, return_inverse=True)
-    accepted = np.array([_parse_cell(text.strip(), column)[1] is None for text in distinct],
-                        dtype=bool)
-    clean = np.array([text.strip() for text in distinct], dtype=object)
+    parsed = [_parse_cell(text.strip(), column) for text in distinct]
+    accepted = np.array([expected is None for _, expected in parsed], dtype=bool)
+    clean = np.array([value for value, _ in parsed], dtype=object)
     rows = np.arange(len(texts))
     ok = accepted[inverse]
     target[start + rows[ok]] = clean[inverse[ok]]
     return rows[~ok]
-
-
-def _header_problems(table: RawTable, schema: FileSchema) -> list[Problem]:
-    problems = []
-    seen = set()
-    line = table.header_line
-    for name in table.header:
-        if name in seen:
-            problems.append(Problem(table.file, line, name, name, "each column name once"))
-        seen.add(name)
-    for column in schema.columns:
-        if column.name not in seen:
-            problems.append(Problem(table.file, line, column.name, None,
-                                    f"a column '{column.name}' ({column.meaning}"
-                                    f"{', in ' + column.unit if column.unit else ''}); "
-                                    "it is missing from the header"))
-    known = set(schema.names)
-    for name in table.header:
-        if name not in known and not schema.allow_extra:
-            close = difflib.get_close_matches(name, schema.names, n=1)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
-            problems.append(Problem(table.file, line, name, name,
-                                    f"only the documented columns of a {schema.kind}{hint}: "
-                                    f"{', '.join(schema.names)}"))
-    return problems
 
 
 def _parse_cell(text: str, column: Column) -> tuple[object, str | None]:
@@ -444,6 +567,8 @@ def _parse_cell(text: str, column: Column) -> tuple[object, str | None]:
     if not column.is_number:
         if not text:
             return None, f"{column.describe_expected()}; the cell is empty"
+        if text in column.aliases:
+            return column.aliases[text], None
         if column.choices and text not in column.choices:
             return None, column.describe_expected()
         return text, None

@@ -6,11 +6,23 @@ The two schemas here are the single source of truth for ``cfd_samples/README.md`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from .. import limits
 from ..limits import Range
-from ..units import label
+from ..units import from_si, label, to_si
+
+#: the other units a bench log may give a quantity in: the documented unit -> (the suffix that
+#: replaces the documented name's, the unit it means); ``p_L_psi`` is p_L in psi, ``q_gpm`` q in
+#: US gallons per minute, ``temperature_F`` the temperature in °F
+UNIT_SUFFIXES: dict[str, tuple[tuple[str, str], ...]] = {
+    "bar": (("psi", "psi"), ("kPa", "kPa"), ("MPa", "MPa")),
+    "L/min": (("gpm", "gpm"),),
+    "degC": (("F", "degF"),),
+}
+#: how a bench log may write the ramp direction besides its words: +1 is up, as in the Python API
+DIRECTION_SIGNS = {"1": "up", "+1": "up", "-1": "down", "1.0": "up", "+1.0": "up",
+                   "-1.0": "down"}
 
 
 @dataclass(frozen=True)
@@ -31,6 +43,11 @@ class Column:
         Plausible values in the file unit (:mod:`surrogate.limits`); None for any finite number.
     choices : tuple of str
         Allowed values of a text column; empty for any non-empty text.
+    aliases : dict
+        Other spellings of the choices, read as the choice they map to (``"+1"`` -> ``"up"``).
+    suffixes : tuple of (str, str)
+        The other units the column may come in, as (name suffix, unit): ``("psi", "psi")`` lets
+        ``p_L_psi`` stand for ``p_L_bar``, read in psi and converted (:meth:`in_unit`).
     """
 
     name: str
@@ -39,6 +56,8 @@ class Column:
     unit: str | None = None
     range: Range | None = None
     choices: tuple[str, ...] = ()
+    aliases: dict[str, str] = field(default_factory=dict, hash=False, compare=False)
+    suffixes: tuple[tuple[str, str], ...] = ()
 
     @property
     def is_number(self) -> bool:
@@ -47,7 +66,12 @@ class Column:
     def allowed(self) -> str:
         """The allowed values in short: ``"0 to 100 mm"``, ``"'up', 'down'"``."""
         if not self.is_number:
-            return ", ".join(repr(c) for c in self.choices) if self.choices else "non-empty text"
+            if not self.choices:
+                return "non-empty text"
+            words = ", ".join(repr(c) for c in self.choices)
+            signs = [f"{text} ({choice})" for text, choice in self.aliases.items()
+                     if text in ("+1", "-1")]
+            return f"{words} or {', '.join(signs)}" if signs else words
         if self.range is not None:
             return self.range.describe()
         return f"finite, in {label(self.unit)}"
@@ -55,6 +79,29 @@ class Column:
     def describe_expected(self) -> str:
         """What a valid cell looks like, for error messages."""
         return f"{self.meaning}, {self.allowed()}"
+
+    @property
+    def stem(self) -> str:
+        """The name without its unit suffix: ``"p_L"`` of ``"p_L_bar"``."""
+        return self.name.rsplit("_", 1)[0] if self.unit else self.name
+
+    def other_names(self) -> dict[str, str]:
+        """The header names that stand for this column in another unit -> that unit."""
+        return {f"{self.stem}_{suffix}": unit for suffix, unit in self.suffixes}
+
+    def in_unit(self, name: str, unit: str) -> "Column":
+        """This column as a file names it ``name`` and gives it in ``unit``: its range converted
+        (through :mod:`surrogate.units`), so that a value is checked, and quoted, as written."""
+        bounds = None
+        if self.range is not None:
+            low, high = (float(from_si(to_si(v, self.range.unit), unit))
+                         for v in (self.range.low, self.range.high))
+            bounds = Range(round(low, 4), round(high, 4), unit)
+        return replace(self, name=name, unit=unit, range=bounds, suffixes=())
+
+    def with_suffixes(self) -> "Column":
+        """This column, accepting the other units of :data:`UNIT_SUFFIXES` by name suffix."""
+        return replace(self, suffixes=UNIT_SUFFIXES.get(self.unit, ()))
 
 
 @dataclass(frozen=True)
@@ -65,7 +112,8 @@ class FileSchema:
     columns: tuple[Column, ...]
     description: str
     identifying: frozenset[str] = field(default_factory=frozenset)
-    allow_extra: bool = False  # other columns are kept as they are instead of rejected
+    #: other columns are accepted (and not read) instead of rejected
+    allow_extra: bool = False
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -104,21 +152,26 @@ CFD_SCHEMA = FileSchema(
     ),
 )
 
+# Bench logs are taken as benches and spreadsheets write them: extra columns (ignored), other
+# units named by suffix (converted), ±1 for the direction. CFD samples come from the project's
+# own solver runs and keep the strict schema.
 BENCH_SCHEMA = FileSchema(
     kind="bench log",
     description="one row per bench sample",
     identifying=frozenset({"run", "time_s", "direction"}),
+    allow_extra=True,
     columns=(
         Column("run", "run", "ramp-test id"),
         Column("time_s", "time", "time within the run", "s"),
-        _TEMPERATURE,
+        _TEMPERATURE.with_suffixes(),
         Column("p_Pe_nominal_bar", "p_Pe_nominal", "set point of p_Pe = p_P - p_B", "bar",
-               limits.PRESSURE_DIFFERENCE),
-        _FLOW,
-        _pressure("p_L_bar", "p_L", "load pressure (gauge)"),
-        _pressure("p_B_bar", "p_B", "back pressure (gauge)"),
-        _pressure("p_P_bar", "p_P", "pilot pressure (gauge)"),
-        Column("direction", "direction", "ramp direction", choices=("up", "down")),
+               limits.PRESSURE_DIFFERENCE).with_suffixes(),
+        _FLOW.with_suffixes(),
+        _pressure("p_L_bar", "p_L", "load pressure (gauge)").with_suffixes(),
+        _pressure("p_B_bar", "p_B", "back pressure (gauge)").with_suffixes(),
+        _pressure("p_P_bar", "p_P", "pilot pressure (gauge)").with_suffixes(),
+        Column("direction", "direction", "ramp direction", choices=("up", "down"),
+               aliases=DIRECTION_SIGNS),
     ),
 )
 
@@ -148,5 +201,8 @@ def schema_table(schema: FileSchema) -> str:
     rows = ["| column | unit | meaning | allowed |", "|---|---|---|---|"]
     for column in schema.columns:
         unit = label(column.unit) if column.unit else "–"
-        rows.append(f"| `{column.name}` | {unit} | {column.meaning} | {column.allowed()} |")
+        others = ", ".join(f"`_{suffix}`" for suffix, _ in column.suffixes)
+        others = f" (or {others})" if others else ""
+        rows.append(f"| `{column.name}`{others} | {unit} | {column.meaning} | "
+                    f"{column.allowed()} |")
     return "\n".join(rows)

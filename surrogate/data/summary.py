@@ -65,7 +65,8 @@ def _summarize_bench(log: BenchLog) -> dict:
             "up_samples": int((frame["direction"] == "up").sum()),
             "down_samples": int((frame["direction"] == "down").sum()),
         })
-    return {"file": log.source, "kind": "bench_log", "rows": len(log), "runs": runs}
+    return {"file": log.source, "kind": "bench_log", "rows": len(log), "runs": runs,
+            "notes": list(log.notes)}
 
 
 def format_summary(summary: dict) -> str:

@@ -20,7 +20,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, did_you_mean, named
 from ..paths import shipped
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
@@ -173,13 +173,18 @@ def learned_kinds() -> list[str]:
     return [name for name, kind in MAP_KINDS.items() if kind.learned]
 
 
+def kind_named(text: str) -> str | None:
+    """The registered kind ``text`` names, in any case (``"GP"`` is gp), or None."""
+    return named(text, MAP_KINDS)
+
+
 def map_kind(name: str) -> MapKind:
-    """The registered kind called ``name``."""
-    try:
-        return MAP_KINDS[name]
-    except (KeyError, TypeError):
-        raise InputError(f"unknown map kind {name!r}: choose one of {', '.join(MAP_KINDS)}, or "
-                         "give the folder of a trained surrogate") from None
+    """The registered kind called ``name``, in any case."""
+    kind = kind_named(name)
+    if kind is None:
+        raise InputError(f"unknown map kind {name!r}{did_you_mean(name, MAP_KINDS)}: choose one "
+                         f"of {', '.join(MAP_KINDS)}, or give the folder of a trained surrogate")
+    return MAP_KINDS[kind]
 
 
 @dataclass(frozen=True)
@@ -233,14 +238,16 @@ class MapSource:
             raise InputError(f"{where}: needs a kind ({', '.join(MAP_KINDS)}, or the folder of a "
                              "trained surrogate)")
         options = {key: value for key, value in table.items() if key != "kind"}
-        if kind not in MAP_KINDS and not options and _is_surrogate_folder(kind, base):
+        if kind not in MAP_KINDS and not options and is_surrogate_folder(kind, base):
             folder = kind  # a surrogate folder as the kind: the learned kind it holds
             kind = read_manifest(resolve_path(folder, base), learned_kinds())["kind"]
             options = {"folder": folder}
+        kind = map_kind(kind).name  # "GP" is recorded as gp
         return cls.of(kind, **map_kind(kind).parse_options(options, where))
 
 
-def _is_surrogate_folder(text: str, base: Path) -> bool:
+def is_surrogate_folder(text: str, base: Path) -> bool:
+    """Whether ``text`` (relative to ``base``) is the folder of a trained surrogate."""
     return (resolve_path(text, base) / MANIFEST).is_file()
 
 
@@ -254,9 +261,9 @@ def refuse_ambiguous_kind(text: str, base: Path, where: str, *, command_line: bo
     name each. A folder named like a kind without ``surrogate.json`` is no surrogate, and the
     kind is meant.
     """
-    if text not in MAP_KINDS or not _is_surrogate_folder(text, base):
+    if kind_named(text) is None or not is_surrogate_folder(text, base):
         return
-    kind = MAP_KINDS[text]
+    kind = MAP_KINDS[kind_named(text)]
     # the committed surrogate of a learned kind: what "shipped" names for its folder option
     shipped_one = (next((option.shipped for option in kind.options if option.path), None)
                    if kind.learned else None)
