@@ -288,10 +288,11 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
     for a probe, :data:`PROBE_TWINS`), its roughness weight chosen by held-out runs
     (:func:`choose_roughness`), and only the shapes whose linear fit predicts the runs left out
     better by the rule's held-out gain are refitted for real (the others cannot pass the rule;
-    they are left out, at no replay), the front runners among them (:func:`front_runners`). ``problem`` is the diagnosis' :class:`~surrogate.
-    diagnosis.refit.DiagnosisProblem`, ``own_columns`` its model's columns, ``judge`` its
-    :class:`~surrogate.diagnosis.judge.Judge`. With ``must_beat`` (a ΔBIC), only the shapes
-    whose linear fit's ΔBIC is below it are refitted.
+    they are left out, at no replay), the front runners among them (:func:`front_runners`).
+    ``problem`` is the diagnosis' :class:`~surrogate.diagnosis.refit.DiagnosisProblem`,
+    ``own_columns`` its model's columns, ``judge`` its :class:`~surrogate.diagnosis.judge.Judge`.
+    With ``must_beat`` (a ΔBIC), only the shapes whose linear fit's ΔBIC is below it are
+    refitted.
     """
     say = say or (lambda message: None)
     base, ok = problem.base, problem.ok

@@ -36,7 +36,8 @@ CALIBRATION = EffectLibrary(CALIBRATIONS)
 #: every effect a model file may name without an effects file
 KNOWN = LIBRARY + SHAPES + CALIBRATION
 
-__all__ = ["BUILT_IN", "CALIBRATION", "CALIBRATIONS", "CATEGORIES", "KINDS", "KNOWN", "LIBRARY", "SHAPES", "SHAPE_FREE",
+__all__ = ["BUILT_IN", "CALIBRATION", "CALIBRATIONS", "CATEGORIES", "KINDS", "KNOWN", "LIBRARY",
+           "SHAPES", "SHAPE_FREE",
            "BalanceState", "Effect", "EffectLibrary", "FlowState", "Parameter", "PerRunEffect",
            "ShapeFreeEffect", "custom_effect", "load_effects_file",
            *(c.__name__ for c in BUILT_IN)]

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..effects.calibration import hat_basis
 from ..model import ValveModel
 from ..solver.replay import Replay
 from .residuals import LogReplay
@@ -82,14 +83,7 @@ def knots(model: ValveModel) -> np.ndarray:
 def hat_weights(u: np.ndarray, at: np.ndarray) -> np.ndarray:
     """(n, len(at)) hat functions in ln u through the knots ``at``, held at the end knots, each
     row scaled to unit norm (so a row's weights square-sum to one)."""
-    x = np.log(np.clip(u, at[0], at[-1]))
-    grid = np.log(at)
-    weights = np.zeros((len(u), len(at)))
-    index = np.clip(np.searchsorted(grid, x) - 1, 0, len(at) - 2)
-    t = (x - grid[index]) / (grid[index + 1] - grid[index])
-    rows = np.arange(len(u))
-    weights[rows, index] = 1.0 - t
-    weights[rows, index + 1] = t
+    weights = hat_basis(at, u)
     return weights / np.linalg.norm(weights, axis=1, keepdims=True)
 
 
