@@ -104,7 +104,8 @@ class SignificanceRule:
         yet predicted the held-out runs worse: 1.79 against 1.78 bar). A detent at 0.23 mm taken
         for a progressive spring (grid maps, map mismatch; eval/offlibrary.py case 4243): the
         force of free shape beat the spring by ΔBIC 23; a hidden pilot-differential friction under
-        GP maps (stress case 215): a friction of free shape of the flow beat it by 12, not decisively."""
+        GP maps (stress case 215): a friction of free shape of the flow beat it by 12, not
+        decisively."""
         return (shape.delta_bic + self.handicap(shape) - finding.delta_bic < self.bic
                 and shape.heldout_rms < finding.heldout_rms)
 
