@@ -583,6 +583,10 @@ CASES = [
                  id="effects: a built-in's name"),
     Case("effects: missing file", (*FIT, "--effects-file", "nowhere.py", "--add", "x"),
          ("nowhere.py", "not found")),
+    Case("effects: a data file given as the effects file",
+         (*FIT, "--effects-file", "log.csv", "--add", "x"), ("log.csv", "expected a .py file")),
+    Case("effects: a data file listed as effects", ("effects", "--effects-file", "log.csv"),
+         ("log.csv", "expected a .py file")),
 
     # command-line misuse ------------------------------------------------------------------------
     Case("cli: no command", (), ("required", "COMMAND")),

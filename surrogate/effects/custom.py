@@ -214,6 +214,10 @@ def load_effects_file(path: str | Path):
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: effects file not found")
+    if path.suffix != ".py":
+        # importlib finds no loader for another suffix and would fail without saying why
+        raise InputError(f"{path}: an effects file is Python code; expected a .py file, not "
+                         f"{path.suffix or 'a file without a suffix'}")
     module_name = f"surrogate_user_effects_{abs(hash(path.resolve()))}"
     spec = importlib.util.spec_from_file_location(module_name, path)
     module = importlib.util.module_from_spec(spec)
