@@ -87,9 +87,9 @@ class FunctionProblem(FitProblem):
         return Evaluation(np.asarray(self.residuals(model), float))
 
 
-def covariance(jacobian: np.ndarray, residuals: np.ndarray, n_eff: float | None = None
-               ) -> np.ndarray:
-    """Covariance of the fitted coordinates: σ²·(JᵀJ)⁺ with σ² = RSS/(n − k), widened by
+def covariance(jacobian: np.ndarray, residuals: np.ndarray, n_eff: float | None = None,
+               penalty: np.ndarray | None = None) -> np.ndarray:
+    """Covariance of the fitted coordinates: σ²·(JᵀJ + LᵀL)⁺ with σ² = RSS/(n − k), widened by
     n/n_eff when the n residuals are worth only n_eff independent samples.
 
     Parameters
@@ -100,14 +100,19 @@ def covariance(jacobian: np.ndarray, residuals: np.ndarray, n_eff: float | None 
         The residuals there, shape (n,).
     n_eff : float, optional
         Effective number of independent samples (default n: independent residuals).
+    penalty : numpy.ndarray, optional
+        L, ∂(penalty residual)/∂coordinate (a shape's roughness; default none).
     """
     count, parameters = jacobian.shape
     dof = max(count - parameters, 1)
     variance = float(np.sum(residuals**2)) / dof
     if n_eff is not None:
         variance *= count / max(n_eff, 1.0)
+    information = jacobian.T @ jacobian
+    if penalty is not None:
+        information = information + penalty.T @ penalty
     try:
-        return np.linalg.pinv(jacobian.T @ jacobian) * variance
+        return np.linalg.pinv(information) * variance
     except np.linalg.LinAlgError:
         return np.full((parameters, parameters), np.nan)
 
@@ -228,6 +233,7 @@ class Minimizer:
         self._scales = np.array([to_si(1.0, unit) - to_si(0.0, unit) for unit in self.units])
         self.evaluations = 0
         self._refinement: _Refinement | None = None
+        self._penalties: dict[int, tuple | None] = {}
 
     # --- coordinates ------------------------------------------------------------------------------
 
@@ -255,6 +261,19 @@ class Minimizer:
                              f"samples; there are {len(evaluation.residual)}")
         return evaluation
 
+    def penalty(self, samples: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The model's penalty on this fit's parameters over ``samples`` residuals, (L, b) with
+        its residual L·v + b [Pa] at their SI values v (:meth:`ValveModel.penalty`); None
+        without one."""
+        if samples not in self._penalties:
+            self._penalties[samples] = self.model.penalty(self.names, samples)
+        return self._penalties[samples]
+
+    def _penalty_residual(self, penalty) -> np.ndarray:
+        """The penalty's residual [Pa] at the current parameters."""
+        matrix, offset = penalty
+        return matrix @ np.array([p.value for p in self.parameters]) + offset
+
     # --- trust-region least squares -----------------------------------------------------------------
 
     def least_squares(self, *, max_evaluations: int = 200, tolerance: float = 1e-8) -> FitResult:
@@ -262,7 +281,8 @@ class Minimizer:
 
         ``tolerance``: the relative change of the sum of squares, and of the parameters, below
         which the fit stops. The Jacobian's columns are evaluated side by side on threads, each
-        with its own copy of the model.
+        with its own copy of the model. A penalty of the model's (:meth:`penalty`) is minimised
+        with the sum of squares.
         """
         if not self.parameters:
             evaluation = self.problem.evaluate(self.model)
@@ -273,12 +293,19 @@ class Minimizer:
         def objective(x):
             evaluation = self._evaluate(x)
             last["x"], last["evaluation"] = np.array(x), evaluation
-            return evaluation.residual
+            penalty = self.penalty(len(evaluation.residual))
+            if penalty is None:
+                return evaluation.residual
+            return np.r_[evaluation.residual, self._penalty_residual(penalty)]
 
         def jacobian(x):
-            at_x = (last["evaluation"].residual if np.array_equal(last["x"], x)
-                    else objective(x))
-            return self.jacobian(np.asarray(x, float), at_x)
+            if not np.array_equal(last["x"], x):
+                objective(x)
+            at_x = last["evaluation"].residual
+            columns = self.jacobian(np.asarray(x, float), at_x)
+            penalty = self.penalty(len(at_x))
+            return (columns if penalty is None
+                    else np.vstack([columns, penalty[0] * self._scales]))
 
         start = np.clip(self.x, self.lower, self.upper)
         result = least_squares(objective, start, jac=jacobian, bounds=(self.lower, self.upper),
@@ -288,8 +315,8 @@ class Minimizer:
         evaluation = (last["evaluation"] if np.array_equal(last["x"], result.x)
                       else self._evaluate(result.x))
         self.assign(result.x)
-        return self._result(evaluation, result.jac, bool(result.success), str(result.message),
-                            int(result.nfev))
+        return self._result(evaluation, result.jac[:len(evaluation.residual)],
+                            bool(result.success), str(result.message), int(result.nfev))
 
     def jacobian(self, x: np.ndarray, at_x: np.ndarray) -> np.ndarray:
         """∂residual/∂x by forward differences (scipy's '2-point' rule), columns on threads."""
@@ -320,12 +347,17 @@ class Minimizer:
         feel) the refinement stays where it starts.
 
         ``penalty``: a matrix L over the parameters' SI values v; the refinement then minimises
-        the sum of squares plus ‖L·v‖² (a roughness penalty on a shape's coefficients,
-        :mod:`surrogate.effects.shapes`)."""
+        the sum of squares plus ‖L·v‖² (a prior on a calibration's values), and the model's own
+        penalty (:meth:`penalty`: a shape's roughness) besides."""
         jacobian = (np.column_stack(changes) if len(changes)
                     else np.zeros((len(evaluation.residual), 0)))
+        penalties = [(penalty, np.zeros(len(penalty)))] if penalty is not None else []
+        own = self.penalty(len(evaluation.residual))
+        penalties += [own] if own is not None else []
+        combined = None if not penalties else (np.vstack([m for m, _ in penalties]),
+                                               np.concatenate([b for _, b in penalties]))
         self._refinement = _Refinement(self, jacobian, np.asarray(steps, float), evaluation,
-                                       penalty)
+                                       combined)
         if not len(changes):
             self._refinement.settled = True
         return self
@@ -351,6 +383,21 @@ class Minimizer:
         parameter."""
         return self._refinement.jacobian
 
+    @property
+    def refined_steps(self) -> np.ndarray:
+        """The step [SI] of each parameter that a column of :attr:`refined_jacobian` is for."""
+        return self._refinement.scale
+
+    @property
+    def refined_penalty(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The refinement's penalty (:meth:`linearise`) per step of each parameter, as the
+        Jacobian's columns, and its residual [Pa] at the best point; None without one."""
+        refinement = self._refinement
+        if refinement.penalty is None:
+            return None
+        matrix, offset = refinement.penalty
+        return matrix, matrix @ refinement.best_z + offset
+
     def refinement_errors(self) -> None:
         """Standard errors of the refinement's best point, set on the parameters."""
         refinement = self._refinement
@@ -368,8 +415,10 @@ class Minimizer:
                 message: str, evaluations: int = 1) -> FitResult:
         residual = evaluation.residual
         k = len(self.parameters)
-        if k:
-            matrix = covariance(jacobian, residual, self.problem.effective_samples(evaluation))
+        penalty = self.penalty(len(residual)) if k else None
+        if k:  # the penalty per display unit, as the Jacobian
+            matrix = covariance(jacobian, residual, self.problem.effective_samples(evaluation),
+                                None if penalty is None else penalty[0] * self._scales)
             errors = np.sqrt(np.clip(np.diag(matrix), 0, None))
             for parameter, error, scale in zip(self.parameters, errors, self._scales):
                 # on a bound the curvature says nothing about the uncertainty: report none
@@ -413,7 +462,7 @@ class _Refinement:
     Jacobian's columns are of comparable size."""
 
     def __init__(self, minimizer: Minimizer, jacobian: np.ndarray, steps: np.ndarray,
-                 evaluation: Evaluation, penalty: np.ndarray | None = None):
+                 evaluation: Evaluation, penalty: tuple[np.ndarray, np.ndarray] | None = None):
         self.minimizer = minimizer
         parameters = minimizer.parameters
         self.start = np.array([p.value for p in parameters])
@@ -422,8 +471,9 @@ class _Refinement:
         upper = np.array([(p.max - p.value) / s for p, s in zip(parameters, steps)])
         self.lower, self.upper = np.minimum(lower, upper), np.maximum(lower, upper)
         self.jacobian = jacobian
-        # the penalty ‖L·v‖² in z, v = start + scale·z: ‖L_z·z + offset‖²
-        self.penalty = None if penalty is None else (penalty * steps, penalty @ self.start)
+        # the penalty ‖L·v + b‖² in z, v = start + scale·z: ‖L_z·z + offset‖²
+        self.penalty = (None if penalty is None else
+                        (penalty[0] * steps, penalty[0] @ self.start + penalty[1]))
         self.best_z = np.zeros(len(parameters))
         self.best = evaluation
         self.best_rss = float(np.sum(evaluation.residual**2)) + self._penalty_at(self.best_z)

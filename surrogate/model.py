@@ -123,6 +123,31 @@ class ValveModel:
         return Parameters((f"{effect.name}.{p.name}", p) for effect in self.effects
                           for p in effect.params.values())
 
+    def penalty(self, keys, samples: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The effects' penalties (:meth:`~surrogate.effects.Effect.penalty`) on a fit of the
+        parameters ``keys`` (``"effect.parameter"``) over ``samples`` residuals: (L, b), the
+        penalty's residual L·v + b [Pa] for the SI values v of ``keys``, b holding what the
+        parameters outside ``keys`` contribute at their values; None when no effect has one."""
+        index = {key: column for column, key in enumerate(keys)}
+        matrices, offsets = [], []
+        for effect in self.effects:
+            matrix = effect.penalty(samples)
+            if matrix is None:
+                continue
+            rows = np.zeros((matrix.shape[0], len(index)))
+            offset = np.zeros(matrix.shape[0])
+            for column, parameter in zip(matrix.T, effect.params.values()):
+                key = f"{effect.name}.{parameter.name}"
+                if key in index:
+                    rows[:, index[key]] = column
+                else:
+                    offset += column * parameter.value
+            matrices.append(rows)
+            offsets.append(offset)
+        if not matrices:
+            return None
+        return np.vstack(matrices), np.concatenate(offsets)
+
     @property
     def has_friction(self) -> bool:
         return any(_uses(effect, "friction") for effect in self.effects)

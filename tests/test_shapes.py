@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from surrogate.effects.shapes import (SHAPE_FREE, Leakage, OpeningForce, quantile_knots,
+from surrogate.effects.shapes import (SHAPE_FREE, TAIL, Leakage, OpeningForce, quantile_knots,
                                       rising_basis, spline_basis)
 from surrogate.fitting.heldout import Linearised, RunBlocks
 from surrogate.testing import check_effect
@@ -54,8 +54,18 @@ def test_a_shape_is_its_basis_times_its_coefficients_whenever_they_change(cls):
 def test_knots_follow_the_data_but_never_collapse_onto_a_held_value():
     held = np.r_[np.full(1000, 5.0), np.linspace(0.0, 10.0, 50)]
     knots = quantile_knots(held)
-    assert knots[0] == 0.0 and knots[-1] == 10.0 and np.all(np.diff(knots) > 0.1)
+    assert knots[0] == np.quantile(held, TAIL) and knots[-1] == np.quantile(held, 1 - TAIL)
+    assert 0.0 < knots[0] < 1.5 and 8.5 < knots[-1] < 10.0 and np.all(np.diff(knots) > 0.1)
     assert quantile_knots(np.linspace(3.0, 9.0, 100), start=0.0)[0] == 0.0
+
+
+def test_a_few_far_samples_do_not_stretch_a_shape_over_a_range_they_cannot_determine():
+    """The 120-bar runs' jumps to the stop: 99 % of the moving openings below 0.29 mm, a handful
+    at 0.63 mm. The shape ends (and is held) where the data still lie."""
+    rng = np.random.default_rng(3)
+    openings = np.r_[rng.uniform(0.015, 0.29, 2000), np.full(8, 0.63)]
+    knots = quantile_knots(openings)
+    assert knots[-1] < 0.30 and knots[0] < 0.02
 
 
 def test_a_shape_reads_back_from_its_parameters_as_a_model_file_writes_them():
@@ -127,3 +137,34 @@ def test_a_shape_handed_over_as_an_effects_file_reproduces_it(cls, tmp_path):
     states = _effect_states(0, 40, load_valve())
     assert np.allclose(_call(handed, states), _call(effect, states), rtol=2e-3,
                        atol=2e-3 * np.max(np.abs(_call(effect, states))))
+
+
+@pytest.mark.parametrize("smoothing, rough", [(0.0, True), (2.0, False)])
+def test_a_shape_keeps_the_smoothness_its_diagnosis_chose_in_every_later_fit(
+        valve, grid_maps, smoothing, rough):
+    """A shape's ``smoothing`` is a penalty every fit of its model minimises with the sum of
+    squares (a workflow's next step, ``fit`` with a model file): without it the spline follows
+    the noise, with it the fit stays smooth though the data are the same."""
+    from surrogate.leastsquares import fit
+    from surrogate.model import ValveModel
+
+    rng = np.random.default_rng(1)
+    u = np.sort(rng.uniform(0.02e-3, 0.3e-3, 400))
+    effect = OpeningForce(quantile_knots(u), smoothing=smoothing)
+    model = ValveModel(valve, *grid_maps, [effect])
+    truth = 1e5 * (u / 0.3e-3)  # a straight line [Pa]: the penalty's null space
+    noisy = truth + rng.normal(0.0, 3e5, u.size)
+
+    def residuals(trial):
+        return 1e5 * trial.effect(effect.name).shape(u) - noisy
+
+    fitted = fit(model, residuals).model.effect(effect.name)
+    bends = np.abs(np.diff(fitted.coefficients, 2)).max()
+    assert (bends > 0.5) == rough, fitted.coefficients
+    penalty = model.penalty([f"{effect.name}.{name}" for name in effect.coefficient_names()],
+                            u.size)
+    assert (penalty is None) == (smoothing == 0.0)
+    if penalty is not None:  # ‖L·c‖² in Pa²: √n·smoothing per unit of second difference
+        matrix, offset = penalty
+        assert np.allclose(matrix / (np.sqrt(u.size) * smoothing * 1e5),
+                           effect.roughness()) and not offset.any()

@@ -29,6 +29,21 @@ from .rule import RULE, SignificanceRule, delta_bic
 RESAMPLES = 200  # bootstrap resamples over runs for the inclusion frequencies
 
 
+def own_roughness(model: ValveModel, own_columns: list[Column], samples: int
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The model's penalty (:meth:`~surrogate.model.ValveModel.penalty`, a shape's roughness) on
+    its own parameters over ``samples`` residuals, per step of each column, and its residual
+    [Pa] at the model's values; None without one."""
+    keys = [c.key for c in own_columns]
+    penalty = model.penalty(keys, samples)
+    if penalty is None:
+        return None
+    matrix, offset = penalty
+    parameters = model.parameters()
+    values = np.array([parameters[key].value for key in keys])
+    return matrix * np.array([c.step for c in own_columns]), matrix @ values + offset
+
+
 class Judge:
     """Every candidate's refit, judged against what the maps' uncertainty allows and on runs it
     was not fitted to, linearised at its optimum.
@@ -46,27 +61,30 @@ class Judge:
         self.penalty = floor**2 * ok.sum() / problem.n_eff
         self.schemes = run_groups(problem.log)
         parameters = model.parameters()
+        held = [parameters[c.key] for c in own_columns]
         own = held_at_bounds(
             np.column_stack([c.change for c in own_columns]) if own_columns
-            else np.zeros((int(ok.sum()), 0)), [parameters[c.key] for c in own_columns])
+            else np.zeros((int(ok.sum()), 0)), held)
         self.own = own  # the model's own columns, at the samples the model solves
-        self.base = RunBlocks(Linearised(problem.base_evaluation.residual, own),
+        #: the model's own penalty (a shape's roughness) in those columns, and its residual
+        self.own_roughness = own_roughness(model, own_columns, int(ok.sum()))
+        self.base = RunBlocks(Linearised(problem.base_evaluation.residual, own,
+                                         self.own_roughness).held(held),
                               self.discrepancy, self.runs, self.penalty)
         self.ones = np.ones(len(self.base.labels))
         self.objective_before = self.base.objective(self.ones)
         self.heldout = self.base.heldout_rms(self.schemes)  # per scheme [Pa]
         self.blocks: dict[str, tuple[RunBlocks, float]] = {}
 
-    def judge(self, candidate: Candidate, roughness=None, shape: list[int] | None = None
-              ) -> Candidate:
+    def judge(self, candidate: Candidate, shape: list[int] | None = None) -> Candidate:
         """The candidate with its held-out RMS and its ΔBIC against the maps' discrepancy.
 
-        A shape-free term brings its ``roughness`` penalty (:class:`~surrogate.fitting.heldout.
-        RunBlocks`) and the columns of its coefficients (``shape``); the parameters it counts in
-        ΔBIC are then their effective number (the trace of their block of the hat matrix, the
-        discrepancy refitted with them), not their count."""
-        blocks = RunBlocks(Linearised(candidate.linearised[0], candidate.linearised[1]),
-                           self.discrepancy, self.runs, self.penalty, roughness)
+        Its linearisation brings the fit's roughness penalty, if any (:class:`~surrogate.
+        fitting.heldout.RunBlocks`); a shape-free term brings the columns of its coefficients
+        (``shape``), and the parameters it counts in ΔBIC are then their effective number (the
+        trace of their block of the hat matrix, the discrepancy refitted with them), not their
+        count."""
+        blocks = RunBlocks(candidate.linearised, self.discrepancy, self.runs, self.penalty)
         if shape is not None:
             candidate = replace(candidate, extra=blocks.effective_parameters(shape))
         self.blocks[candidate.name] = (blocks, candidate.extra)

@@ -17,16 +17,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..data.loaders import BenchLog
 from ..effects import Effect, PerRunEffect
-from ..fitting.heldout import held_at_bounds
-from ..fitting.logfit import felt, probe_change
-from ..fitting.residuals import LogReplay, effective_samples, noise_floor, replay_log, run_rows
-from ..leastsquares import Evaluation, FitProblem, Minimizer, split_key
+from ..fitting.heldout import Linearised
+from ..fitting.logfit import Column, probe_column
+from ..fitting.residuals import LogReplay, effective_samples, noise_floor, replay_log
+from ..leastsquares import Evaluation, FitProblem, Minimizer
 from ..model import ValveModel
 from ..parallel import map_threads
 from .result import Candidate
@@ -77,8 +76,8 @@ def candidate_of(cls: type[Effect], minimizer: Minimizer, extra: int,
     model's point (:attr:`.result.Candidate.probe`)."""
     evaluation, rss = minimizer.refined
     minimizer.refinement_errors()
-    linearised = (evaluation.residual,
-                  held_at_bounds(minimizer.refined_jacobian, minimizer.parameters))
+    linearised = Linearised(evaluation.residual, minimizer.refined_jacobian,
+                            minimizer.refined_penalty).held(minimizer.parameters)
     change = np.zeros(len(problem.ok))
     change[problem.ok] = evaluation.residual - problem.base_evaluation.residual
     trial = minimizer.model
@@ -90,16 +89,6 @@ def candidate_of(cls: type[Effect], minimizer: Minimizer, extra: int,
                      per_run=issubclass(cls, PerRunEffect), extra=extra,
                      check_threshold=getattr(cls, "check_threshold", 0.0),
                      linearised=linearised, probe=probe)
-
-
-@dataclass
-class Column:
-    """One parameter's column of the replay's Jacobian: the Δp change for a step [SI]."""
-
-    key: str
-    step: float
-    change: np.ndarray
-    felt: bool = True  # whether the data determine the parameter (surrogate.fitting.logfit.felt)
 
 
 class DiagnosisProblem(FitProblem):
@@ -122,23 +111,10 @@ class DiagnosisProblem(FitProblem):
     def effective_samples(self, evaluation: Evaluation) -> float:
         return self.n_eff
 
-    def column_of(self, model: ValveModel, key: str) -> "Column":
-        """∂Δp/∂parameter · step by a forward difference, warm-started from the base replay; a
-        parameter scoped to one run replays that run only."""
-        effect_name, parameter_name = split_key(key)
-        scope = model.effect(effect_name).params[parameter_name].scope
-        if scope is None:
-            step, change = probe_change(model, effect_name, parameter_name, self.log, self.base)
-            determined = felt(change[self.ok], scoped=False)
-        else:
-            rows = run_rows(self.log, scope)
-            step, in_run = probe_change(model, effect_name, parameter_name, self.log.take(rows),
-                                        self.base.take(rows))
-            determined = felt(in_run, scoped=True)
-            change = np.zeros(len(self.ok))
-            change[rows] = in_run
-        return Column(key, step, np.where(np.isfinite(change), change, 0.0)[self.ok],
-                      determined)
+    def column_of(self, model: ValveModel, key: str) -> Column:
+        """∂Δp/∂parameter · step by a forward difference, warm-started from the base replay
+        (:func:`~surrogate.fitting.logfit.probe_column`)."""
+        return probe_column(model, key, self.log, self.base, self.ok)
 
 
 def front_runners(candidates: list[Candidate]) -> list[int]:

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..fitting.heldout import Linearised
 from ..fitting.residuals import LogReplay
 from ..model import ValveModel
 from ..planning.bench_runs import Separation
@@ -42,7 +43,8 @@ class Candidate:
     model: ValveModel | None = field(default=None, repr=False)  # the current model + this effect
     replay: LogReplay | None = field(default=None, repr=False)  # its replay of the log
     extra: float = 0  # parameters of its own the data inform (a shape's effective number)
-    linearised: tuple | None = field(default=None, repr=False)  # (residual, Jacobian) at its fit
+    #: its residual and Jacobian at its fit, parameters on a bound held (and a shape's roughness)
+    linearised: Linearised | None = field(default=None, repr=False)
     #: ∂Δp/∂(own parameter) at the model's point, per solved sample [Pa per unit], by forward
     #: differences (the refits' Broyden-corrected Jacobian no longer has true columns)
     probe: np.ndarray | None = field(default=None, repr=False)

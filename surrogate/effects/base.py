@@ -182,3 +182,10 @@ class Effect:
     def friction(self, state: BalanceState) -> np.ndarray | None:
         """Extra half-width of the Coulomb friction band [N], >= 0."""
         return None
+
+    def penalty(self, samples: int) -> np.ndarray | None:
+        """A quadratic penalty that every fit of this effect adds to its sum of squares: L with
+        ‖L·v‖² [Pa²] for the SI values v of :attr:`params` in their order, when the fit has
+        ``samples`` residuals; None for none (the default). A shape-free term's roughness
+        (:mod:`.shapes`) is one: without it a refit of its spline would follow the noise."""
+        return None

@@ -46,6 +46,7 @@ class _PerOpening(ShapeFreeEffect):
 
     shape_free = False
     candidate = False  # no diagnosis candidate: the workflow fits it once, last, with its prior
+    smoothed = False  # its prior is the calibration's (surrogate.workbench.calibration)
     category = "map correction"
     variable = VARIABLES["u"]
     value_unit = "1"

@@ -31,7 +31,7 @@ from ..diagnosis.refit import DiagnosisProblem
 from ..diagnosis.shapes import (probe_of, sensitivity, shape_columns, state_at_samples)
 from ..effects.calibration import CALIBRATIONS, hat_basis
 from ..fitting.discrepancy import CFD_ERROR, knots
-from ..fitting.heldout import HEADLINE, Linearised, RunBlocks
+from ..fitting.heldout import HEADLINE, Prior, replayed_heldout_rms
 from ..fitting.residuals import LogReplay
 from ..leastsquares import FitResult, Minimizer
 from ..model import ValveModel
@@ -79,17 +79,16 @@ class Calibration:
 
     def heldout_rms(self, fitted: FitResult | None, played: LogReplay,
                     schemes: dict[str, dict[str, list[str]]]) -> float:
-        """RMS on held-out runs [Pa] of the calibrated model refitted to the others: its own
-        free parameters (``fitted``'s Jacobian at ``played``) and the calibration's values
-        together, these under their prior (linearised at the fit)."""
-        ok = played.ok
-        own = (np.zeros((int(ok.sum()), 0)) if fitted is None or fitted.jacobian is None
-               else np.asarray(fitted.jacobian)[ok])
-        jacobian = np.column_stack([own, self.columns[ok]])
-        rows = np.hstack([np.zeros((len(self.prior), own.shape[1])), self.prior])
-        blocks = RunBlocks(Linearised(played.residual[ok], jacobian), None, played.runs[ok],
-                           0.0, (rows, self.prior @ self.values))
-        return blocks.heldout_rms({HEADLINE: schemes[HEADLINE]})[HEADLINE]
+        """RMS on held-out runs [Pa] of the calibrated model refitted to the others and
+        replayed (:func:`~surrogate.fitting.heldout.replayed_heldout_rms`): its own free
+        parameters (``fitted``'s, replayed as ``played``) and the calibration's values together,
+        these under their prior."""
+        model = self.model if fitted is None else fitted.model
+        keys = [f"{name}.{coefficient}" for name in self.names
+                for coefficient in model.effect(name).coefficient_names()]
+        prior = Prior(keys, self.columns[played.ok], self.prior)
+        return replayed_heldout_rms(model, [] if fitted is None else list(fitted.names),
+                                    played, schemes[HEADLINE], prior)
 
     def describe(self) -> str:
         """The calibration in words: how far each map moved, and where most."""

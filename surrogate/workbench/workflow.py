@@ -30,13 +30,12 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numpy as np
 
 from ..data.loaders import BenchLog
 from ..diagnosis.diagnose import diagnose
 from ..diagnosis.result import Diagnosis
 from ..effects import LIBRARY, DischargeScale, EffectLibrary, FlowForceScale
-from ..fitting.heldout import HEADLINE, Linearised, RunBlocks, run_groups
+from ..fitting.heldout import HEADLINE, replayed_heldout_rms, run_groups
 from ..fitting.identifiability import (Entangled, PushedToBound, entangled_pairs,
                                        pushed_to_bounds)
 from ..fitting.logfit import fit_to_log
@@ -162,16 +161,13 @@ def paper_steps(valve: ValveSource, maps_spec: MapsSpec
 
 def heldout_rms(fitted: FitResult | None, played: LogReplay,
                 schemes: dict[str, dict[str, list[str]]]) -> float:
-    """A fitted model's RMS on held-out runs [Pa], each run predicted by a linearised refit to
-    the others (:mod:`~surrogate.fitting.heldout`); without free parameters it is the RMS
-    itself."""
-    ok = played.ok
-    if fitted is None or fitted.jacobian is None or not fitted.jacobian.size:
+    """A fitted model's RMS on held-out runs [Pa], each run predicted by a refit to the others
+    and replayed (:func:`~surrogate.fitting.heldout.replayed_heldout_rms`); without free
+    parameters it is the RMS itself."""
+    if fitted is None or not fitted.names:
         return played.rms()
-    jacobian = np.asarray(fitted.jacobian)[ok]
-    blocks = RunBlocks(Linearised(played.residual[ok], jacobian), None, played.runs[ok], 0.0)
     # the other schemes judge candidates, not steps: refit only for the runs left out
-    return blocks.heldout_rms({HEADLINE: schemes[HEADLINE]})[HEADLINE]
+    return replayed_heldout_rms(fitted.model, fitted.names, played, schemes[HEADLINE])
 
 
 class _Staircase:
