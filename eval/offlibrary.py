@@ -21,6 +21,10 @@ A case is judged three ways (:func:`surrogate.synthetic.offlibrary.off_library_o
 A control passes when nothing physical or sensor is added. Targets (issue 26): >= 80 % of the
 cases found on grid and on GP maps, every control clean.
 
+Every shape-free term a workflow adds is handed over as an effects file (what ``workflow --out``
+writes), added to the step before it with one parameter ``scale`` and fitted: the file must
+lower the held-out RMS by at least 90 % of what the shape-free term did (*kept*, per find).
+
 Writes results/offlibrary/<maps>.json and prints one line per case. Run:
 ``python eval/offlibrary.py [--maps grid gp] [--cases 20] [--controls 10] [--every 8]
 [--no-twins]``
@@ -31,13 +35,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
 from surrogate.data import load_bench_log
-from surrogate.effects import LIBRARY
+from surrogate.effects import LIBRARY, load_effects_file
+from surrogate.effects.handover import write_effect_file
+from surrogate.fitting.heldout import run_groups
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.fitting.residuals import replay_log
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.presets import maps
 from surrogate.reporting.prose import summarise
@@ -45,10 +54,34 @@ from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.offlibrary import (OFF_LIBRARY, RMS_RATIO, off_library_outcome,
                                             off_library_suite)
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
-from surrogate.workbench.workflow import run_workflow
+from surrogate.workbench.workflow import heldout_rms, run_workflow
 
 #: effects the loop may add per case: the hidden one, a map correction or two
 ADDITIONS = 3
+#: a handed-over file must keep this share of its shape-free term's gain in held-out RMS
+KEPT_GAIN = 0.9
+
+
+def handed_over(workflow) -> dict[str, float]:
+    """For each shape-free step: its shape written as an effects file, added to the step before
+    it and fitted (its ``scale`` from 0); the share of the step's gain in held-out RMS (each run
+    predicted by a refit to the others, replayed) that the file keeps."""
+    kept = {}
+    schemes = run_groups(workflow.log)
+    for before, step in zip(workflow.steps, workflow.steps[1:]):
+        if not step.shape_free:
+            continue
+        name = step.added[0]
+        with tempfile.TemporaryDirectory() as folder:
+            path = write_effect_file(step.model.effect(name), Path(folder) / "found_shape.py")
+            effect = load_effects_file(path)["found_shape"]()
+        fitted = fit_to_log(before.model.with_effects([*before.model.effects, effect]),
+                            workflow.log, start=before.played)
+        played = replay_log(fitted.model, workflow.log, guess=before.played)
+        gain = before.heldout_check - step.heldout_check
+        kept[name] = float((before.heldout_check - heldout_rms(fitted, played, schemes))
+                           / gain) if gain > 0 else float("nan")
+    return kept
 
 
 def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool = True) -> dict:
@@ -67,15 +100,18 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
             twin = run_workflow(twin_case.log, start=twin_case.start, max_additions=ADDITIONS)
         outcome = off_library_outcome(workflow, case.hidden, twin)
         seconds = time.perf_counter() - began
+        kept = handed_over(workflow)
         records.append({**outcome.to_json(), "seed": case.seed,
                         "values": case.values, "seconds": round(seconds, 1),
+                        "handed_over_kept": {k: round(v, 3) for k, v in kept.items()},
                         "final_summary": summarise(workflow.final_diagnosis)})
         verdict = ("found" if outcome.found else "as twin" if outcome.right_term
                    and outcome.as_twin else "right term" if outcome.right_term else "MISSED")
         print(f"  {kind} {case.seed}: {case.hidden or 'nothing hidden':<20} -> "
               f"{', '.join(outcome.added) or 'nothing':<55} {outcome.rms_over_floor:5.2f}x "
-              f"floor (twin {outcome.twin_over_floor:4.2f}x)  {verdict}  ({seconds:.0f} s)",
-              flush=True)
+              f"floor (twin {outcome.twin_over_floor:4.2f}x)  {verdict}  ({seconds:.0f} s)"
+              + "".join(f"; file keeps {share:.0%} of {name}'s held-out gain"
+                        for name, share in kept.items()), flush=True)
     hidden = [r for r in records if r["hidden"] is not None]
     clean = [r for r in records if r["hidden"] is None]
 
@@ -87,6 +123,8 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
                "as_twin_share": float(np.mean([r["right_term"] and r["as_twin"]
                                                 for r in hidden])) if hidden else None,
                "controls_clean": sum(r["found"] for r in clean),
+               "handed_over": [share for r in records
+                               for share in r["handed_over_kept"].values()],
                "rms_ratio": RMS_RATIO, "by_effect": {
                    name: f"{sum(r['found'] for r in hidden if r['hidden'] == name)} of "
                          f"{sum(r['hidden'] == name for r in hidden)}"
@@ -96,7 +134,10 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
           f"{summary['right_term_share']:.0%}, found (and within {RMS_RATIO}x the floor) "
           f"{summary['found_share']:.0%}, right term "
           f"and as its twin {summary['as_twin_share']:.0%} (found by effect: "
-          f"{summary['by_effect']}); {summary['controls_clean']} of {len(clean)} controls clean")
+          f"{summary['by_effect']}); {summary['controls_clean']} of {len(clean)} controls clean; "
+          f"{sum(share >= KEPT_GAIN for share in summary['handed_over'])} of "
+          f"{len(summary['handed_over'])} handed-over files keep >= {KEPT_GAIN:.0%} of their "
+          f"shape's held-out gain")
     return summary
 
 

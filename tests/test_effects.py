@@ -96,3 +96,28 @@ def test_the_effect_contract_catches_a_broken_effect():
         check_effect(AlwaysOn)
     with pytest.raises(AssertionError, match="negative friction"):
         check_effect(NegativeFriction)
+
+
+def test_a_custom_effect_is_not_blamed_for_a_state_the_solver_has_no_value_for():
+    """A pressure drop the flow split has not settled (NaN) gives a NaN leak: that is no fault
+    of the user's function; a NaN from finite inputs is, and says so."""
+    from surrogate.effects import FlowState, custom_effect
+    from surrogate.errors import InputError
+
+    @custom_effect("leakage", units={"G": "L/min"})
+    def leak(dp, state, G=0.1):
+        return G * np.sqrt(np.maximum(dp, 0.0)) / 1e3
+
+    @custom_effect("leakage", units={"G": "L/min"})
+    def broken(dp, state, G=0.1):
+        return G * np.sqrt(dp - 50e5) / 1e3  # NaN below 50 bar
+
+    valve = load_valve()
+    fluid = FluidState(np.full(3, 46e-6), np.full(3, 870.0))
+    state = FlowState(np.full(3, 1e-4), np.full(3, 1e-4), np.zeros(3), np.zeros(3),
+                      np.full(3, 313.0), fluid, valve)
+    flows = leak().leakage(np.array([100e5, np.nan, 20e5]), state)
+    assert np.isnan(flows[1]) and np.all(np.isfinite(flows[[0, 2]]))
+    with pytest.raises(InputError, match="1 non-finite value.*from finite inputs"), \
+            np.errstate(invalid="ignore"):
+        broken().leakage(np.array([100e5, np.nan, 20e5]), state)

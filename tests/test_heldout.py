@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from surrogate.fitting.discrepancy import Discrepancy
-from surrogate.fitting.heldout import (HEADLINE, Linearised, RunBlocks, held_at_bounds,
-                                       predicts_unseen, run_groups)
+from surrogate.fitting.heldout import (HEADLINE, Linearised, RunBlocks, check_step,
+                                       held_at_bounds, predicts_unseen, run_groups)
 from surrogate.parameters import Parameter
 
 
@@ -113,3 +113,43 @@ def test_a_parameter_on_its_bound_is_held_there_in_the_linear_refits():
     assert np.all(held[:, [0, 2]] == 0.0)
     assert np.array_equal(held[:, 1], jacobian[:, 1])
     assert held_at_bounds(jacobian, [free, free, free]) is jacobian
+
+
+def test_a_held_parameter_is_held_in_the_penalty_too_and_its_value_stays_in_its_residual():
+    """A shape's coefficient on its bound: its Jacobian column and its penalty column are zeroed,
+    the penalty's residual (which its value is part of) kept."""
+    pinned, free = Parameter("c_1", 0.0, min=0.0, max=5.0), Parameter("c_2", 2.0, min=0.0, max=5.0)
+    rough = (np.array([[1.0, -1.0]]), np.array([-2.0]))
+    fit = Linearised(np.ones(4), np.arange(1.0, 9.0).reshape(4, 2), rough).held([pinned, free])
+    assert np.all(fit.jacobian[:, 0] == 0) and np.all(fit.roughness[0][:, 0] == 0)
+    assert np.array_equal(fit.roughness[0][:, 1], [-1.0])
+    assert np.array_equal(fit.roughness[1], [-2.0])
+
+
+def test_each_group_left_out_has_the_refit_that_its_held_out_rms_is_made_of():
+    """RunBlocks.shifts are the steps heldout_rms judges by; a group that would leave nothing to
+    fit has none."""
+    rng = np.random.default_rng(4)
+    runs = np.repeat(["R1", "R2", "R3"], 30)
+    jacobian = rng.normal(size=(90, 2))
+    residual = jacobian @ [0.3, -0.2] + rng.normal(0.0, 0.1, 90)
+    blocks = RunBlocks(Linearised(residual, jacobian), None, runs, 0.0)
+    groups = {"R1": ["R1"], "R2": ["R2"], "all": ["R1", "R2", "R3"]}
+    shifts = blocks.shifts(groups)
+    assert set(shifts) == {"R1", "R2"}
+    held, shift = shifts["R1"]
+    keep = runs != "R1"
+    explicit = np.linalg.lstsq(jacobian[keep], -residual[keep], rcond=None)[0]
+    whole = np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
+    assert held == [0] and np.allclose(shift, explicit - whole, atol=1e-6)
+
+
+@pytest.mark.parametrize("stderr, expected", [(None, None), (0.2, 0.6), (1e-9, 0.05),
+                                              (100.0, 1.0)])
+def test_a_held_out_check_differentiates_by_a_few_standard_errors_within_limits(stderr,
+                                                                                expected):
+    """Three standard errors, the size of the moves a run left out makes, within a thousandth
+    and a fiftieth of the range: not a hair (a friction play's stick and slip), not a leak
+    twice the size of the one fitted."""
+    parameter = Parameter("K1", 5.0, "N", min=0.0, max=50.0, stderr=stderr)
+    assert check_step(parameter) == (None if expected is None else pytest.approx(expected))

@@ -84,7 +84,8 @@ def shape_candidates(model: ValveModel, names: Iterable[str] | None = None,
 def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY, *,
              candidates: Iterable[str] | None = None, base: LogReplay | None = None,
              steps: int = REFINE_STEPS, progress=None, workers: int | None = None,
-             rule: SignificanceRule = RULE, shapes: bool = True) -> Diagnosis:
+             rule: SignificanceRule = RULE, shapes: bool = True,
+             exclude: Iterable[str] = ()) -> Diagnosis:
     """Rank the candidate effects by how much of the residual they explain (see module doc).
 
     Parameters
@@ -113,7 +114,10 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
         all of :data:`surrogate.effects.shapes.SHAPE_FREE`) when no library term is
         significant. They then compete with the library's, ranked behind a library term that
         fits about as well (:meth:`.rule.SignificanceRule.rank`).
+    exclude : iterable of str
+        Names not to try (a workflow's step that a full refit refused).
     """
+    exclude = set(exclude)
     say = progress or (lambda message: None)
     base = base or replay_log(model, log)
     problem = DiagnosisProblem(log, base)
@@ -123,7 +127,7 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     own_columns = [column for column in map_threads(
         lambda entry: problem.column_of(model, entry[0]), own, workers=workers) if column.felt]
     classes = [cls for cls in candidate_effects(model, library, candidates)
-               if not getattr(cls, "shape_free", False)]
+               if not getattr(cls, "shape_free", False) and cls.name not in exclude]
     results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers)
     judge = Judge(model, problem, own_columns, floor, rule)
     split = hysteresis_split(log.frame.loc[problem.ok])
@@ -163,7 +167,8 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     # fits decisively better (:meth:`.rule.SignificanceRule.replaces`): a detent taken for a
     # progressive spring, a friction rising with the flow taken for a pilot-pressure friction
     finding = next((c for c in results if c.significant), None)
-    shaped = shape_candidates(model, candidates, library) if shapes else []
+    shaped = [cls for cls in (shape_candidates(model, candidates, library) if shapes else [])
+              if cls.name not in exclude]
     if shaped:
         # beside a finding, only the shapes whose linear fit comes within four times the
         # threshold of it are refitted, sparing a dozen real refits: the linear fit, at the

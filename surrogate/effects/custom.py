@@ -155,6 +155,21 @@ def _shown(values: dict, specs: list[Parameter]) -> str:
                      for spec in specs) or "no parameters"
 
 
+def _finite_inputs(kind: str, positional: tuple, shape: tuple) -> np.ndarray:
+    """Where the arrays a custom effect of ``kind`` was called with are all finite (the array
+    of ``dp`` or ``q`` and the state's)."""
+    state = positional[-1]
+    arrays = [getattr(state, field) for field in ("u", "q", "p_B", "p_P", "temperature")]
+    if kind in ("force", "friction"):
+        arrays += [state.p_L]
+    else:
+        arrays += [positional[0]]
+    finite = np.ones(shape, bool)
+    for array in arrays:
+        finite &= np.broadcast_to(np.isfinite(np.asarray(array, float)), shape)
+    return finite
+
+
 def checked_result(name: str, kind: str, result, positional: tuple, values: dict,
                    specs: list[Parameter]):
     """A custom effect's return value, if it is what its kind promises; else InputError.
@@ -185,19 +200,22 @@ def checked_result(name: str, kind: str, result, positional: tuple, values: dict
     if array.shape not in ((), shape):
         raise InputError(f"{where} must return one value per state (shape {shape}) or a scalar, "
                          f"got shape {array.shape}")
-    bad = ~np.isfinite(array)
+    # a state the solver has no value for yet (a pressure drop of a sample whose flow split
+    # failed) may give NaN: only a non-finite value from finite inputs is the function's fault
+    bad = ~np.isfinite(array) & _finite_inputs(kind, positional, shape)
     if bad.any():
         raise InputError(f"{where} returned {int(bad.sum())} non-finite value(s) (NaN or inf) "
-                         f"of {array.size}; guard the function where it divides or takes logs")
+                         f"of {array.size} from finite inputs; guard the function where it "
+                         "divides or takes logs")
     unit = "m^3/s" if kind in ("flow", "leakage") else "N"
     if kind in ("friction", "leakage", "flow") and np.any(array < 0):
         meaning = {"friction": "a half-width of the friction band, >= 0 N",
                    "leakage": "a flow bypassing the restriction, >= 0 m^3/s",
                    "flow": "the flow through the restriction, >= 0 m^3/s"}[kind]
-        raise InputError(f"{where} returned {float(array.min()):.4g} {unit}; it must be "
+        raise InputError(f"{where} returned {float(np.nanmin(array)):.4g} {unit}; it must be "
                          f"{meaning} (bound its parameters in @custom_effect(bounds=...))")
     if kind in ("force", "friction") and np.any(np.abs(array) > FORCE.high):
-        raise InputError(f"{where} returned {float(np.max(np.abs(array))):.4g} N, beyond any "
+        raise InputError(f"{where} returned {float(np.nanmax(np.abs(array))):.4g} N, beyond any "
                          f"hydraulic force on a valve piston ({FORCE.describe()})")
     return array
 

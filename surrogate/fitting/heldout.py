@@ -51,7 +51,7 @@ from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
 from .discrepancy import Discrepancy
-from .logfit import probe_column
+from .logfit import probe_column, probe_step
 from .residuals import LogReplay, replay_log
 
 #: temperature [°C] and pilot pressure [bar] within which two runs count as the same condition
@@ -280,6 +280,26 @@ class RunBlocks:
         return result
 
 
+#: a held-out check differentiates a parameter by this many of its standard errors
+CHECK_STEP_ERRORS = 3.0
+
+
+def check_step(parameter) -> float | None:
+    """The step [SI] by which a held-out check differentiates ``parameter``: a few of its
+    standard errors (:data:`CHECK_STEP_ERRORS`), the size of the moves a run left out makes,
+    within a thousandth and a fiftieth of its range (:func:`~surrogate.fitting.logfit.
+    probe_step`, which a parameter without a standard error takes). A fiftieth of a leak
+    coefficient's range is 0.4 L/min, twice the leak itself at the smallest flows of case
+    4247's hottest run, whose prediction the check then put 2.2 bar off; a hair, a friction
+    play's stick and slip."""
+    largest = abs(probe_step(parameter))
+    if parameter.stderr is None or not np.isfinite(parameter.stderr):
+        return None
+    span = parameter.max - parameter.min
+    smallest = 1e-3 * span if np.isfinite(span) else 0.0
+    return float(np.clip(CHECK_STEP_ERRORS * parameter.stderr, smallest, largest))
+
+
 @dataclass
 class Prior:
     """Parameters a held-out refit moves beside a model's free ones under a prior, though no
@@ -298,23 +318,28 @@ def replayed_heldout_rms(model: ValveModel, keys: list[str], played: LogReplay,
 
     The parameters ``keys`` (and ``prior``'s) are refitted without the group by the linear
     refit of :meth:`RunBlocks.shifts` about ``played``, the model's replay of the log: columns
-    probed by a step of a fortieth of each parameter's range
-    (:func:`~surrogate.fitting.logfit.probe_column`), parameters on a bound held, the model's
-    penalty kept (a shape stays as smooth as its fit made it). The group's runs are then
-    *replayed* at the refitted values.
+    by central differences of a fiftieth of each parameter's range
+    (:func:`~surrogate.fitting.logfit.probe_column`), parameters on a bound held (and not
+    probed), the model's penalty kept (a shape stays as smooth as its fit made it). The
+    group's runs are then *replayed* at the refitted values.
 
     The linear refit tells well how the parameters move without a group; its prediction of the
     group, J·δ, does not when Δp answers a parameter far from linearly: a leak 0.03 L/min larger
     at the smallest flows of the hottest run, linearised, predicted that run 120 bar off (stress
     case 4252 of eval/offlibrary.py), where the replay moves it by a fraction of a bar. The
-    replays cost one replay of the log per scheme, the columns one per parameter."""
+    replays cost one replay of the log per scheme, the columns two per parameter off its
+    bounds: a forward difference's curvature error had the hottest run of case 4247 predicted
+    2.2 bar off with a leak that the diagnosis judged at 0.98 bar."""
     ok = played.ok
     parameters = model.parameters()
-    columns = list(map_threads(lambda key: probe_column(model, key, played.log, played, ok),
-                               keys))
-    jacobian = np.column_stack([c.change if c.felt else np.zeros(int(ok.sum()))
-                                for c in columns] or [np.zeros((int(ok.sum()), 0))])
-    steps = np.array([c.step for c in columns])
+    free = [key for key in keys if not parameters[key].at_bound]
+    probed = dict(zip(free, map_threads(
+        lambda key: probe_column(model, key, played.log, played, ok, central=True,
+                                 step=check_step(parameters[key])), free)))
+    nothing = np.zeros(int(ok.sum()))
+    jacobian = np.column_stack([probed[key].change if key in probed and probed[key].felt
+                                else nothing for key in keys] or [np.zeros((len(nothing), 0))])
+    steps = np.array([probed[key].step if key in probed else 1.0 for key in keys])
     values = np.array([parameters[key].value for key in keys])
     penalty = model.penalty(keys, int(ok.sum()))
     roughness = (None if penalty is None else
