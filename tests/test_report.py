@@ -135,3 +135,69 @@ def test_parameter_summary_keeps_to_the_limit_and_collapses_runs():
     short = parameter_summary(many, limit=60)
     assert len(short) <= 60 and short.endswith("more")
     assert np.isfinite(len(short))
+
+
+#: the report's content width on a 1,000-pixel window [px]: the page's margins and padding off
+NARROW_PAGE = 1000 - 2 * 16
+#: the smallest legend text a reader should have to read there [px]
+SMALLEST_LEGEND = 10.0
+
+
+def test_every_table_scrolls_inside_its_box(page):
+    """A wide table scrolls inside its own box; the page itself never scrolls sideways."""
+    assert page.count("<table>") == page.count('<div class="scroll"><table>') > 0
+
+
+def _report_figures(workflow, comparison):
+    from surrogate.reporting.views import residual_views, run_loops
+
+    models = [(f"step {i + 1}", step.played) for i, step in enumerate(workflow.steps)]
+    return {**all_figures(comparison),
+            "staircase": staircase_figure(workflow.steps, workflow.noise_floor),
+            "diagnosis": diagnosis_figure(workflow.final_diagnosis),
+            "residual views": residual_views(workflow.log, models),
+            "run loops": run_loops(workflow.log, models[-2:])}
+
+
+def test_legends_stay_readable_on_a_narrow_page(workflow, comparison):
+    """An image wider than the page shrinks to it: at 1,000 pixels every legend's text must
+    still be 10 pixels high."""
+    from surrogate.reporting.figures import DPI
+
+    small = {}
+    for name, figure in _report_figures(workflow, comparison).items():
+        shown = min(1.0, NARROW_PAGE / (figure.get_figwidth() * DPI))
+        legends = [*figure.legends, *(ax.get_legend() for ax in figure.axes)]
+        for legend in filter(None, legends):
+            for text in legend.get_texts():
+                pixels = text.get_fontsize() * DPI / 72 * shown
+                if pixels < SMALLEST_LEGEND:
+                    small[name] = round(pixels, 1)
+    assert not small, small
+
+
+def test_the_misfit_views_are_the_runs_median_lines_and_half_widths(workflow):
+    """The dots of the residual views are each run's binned median line (top) and half-width
+    (bottom) of the last model's residual, in bar, one per bin."""
+    from surrogate.fitting.hysteresis import hysteresis_split
+    from surrogate.reporting.views import VARIABLES, residual_views
+
+    last = workflow.final.played
+    figure = residual_views(workflow.log, [("first", workflow.steps[0].played), ("last", last)])
+    axes = np.array(figure.axes).reshape(2, len(VARIABLES))
+    split = hysteresis_split(workflow.log.frame)
+    residual = np.nan_to_num(last.residual)
+    for row, matrix in enumerate((split.median, split.half)):
+        dots = next(line for line in axes[row, 0].lines if line.get_linestyle() == "None")
+        dots = dots.get_ydata()
+        assert np.allclose(dots, matrix @ residual / 1e5)
+
+
+def test_every_run_has_its_own_loop_on_its_own_scale(workflow):
+    from surrogate.reporting.views import run_loops
+
+    figure = run_loops(workflow.log, [("final", workflow.final.played)])
+    shown = [ax for ax in figure.axes if ax.get_visible() and ax.get_title()]
+    assert len(shown) == len(workflow.log.run_ids)
+    spans = [ax.get_ylim()[1] - ax.get_ylim()[0] for ax in shown]
+    assert min(spans) < 0.5 * max(spans)  # zoomed per run: a 120-bar run is not a 30-bar one's

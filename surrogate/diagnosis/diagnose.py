@@ -85,7 +85,7 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
              candidates: Iterable[str] | None = None, base: LogReplay | None = None,
              steps: int = REFINE_STEPS, progress=None, workers: int | None = None,
              rule: SignificanceRule = RULE, shapes: bool = True,
-             exclude: Iterable[str] = ()) -> Diagnosis:
+             exclude: Iterable[str] = (), own_columns: list | None = None) -> Diagnosis:
     """Rank the candidate effects by how much of the residual they explain (see module doc).
 
     Parameters
@@ -116,6 +116,9 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
         fits about as well (:meth:`.rule.SignificanceRule.rank`).
     exclude : iterable of str
         Names not to try (a workflow's step that a full refit refused).
+    own_columns : list of Column, optional
+        The probe columns of every free parameter of ``model`` at ``base``
+        (:func:`~surrogate.fitting.logfit.probe_columns`), if already made; else made here.
     """
     exclude = set(exclude)
     say = progress or (lambda message: None)
@@ -123,9 +126,11 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     problem = DiagnosisProblem(log, base)
     floor = noise_floor(base.residual, base.runs, source=base.log.source)
     own = free_parameters(model)
-    say(f"linearising the replay in the model's {len(own)} free parameter(s)")
-    own_columns = [column for column in map_threads(
-        lambda entry: problem.column_of(model, entry[0]), own, workers=workers) if column.felt]
+    if own_columns is None or [c.key for c in own_columns] != [key for key, _ in own]:
+        say(f"linearising the replay in the model's {len(own)} free parameter(s)")
+        own_columns = list(map_threads(lambda entry: problem.column_of(model, entry[0]), own,
+                                       workers=workers))
+    own_columns = [column for column in own_columns if column.felt]
     classes = [cls for cls in candidate_effects(model, library, candidates)
                if not getattr(cls, "shape_free", False) and cls.name not in exclude]
     results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers)

@@ -51,7 +51,7 @@ from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
 from .discrepancy import Discrepancy
-from .logfit import probe_column, probe_step
+from .logfit import probe_columns
 from .residuals import LogReplay, replay_log
 
 #: temperature [°C] and pilot pressure [bar] within which two runs count as the same condition
@@ -280,26 +280,6 @@ class RunBlocks:
         return result
 
 
-#: a held-out check differentiates a parameter by this many of its standard errors
-CHECK_STEP_ERRORS = 3.0
-
-
-def check_step(parameter) -> float | None:
-    """The step [SI] by which a held-out check differentiates ``parameter``: a few of its
-    standard errors (:data:`CHECK_STEP_ERRORS`), the size of the moves a run left out makes,
-    within a thousandth and a fiftieth of its range (:func:`~surrogate.fitting.logfit.
-    probe_step`, which a parameter without a standard error takes). A fiftieth of a leak
-    coefficient's range is 0.4 L/min, twice the leak itself at the smallest flows of case
-    4247's hottest run, whose prediction the check then put 2.2 bar off; a hair, a friction
-    play's stick and slip."""
-    largest = abs(probe_step(parameter))
-    if parameter.stderr is None or not np.isfinite(parameter.stderr):
-        return None
-    span = parameter.max - parameter.min
-    smallest = 1e-3 * span if np.isfinite(span) else 0.0
-    return float(np.clip(CHECK_STEP_ERRORS * parameter.stderr, smallest, largest))
-
-
 @dataclass
 class Prior:
     """Parameters a held-out refit moves beside a model's free ones under a prior, though no
@@ -313,33 +293,29 @@ class Prior:
 
 
 def replayed_heldout_rms(model: ValveModel, keys: list[str], played: LogReplay,
-                         groups: dict[str, list[str]], prior: Prior | None = None) -> float:
+                         groups: dict[str, list[str]], prior: Prior | None = None,
+                         columns: list | None = None) -> float:
     """RMS [Pa] of ``model``'s residual on each group of runs predicted by a fit to the others.
 
     The parameters ``keys`` (and ``prior``'s) are refitted without the group by the linear
-    refit of :meth:`RunBlocks.shifts` about ``played``, the model's replay of the log: columns
-    by central differences of a fiftieth of each parameter's range
-    (:func:`~surrogate.fitting.logfit.probe_column`), parameters on a bound held (and not
-    probed), the model's penalty kept (a shape stays as smooth as its fit made it). The
-    group's runs are then *replayed* at the refitted values.
+    refit of :meth:`RunBlocks.shifts` about ``played``, the model's replay of the log: the
+    parameters' ``columns`` (:func:`~surrogate.fitting.logfit.probe_columns` of ``keys``, probed
+    here unless given), parameters on a bound held, the model's penalty kept (a shape stays as
+    smooth as its fit made it). The group's runs are then *replayed* at the refitted values.
 
     The linear refit tells well how the parameters move without a group; its prediction of the
     group, J·δ, does not when Δp answers a parameter far from linearly: a leak 0.03 L/min larger
     at the smallest flows of the hottest run, linearised, predicted that run 120 bar off (stress
     case 4252 of eval/offlibrary.py), where the replay moves it by a fraction of a bar. The
-    replays cost one replay of the log per scheme, the columns two per parameter off its
-    bounds: a forward difference's curvature error had the hottest run of case 4247 predicted
-    2.2 bar off with a leak that the diagnosis judged at 0.98 bar."""
+    replays cost one replay of the log per scheme, the columns one per parameter (none when
+    given: a workflow's step probes them once, for this check and the next diagnosis)."""
     ok = played.ok
     parameters = model.parameters()
-    free = [key for key in keys if not parameters[key].at_bound]
-    probed = dict(zip(free, map_threads(
-        lambda key: probe_column(model, key, played.log, played, ok, central=True,
-                                 step=check_step(parameters[key])), free)))
+    columns = probe_columns(model, keys, played) if columns is None else columns
     nothing = np.zeros(int(ok.sum()))
-    jacobian = np.column_stack([probed[key].change if key in probed and probed[key].felt
-                                else nothing for key in keys] or [np.zeros((len(nothing), 0))])
-    steps = np.array([probed[key].step if key in probed else 1.0 for key in keys])
+    jacobian = np.column_stack([c.change if c.felt else nothing for c in columns]
+                               or [np.zeros((len(nothing), 0))])
+    steps = np.array([c.step for c in columns])
     values = np.array([parameters[key].value for key in keys])
     penalty = model.penalty(keys, int(ok.sum()))
     roughness = (None if penalty is None else

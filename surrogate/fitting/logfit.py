@@ -91,26 +91,15 @@ def probe_step(parameter) -> float:
 
 
 def probe_change(model: ValveModel, effect_name: str, parameter_name: str, log: BenchLog,
-                 base: LogReplay, central: bool = False, step: float | None = None
-                 ) -> tuple[float, np.ndarray]:
-    """The parameter's :func:`probe_step` (or ``step``) [SI] and the change of the predicted Δp
-    [Pa] it makes on ``log``, replayed from ``base``, the model's own replay of ``log``.
-    ``central``: half the difference between a step up and a step down (where both stay within
-    the bounds), whose error is of second order where Δp curves, as it does against a leak at
-    the smallest flows; two replays instead of one."""
-    def replayed(step: float) -> np.ndarray:
-        trial = model.copy()
-        trial.effect(effect_name).params[parameter_name].value += step
-        return replay_log(trial, log, guess=base, diagnostics=False).replay.dp
-
-    parameter = model.effect(effect_name).params[parameter_name]
-    if step is None:
-        step = probe_step(parameter)
-    elif parameter.value + step > parameter.max:
-        step = -step
-    if central and parameter.min <= parameter.value - step <= parameter.max:
-        return step, (replayed(step) - replayed(-step)) / 2.0
-    return step, replayed(step) - base.replay.dp
+                 base: LogReplay) -> tuple[float, np.ndarray]:
+    """The parameter's :func:`probe_step` [SI] and the change of the predicted Δp [Pa] it makes
+    on ``log``, replayed from ``base``, the model's own replay of ``log``."""
+    trial = model.copy()
+    parameter = trial.effect(effect_name).params[parameter_name]
+    step = probe_step(parameter)
+    parameter.value += step
+    played = replay_log(trial, log, guess=base, diagnostics=False)
+    return step, played.replay.dp - base.replay.dp
 
 
 @dataclass
@@ -125,28 +114,36 @@ class Column:
 
 
 def probe_column(model: ValveModel, key: str, log: BenchLog, base: LogReplay,
-                 ok: np.ndarray, central: bool = False, step: float | None = None) -> Column:
-    """∂Δp/∂parameter · step of parameter ``key`` (``"effect.parameter"``) by a forward (or
-    ``central``) difference of :func:`probe_step` (or ``step``), at the samples ``ok``, warm-started from
-    ``base``, the model's replay of ``log``; a parameter scoped to one run replays that run
-    only. A step of a fiftieth of a range, not a hair: a friction play's Δp is not smooth in
-    the parameters at fine scales (samples switch between sticking and sliding), and a tiny
-    step's column is that noise (a constant friction's column, differenced by 6·10⁻⁴ N, had a
-    run held out move K1 by 20 N)."""
+                 ok: np.ndarray) -> Column:
+    """∂Δp/∂parameter · step of parameter ``key`` (``"effect.parameter"``) by a forward
+    difference of :func:`probe_step`, at the samples ``ok``, warm-started from ``base``, the
+    model's replay of ``log``; a parameter scoped to one run replays that run only. A step of a
+    fiftieth of a range, not a hair: a friction play's Δp is not smooth in the parameters at
+    fine scales (samples switch between sticking and sliding), and a tiny step's column is that
+    noise (a constant friction's column, differenced by 6·10⁻⁴ N, had a run held out move K1 by
+    20 N)."""
     effect_name, parameter_name = split_key(key)
     scope = model.effect(effect_name).params[parameter_name].scope
     if scope is None:
-        step, change = probe_change(model, effect_name, parameter_name, log, base, central,
-                                    step)
+        step, change = probe_change(model, effect_name, parameter_name, log, base)
         determined = felt(change[ok], scoped=False)
     else:
         rows = run_rows(log, scope)
         step, in_run = probe_change(model, effect_name, parameter_name, log.take(rows),
-                                    base.take(rows), central, step)
+                                    base.take(rows))
         determined = felt(in_run, scoped=True)
         change = np.zeros(len(ok))
         change[rows] = in_run
     return Column(key, step, np.where(np.isfinite(change), change, 0.0)[ok], determined)
+
+
+def probe_columns(model: ValveModel, keys, base: LogReplay,
+                  workers: int | None = None) -> list[Column]:
+    """The :func:`probe_column` of every parameter of ``keys`` at the samples ``base`` (the
+    model's replay of its log) solves, side by side on threads: one replay each."""
+    ok = np.isfinite(base.residual)
+    return list(map_threads(lambda key: probe_column(model, key, base.log, base, ok), keys,
+                            workers=workers))
 
 
 def felt(change: np.ndarray, scoped: bool) -> bool:

@@ -3,7 +3,7 @@
 A *map kind* is one :class:`MapKind` registered here: its options (with their checks), how to
 build its flow and force maps for a valve, and, for the learned kinds, how to train, save and load
 them. Nothing else in the package branches on kind names; a new kind is one module with its maps
-plus one :func:`register` call (see the README's extension section), as each built-in kind is:
+plus one :func:`register` call (see docs/extending.md), as each built-in kind is:
 :mod:`.orifice`, :mod:`.grid`, :mod:`.nn` and :mod:`.gp` (the learned kinds' shared parts in
 :mod:`.learned`), which the package imports in that order (``surrogate/maps/__init__.py``), so
 that every kind is registered whichever module is imported first.

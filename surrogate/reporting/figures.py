@@ -182,7 +182,7 @@ def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
                 Line2D([], [], color="0.2", linewidth=1.3, label="model (line, dark)")]
     if samples["dp_std_bar"].notna().any():
         handles.append(Patch(color=_tint("0.2", 0.75), label="model ± 2σ of its maps"))
-    figure.legend(handles=handles, fontsize=8, loc="outside right upper")
+    figure.legend(handles=handles, fontsize=11, loc="outside right upper")
     figure.suptitle(_title(comparison, "Δp over q"))
     return figure
 
@@ -252,7 +252,7 @@ def residual_panels(comparison: Comparison, samples: pd.DataFrame) -> Figure:
     handles = [Line2D([], [], marker="o", linestyle="", color=c, label=f"{t:g} {DEGC}")
                for t, c in colours.items()]
     handles.append(Line2D([], [], color="0.6", alpha=0.5, linewidth=6, label="± noise floor"))
-    figure.legend(handles=handles, fontsize=8, loc="outside right upper")
+    figure.legend(handles=handles, fontsize=10, loc="outside right upper")
     figure.suptitle(_title(comparison, "residuals"))
     return figure
 
@@ -286,6 +286,6 @@ def hysteresis_against_set_point(comparison: Comparison) -> Figure:
     handles += [Line2D([], [], marker="o", linestyle="", color="0.3", label="measured"),
                 Line2D([], [], marker="s", linestyle="", markerfacecolor="white",
                        markeredgecolor="0.3", markeredgewidth=1.5, label="model")]
-    ax.legend(handles=handles, fontsize=8, loc="best")
+    ax.legend(handles=handles, fontsize=10, loc="best")
     ax.set_title("Hysteresis width per run")
     return figure

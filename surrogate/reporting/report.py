@@ -9,6 +9,8 @@ from __future__ import annotations
 import base64
 import html
 import io
+import re
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -24,12 +26,15 @@ from ..units import from_si, label
 from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, all_figures, caption
 from .prose import sensor_check_text, summarise
+from .staircase import staircase_figure, staircases_figure, step_label
+from .views import residual_views, run_loops
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1200px; margin: 2em auto; color: #222;
        line-height: 1.45; padding: 0 1em; }
 h1 { font-size: 1.6em; } h2 { font-size: 1.25em; margin-top: 2em; border-bottom: 1px solid #ccc; }
-table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.9em; max-width: 100%; }
+.scroll { overflow-x: auto; max-width: 100%; }
+table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.9em; }
 th, td { border: 1px solid #ddd; padding: 0.25em 0.6em; text-align: right; vertical-align: top; }
 th { background: #f3f3f3; } td.text, th.text { text-align: left; }
 td.text { max-width: 32em; overflow-wrap: break-word; }
@@ -43,6 +48,12 @@ details { margin: 0.3em 0; } summary { cursor: pointer; }
 #: longest text in a table cell [characters]: longer lists are summarised (see
 #: :func:`parameter_summary`) so that every table fits a 1,400-pixel page
 CELL_LENGTH = 120
+
+
+def _prose(text: str) -> str:
+    """Text of the diagnosis' prose as HTML: escaped, its `code` spans (commands, options) set
+    as code rather than shown with their backticks."""
+    return re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text))
 
 
 def figure_png(figure: Figure) -> bytes:
@@ -106,7 +117,9 @@ def _table(frame: pd.DataFrame, text_columns: tuple[str, ...] = (),
                 text = html.escape(str(value)).replace("_", "_<wbr>")
             cells.append(f'<td class="{"text" if column in text_columns else ""}">{text}</td>')
         rows.append("<tr>" + "".join(cells) + "</tr>")
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
+    # a table wider than the page scrolls inside its box, the page itself never does
+    return (f'<div class="scroll"><table><thead><tr>{head}</tr></thead>'
+            f"<tbody>{''.join(rows)}</tbody></table></div>")
 
 
 def readable(name: str) -> str:
@@ -305,7 +318,7 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
          for k, v in diagnosis.correlations.items()])
     return "\n".join([
         f"<h2>{html.escape(heading)}</h2>",
-        f'<p class="summary">{html.escape(summarise(diagnosis))}</p>',
+        f'<p class="summary">{_prose(summarise(diagnosis))}</p>',
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
         _table(_heldout_shown(diagnosis_table(diagnosis)),
@@ -359,19 +372,6 @@ def _step_parameters(number: int, step) -> str:
             "</details>")
 
 
-def staircase_figure(steps, noise_floor: float) -> Figure:
-    """The error staircase: RMS after each step, in sample and on held-out runs, with the noise
-    floor."""
-    figure = Figure(figsize=(9, 4.2), layout="constrained")
-    axes = figure.subplots()
-    floor = _plot_staircase(axes, steps, noise_floor, fontsize=8, rotation=30)
-    axes.axhline(1.3 * floor, color="tab:red", linestyle=":", label="1.3 × noise floor")
-    axes.set_ylabel("residual RMS [bar]")
-    axes.set_title("Error staircase: RMS after each step")  # short: the steps are the ticks
-    axes.legend()
-    return figure
-
-
 def staircase_section(workflow) -> str:
     floor = from_si(workflow.noise_floor, "bar")
     final = from_si(workflow.final.rms, "bar")
@@ -380,7 +380,7 @@ def staircase_section(workflow) -> str:
         f'<p class="summary">From the paper\'s basic model to the final one, the residual RMS '
         f"fell from {from_si(workflow.steps[0].rms, 'bar'):.2f} to {final:.2f} bar "
         f"({final / floor:.2f}× the noise floor of {floor:.2f} bar). "
-        f"{html.escape(summarise(workflow.final_diagnosis))}</p>",
+        f"{_prose(summarise(workflow.final_diagnosis))}</p>",
         "<p>Steps 1–4 are the paper's models (BMBE, BMBEBF, CFD maps, CFDA); later steps add the "
         "effect the diagnosis found most likely. Every step refits all free parameters on every "
         "sample. <i>held out</i> is the RMS on runs the step's fit did not see (each run "
@@ -452,48 +452,47 @@ def _identifiability_lines(workflow) -> list[str]:
     return lines
 
 
-def staircases_figure(workflows: dict) -> Figure:
-    """The staircases of several map kinds side by side ({kind: Workflow}), on one RMS axis."""
-    figure = Figure(figsize=(4.6 * len(workflows) + 0.6, 4.6), layout="constrained")
-    axes = figure.subplots(1, len(workflows), sharey=True, squeeze=False)[0]
-    for ax, (kind, workflow) in zip(axes, workflows.items()):
-        _plot_staircase(ax, workflow.steps, workflow.noise_floor, fontsize=7, rotation=40,
-                        shorten=_short)
-        final = from_si(workflow.final.rms, "bar")
-        ax.set_title(f"{kind} maps: {final:.2f} bar after {len(workflow.steps)} steps",
-                     fontsize=10)
-        ax.legend(fontsize=7, loc="upper right")
-    axes[0].set_ylabel("residual RMS [bar]")
-    return figure
+#: runs above which a report draws no loop per run (a big log's loops are in compare's figures)
+LOOP_RUNS = 24
 
 
-def _plot_staircase(axes, steps, noise_floor: float, *, fontsize: float, rotation: float,
-                    shorten=lambda text: text) -> float:
-    """RMS after each step on ``axes`` (log scale), each labelled, its held-out RMS as a diamond
-    beside it, with the noise floor [Pa]; the ticks name what each step added (``shorten``-ed).
-    Returns the floor [bar]."""
-    rms = [from_si(step.rms, "bar") for step in steps]
-    positions = np.arange(len(steps))
-    axes.step(positions, rms, where="mid", color="tab:blue", label="in sample")
-    axes.plot(positions, rms, "o", color="tab:blue")
-    # the RMS on runs each step's fit did not see: a step that patches the log lifts it
-    heldout = [from_si(step.heldout_rms, "bar") for step in steps]
-    axes.plot(positions + 0.2, heldout, "D", color="tab:orange", markerfacecolor="none",
-              markersize=5, label="held out (each run left out)")
-    for x, y in zip(positions, rms):
-        axes.annotate(f"{y:.2f}", (x, y), textcoords="offset points", xytext=(0, 6),
-                      ha="center", fontsize=fontsize)
-    floor = from_si(noise_floor, "bar")
-    axes.axhline(floor, color="tab:red", linestyle="--", label=f"noise floor {floor:.2f} bar")
-    labels = [", ".join(step.added) or step.model.name for step in steps]
-    axes.set_xticks(positions, [f"{i + 1}. {shorten(text)}" for i, text in enumerate(labels)],
-                    rotation=rotation, ha="right", fontsize=fontsize)
-    axes.set_yscale("log")
-    return floor
+def misfit_figures(workflow) -> dict[str, bytes]:
+    """The workflow's misfit at the scale of a bar, as PNG by name: the residual's median line
+    and half-width against the state before and after each added effect (from CFDA on, or from
+    the starting model), and each run's loop with the first and the final model."""
+    steps = workflow.steps[3:] if workflow.maps else workflow.steps
+    # legend entries short enough that three fit side by side on a figure 14 inches wide
+    models = [(textwrap.shorten(f"{workflow.steps.index(step) + 1}. "
+                                + step_label(step, 200).replace("\n", " "), 44,
+                                placeholder=" …"), step.played) for step in steps]
+    pngs = {}
+    views = residual_views(workflow.log, models)
+    if views is not None:
+        pngs["residual_views"] = figure_png(views)
+    if len(workflow.log.run_ids) <= LOOP_RUNS:
+        pngs["run_loops"] = figure_png(run_loops(workflow.log, [models[0], models[-1]]))
+    return pngs
 
 
-def _short(text: str, length: int = 28) -> str:
-    return text if len(text) <= length else text[: length - 1] + "…"
+def misfit_section(workflow, pngs: dict[str, bytes]) -> str:
+    """Where the misfit lies, before and after each added effect (:func:`misfit_figures`)."""
+    parts = ["<h2>Where the misfit lies</h2>",
+             "<p>Each run's residual, measured minus model, split bin by bin along the flow into "
+             "its <i>median line</i> (the mean of the up and down ramps: a map error moves it) "
+             "and its <i>half-width</i> (half their difference: friction changes it), against the "
+             "flow, the opening, the pilot pressure and the temperature: one line per model, "
+             "before and after each added effect. A term that helps brings its line to zero "
+             "where it acts.</p>"]
+    if "residual_views" in pngs:
+        parts.append(_figure(pngs["residual_views"], "residual views",
+                             "The residual's median line (top) and half-width (bottom), per run "
+                             "and flow bin (dots: the last model), against the state; lines: "
+                             "the bins' median for each model."))
+    if "run_loops" in pngs:
+        parts.append(_figure(pngs["run_loops"], "every run's loop",
+                             "Every run's Δp(q), each on its own scale: measured ramps against "
+                             "the first and the final model."))
+    return "\n".join(parts)
 
 
 def staircases_section(workflows: dict, main: str, scores: dict | None = None) -> str:
@@ -513,7 +512,9 @@ def staircases_section(workflows: dict, main: str, scores: dict | None = None) -
            "RMS error over the four schemes, table's second column)")
     return "\n".join([
         "<h2>The staircase on every kind of map</h2>",
-        f"<p>The same loop run on grid, neural-network and Gaussian-process maps. The rest of "
+        f"<p>The same loop run on grid, neural-network and Gaussian-process maps, on the kinds "
+        f"beside the main one with the library's effects only (a term of free shape there "
+        f"would mostly take up that kind's own map error). The rest of "
         f"this report follows the <b>{html.escape(main)}</b> maps: {why}. Effects that only one "
         f"kind's loop adds are more likely to make up for that kind's map error than to be "
         f"physics.</p>",

@@ -78,17 +78,19 @@ class Calibration:
     sigma: np.ndarray
 
     def heldout_rms(self, fitted: FitResult | None, played: LogReplay,
-                    schemes: dict[str, dict[str, list[str]]]) -> float:
+                    schemes: dict[str, dict[str, list[str]]], columns=None) -> float:
         """RMS on held-out runs [Pa] of the calibrated model refitted to the others and
         replayed (:func:`~surrogate.fitting.heldout.replayed_heldout_rms`): its own free
         parameters (``fitted``'s, replayed as ``played``) and the calibration's values together,
-        these under their prior."""
+        these under their prior; ``columns``: the free parameters' probe columns, if made."""
         model = self.model if fitted is None else fitted.model
         keys = [f"{name}.{coefficient}" for name in self.names
                 for coefficient in model.effect(name).coefficient_names()]
         prior = Prior(keys, self.columns[played.ok], self.prior)
-        return replayed_heldout_rms(model, [] if fitted is None else list(fitted.names),
-                                    played, schemes[HEADLINE], prior)
+        keys = ([] if fitted is None else list(fitted.names) if columns is None
+                else [column.key for column in columns])
+        return replayed_heldout_rms(model, keys, played, schemes[HEADLINE], prior,
+                                    columns=columns)
 
     def describe(self) -> str:
         """The calibration in words: how far each map moved, and where most."""

@@ -38,9 +38,9 @@ from ..effects import LIBRARY, DischargeScale, EffectLibrary, FlowForceScale
 from ..fitting.heldout import HEADLINE, replayed_heldout_rms, run_groups
 from ..fitting.identifiability import (Entangled, PushedToBound, entangled_pairs,
                                        pushed_to_bounds)
-from ..fitting.logfit import fit_to_log
+from ..fitting.logfit import Column, fit_to_log, probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
-from ..leastsquares import FitResult
+from ..leastsquares import FitResult, free_parameters
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
@@ -86,6 +86,10 @@ class Step:
         (:mod:`~surrogate.fitting.identifiability`).
     pushed : tuple of PushedToBound
         Parameters the step drove onto a bound, with the terms that did it.
+    columns : tuple of Column
+        Δp's change at the solved samples for a probe step of each free parameter
+        (:func:`~surrogate.fitting.logfit.probe_columns`): the held-out check's, and the next
+        diagnosis' linearisation.
     """
 
     model: ValveModel
@@ -99,6 +103,7 @@ class Step:
     heldout_check: float = float("nan")
     entangled: tuple[Entangled, ...] = ()
     pushed: tuple[PushedToBound, ...] = ()
+    columns: tuple[Column, ...] = ()
 
     @property
     def shape_free(self) -> bool:
@@ -162,14 +167,16 @@ def paper_steps(valve: ValveSource, maps_spec: MapsSpec
 
 
 def heldout_rms(fitted: FitResult | None, played: LogReplay,
-                schemes: dict[str, dict[str, list[str]]]) -> float:
+                schemes: dict[str, dict[str, list[str]]], columns=None) -> float:
     """A fitted model's RMS on held-out runs [Pa], each run predicted by a refit to the others
-    and replayed (:func:`~surrogate.fitting.heldout.replayed_heldout_rms`); without free
-    parameters it is the RMS itself."""
+    and replayed (:func:`~surrogate.fitting.heldout.replayed_heldout_rms`; ``columns``: the
+    free parameters' probe columns at ``played``, if already made); without free parameters it
+    is the RMS itself."""
     if fitted is None or not fitted.names:
         return played.rms()
+    keys = fitted.names if columns is None else [column.key for column in columns]
     # the other schemes judge candidates, not steps: refit only for the runs left out
-    return replayed_heldout_rms(fitted.model, fitted.names, played, schemes[HEADLINE])
+    return replayed_heldout_rms(fitted.model, keys, played, schemes[HEADLINE], columns=columns)
 
 
 class _Staircase:
@@ -198,13 +205,16 @@ class _Staircase:
             fitted = fit_to_log(model, self.log, start=near)
             model = fitted.model
         played = replay_log(model, self.log, guess=near)
-        check = (heldout_rms(fitted, played, self.schemes) if calibration is None
-                 else calibration.heldout_rms(fitted, played, self.schemes))
+        # probed once: for the step's held-out check and the next diagnosis' linearisation
+        columns = tuple(probe_columns(model, [key for key, _ in free_parameters(model)],
+                                      played)) if fitted is not None else ()
+        check = (heldout_rms(fitted, played, self.schemes, list(columns)) if calibration is None
+                 else calibration.heldout_rms(fitted, played, self.schemes, list(columns)))
         best = None if diagnosis is None else diagnosis.best
         pushed = (pushed_to_bounds(self.last.model, model, added) if self.steps else [])
         step = Step(model, added, reason, played, played.rms(), diagnosis, category,
                     check if best is None else best.heldout_rms, check,
-                    tuple(entangled_pairs(fitted)), tuple(pushed))
+                    tuple(entangled_pairs(fitted)), tuple(pushed), columns)
         self.steps.append(step)
         self.say(f"step {len(self.steps)}: {model.name:<28} rms "
                  f"{from_si(step.rms, 'bar'):6.3f} bar, held out "
@@ -216,7 +226,7 @@ class _Staircase:
         return step
 
     def add_diagnosed(self, library: EffectLibrary, candidates: list[str] | None,
-                      max_additions: int) -> Diagnosis:
+                      max_additions: int, shapes: bool = True) -> Diagnosis:
         """Diagnose the last step and add its best significant candidate, until none is left
         or ``max_additions`` were added; return the last diagnosis. A candidate whose full refit
         predicts the held-out runs worse is refused, and the step diagnosed again without it
@@ -229,7 +239,8 @@ class _Staircase:
             self.say(f"diagnosing {current.model.name} ..."
                      + (f" (without {', '.join(refused)})" if refused else ""))
             diagnosis = diagnose(current.model, self.log, library, base=current.played,
-                                 candidates=candidates, exclude=refused)
+                                 candidates=candidates, exclude=refused, shapes=shapes,
+                                 own_columns=list(current.columns) or None)
             summary = summarise(diagnosis)
             self.say(f"  {summary}")
             best = diagnosis.best
@@ -283,6 +294,7 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
                  library: EffectLibrary = LIBRARY, candidates: list[str] | None = None,
                  valve: ValveSource | None = None, maps_spec: MapsSpec | None = None,
                  max_additions: int = MAX_ADDITIONS, calibrate: bool = True,
+                 shapes: bool = True,
                  progress: Callable[[str], None] | None = None) -> Workflow:
     """Run the loop on ``log`` (see the module docstring).
 
@@ -304,6 +316,9 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     calibrate : bool
         End with the maps calibrated to the bench (:mod:`.calibration`), when that predicts the
         held-out runs better.
+    shapes : bool
+        Whether the diagnoses try terms of free shape beside the library
+        (:mod:`surrogate.diagnosis.shapes`).
     progress : callable, optional
         Called with a line of text at every stage.
     """
@@ -320,7 +335,7 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
             staircase.record(spec.build(library), added, category, reason)
     else:
         staircase.record(start, [], "", f"the starting model {start.name!r}")
-    diagnosis = staircase.add_diagnosed(library, candidates, max_additions)
+    diagnosis = staircase.add_diagnosed(library, candidates, max_additions, shapes)
     if calibrate:
         staircase.calibrate()
     steps = staircase.steps
