@@ -138,7 +138,7 @@ class _Stop(Exception):
 
 @pytest.mark.parametrize("argv", [
     ["compare", "--model", "cfda"], ["diagnose", "--model", "cfda"],
-    ["fit", "--model", "cfda", "--out", "m.toml"], ["workflow", "--out", "w"],
+    ["fit", "--model", "cfda", "--out", "m"], ["workflow", "--out", "w"],
     ["suggest-cfd"], ["paper", "--out", "p"],
     ["export", "--model", "cfda", "--format", "tables", "--out", "e"],
 ], ids=lambda argv: argv[0])
@@ -162,3 +162,38 @@ def test_the_shipped_log_is_named_in_the_first_progress_line(argv, tmp_path, mon
 def test_a_given_log_is_read_without_that_line(small_log, capsys):
     assert main(["compare", "--model", "cfda", "--data", str(small_log)]) == 0
     assert "no --data given" not in capsys.readouterr().err
+
+
+# --- one vocabulary: --data and --out (a folder); the old spellings for one release -------------
+
+def test_fit_and_simulate_write_into_the_out_folder(small_log, tmp_path):
+    assert main(["fit", "--model", "cfda", "--data", str(small_log), "--out",
+                 str(tmp_path / "fitted"), "--quiet"]) == 0
+    assert (tmp_path / "fitted" / "model.toml").is_file()
+    assert main(["simulate", "--hidden", "friction_viscous", "--sequence", str(small_log),
+                 "--out", str(tmp_path / "virtual"), "--quiet"]) == 0
+    assert (tmp_path / "virtual" / "log.csv").is_file()
+
+
+@pytest.mark.parametrize("old, new", [
+    (["fit", "--model", "cfda", "--data", "{log}", "--out", "{tmp}/m.toml"], "m.toml"),
+    (["simulate", "--hidden", "none", "--sequence", "{log}", "--out", "{tmp}/v.csv"], "v.csv"),
+    (["predict", "--maps", "grid", "--input", "{queries}", "--output", "{tmp}/p.csv"], "p.csv"),
+], ids=["fit --out FILE.toml", "simulate --out FILE.csv", "predict --input --output"])
+def test_the_old_spellings_still_work_for_a_release_and_say_so(old, new, small_log, tmp_path,
+                                                               capsys):
+    queries = tmp_path / "queries.csv"
+    queries.write_text("u_mm,p_L_bar,p_B_bar,temperature_C\n0.1,100,5,40\n")
+    argv = [part.format(log=small_log, tmp=tmp_path, queries=queries) for part in old]
+    assert main([*argv, "--quiet"]) == 0
+    assert (tmp_path / new).is_file()
+    assert "note:" in capsys.readouterr().err  # said even with --quiet
+
+
+def test_predict_writes_into_its_out_folder(tmp_path):
+    queries = tmp_path / "queries.csv"
+    queries.write_text("u_mm,p_L_bar,p_B_bar,temperature_C\n0.1,100,5,40\n0.2,80,5,20\n")
+    assert main(["predict", "--maps", "grid", "--data", str(queries), "--out",
+                 str(tmp_path / "out"), "--quiet"]) == 0
+    written = (tmp_path / "out" / "predictions.csv").read_text().splitlines()
+    assert len(written) == 3 and "q_lpm_pred" in written[0]

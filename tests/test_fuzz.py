@@ -175,7 +175,7 @@ def check(cfd: str = None, *, words=(), id: str) -> Case:
 
 
 COMPARE = ("compare", "--model", "cfda", "--data", "log.csv", "--out", "out")
-FIT = ("fit", "--model", "cfda", "--data", "log.csv", "--out", "out.toml")
+FIT = ("fit", "--model", "cfda", "--data", "log.csv", "--out", "out")
 
 
 def with_log(text: str, *, words=(), id: str) -> Case:
@@ -619,8 +619,18 @@ CASES = [
     Case("cli: compare --out naming a file", (*COMPARE[:-1], "log.csv"), ("--out", "input")),
     Case("cli: compare --out naming an existing file", (*COMPARE[:-1], "queries.csv"),
          ("--out queries.csv", "this is a file")),
-    Case("cli: fit --out naming a folder", (*FIT[:-1], "folder", "--add", "friction_viscous"),
-         ("--out folder", "this is a folder"), {"folder/keep.txt": "kept"}),
+    Case("cli: fit --out naming a file", (*FIT[:-1], "queries.csv", "--add", "friction_viscous"),
+         ("--out queries.csv", "this is a file")),
+    Case("cli: fit --out in the old spelling naming a folder",
+         (*FIT[:-1], "folder.toml", "--add", "friction_viscous"),
+         ("--out folder.toml", "this is a folder"), {"folder.toml/keep.txt": "kept"}),
+    Case("cli: predict with --input and --data both",
+         ("predict", "--maps", "grid", "--input", "queries.csv", "--data", "queries.csv",
+          "--out", "out"), ("--input", "--data", "give --data only")),
+    Case("cli: predict without --out", ("predict", "--maps", "grid", "--data", "queries.csv"),
+         ("--out FOLDER", "predictions.csv")),
+    Case("cli: predict without --data", ("predict", "--maps", "grid", "--out", "out"),
+         ("--data FILE", "query CSV")),
     Case("cli: --out under a file", (*FIT[:-1], "queries.csv/model.toml"),
          ("queries.csv", "is a file, not a folder")),
     Case("cli: --out where nothing can be written", (*FIT[:-1], "/proc/cbv/model.toml"),

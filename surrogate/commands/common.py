@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from ..data import load_bench_log
@@ -122,6 +123,36 @@ def add_data_options(parser, *, model: bool = True, out_help: str = "output fold
     parser.add_argument("--valve", help="valve file (default: the model's, or the shipped valve)")
     (required(parser) if out_required else parser).add_argument("--out", required=out_required,
                                                                 help=out_help)
+
+
+def notice(text: str) -> None:
+    """A note on stderr that ``--quiet`` does not silence (an option spelt the old way)."""
+    print(text, file=sys.stderr, flush=True)
+
+
+def output_file(args, name: str, legacy_suffix: str, note=notice) -> tuple[Output, Path]:
+    """Where a command that writes one file puts it: ``--out`` names a folder, like every other
+    command's, and the file is ``name`` inside it. An ``--out`` ending in ``legacy_suffix`` is
+    the spelling of the release before (the file itself): taken as before for this release, and
+    said (``note``, a progress callable). Returns the output to guard and the file's path."""
+    out = Path(args.out)
+    if out.suffix.lower() == legacy_suffix:
+        note(f"note: --out {args.out} names a file; --out names a folder now (the file is "
+             f"written as FOLDER/{name}). A file name is taken as before in this release.")
+        return Output("--out", out, "file"), out
+    return Output("--out", out, "folder"), out / name
+
+
+def legacy_option(args, old: str, new: str, note=notice) -> None:
+    """Take ``--old`` for ``--new`` (the release before's spelling), saying so."""
+    attribute, target = old.lstrip("-").replace("-", "_"), new.lstrip("-").replace("-", "_")
+    value = getattr(args, attribute, None)
+    if value is None:
+        return
+    if getattr(args, target, None) is not None:
+        raise InputError(f"{old} and {new} name the same thing: give {new} only")
+    note(f"note: {old} is now {new}; {old} is taken as before in this release")
+    setattr(args, target, value)
 
 
 def model_option(text: str) -> str:

@@ -6,10 +6,10 @@ from ..errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import noise_floor, replay_log
 from ..modelfile import save_model
-from ..outputs import Output
+from ..outputs import atomic_directory
 from ..units import from_si
-from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
-                     progress_for)
+from .common import (add_command, add_data_options, guard_outputs, load_inputs, output_file,
+                     print_json, progress_for)
 
 
 def register(subparsers) -> None:
@@ -18,14 +18,16 @@ def register(subparsers) -> None:
         description="Add the named effects (built-in, or custom from --effects-file) to the "
                     "model, fit all free parameters to every sample of the bench log and write the "
                     "fitted model as a TOML file.")
-    add_data_options(parser, out_help="model file (TOML) to write", out_required=True)
+    add_data_options(parser, out_help="output folder: the fitted model is written as "
+                                      "FOLDER/model.toml", out_required=True)
     parser.add_argument("--add", action="append", default=[], metavar="NAME",
                         help="effect to add (repeatable)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    guard_outputs(args, Output("--out", args.out, "file"))
+    output, path = output_file(args, "model.toml", ".toml")
+    guard_outputs(args, output)
     progress = progress_for(args)
     model, log, library = load_inputs(args, progress)
     classes = [library.effect(name) for name in args.add]
@@ -48,16 +50,20 @@ def run(args) -> int:
     result = fit_to_log(model, log)
     played = replay_log(result.model, log).require_solved(result.model.name)
     floor = noise_floor(played.residual, played.runs, source=played.log.source)
-    save_model(result.model, args.out, note=f"fitted to {log.source}: rms "
-                                            f"{from_si(played.rms(), 'bar'):.3f} bar")
-    progress(f"wrote {args.out}")
+    note = f"fitted to {log.source}: rms {from_si(played.rms(), 'bar'):.3f} bar"
+    if output.kind == "folder":
+        with atomic_directory(output.path) as staging:
+            save_model(result.model, staging / path.name, note=note)
+    else:
+        save_model(result.model, path, note=note)
+    progress(f"wrote {path}")
     if args.json:
         print_json({
-            "model": result.model.name, "added": args.add, "file": str(args.out),
+            "model": result.model.name, "added": args.add, "file": str(path),
             "rms_bar": round(float(from_si(played.rms(), "bar")), 4),
             "noise_floor_bar": round(float(from_si(floor, "bar")), 4),
             "parameters": result.model.parameters().to_records(free_only=True)})
     else:
         print(result.report())
-        print(f"  noise floor {from_si(floor, 'bar'):.3f} bar; model written to {args.out}")
+        print(f"  noise floor {from_si(floor, 'bar'):.3f} bar; model written to {path}")
     return 0

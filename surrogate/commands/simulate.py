@@ -7,13 +7,13 @@ import math
 from ..data import load_bench_log
 from ..data.writer import write_bench_log
 from ..errors import InputError
-from ..outputs import Output
+from ..outputs import atomic_directory
 from ..synthetic.mismatch import MapMismatch
 from ..synthetic.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
                                   noise_free_sequence, reference_spec)
 from .common import (add_command, bench_log_path, effect_library, guard_outputs, maps_from_args,
-                     maps_help_text, maps_option, non_negative_int, positive_int, print_json,
-                     progress_for, required)
+                     maps_help_text, maps_option, non_negative_int, output_file, positive_int,
+                     print_json, progress_for, required)
 
 #: largest --mismatch: ten times the CFD's own error is already far beyond any real valve's
 MISMATCH_MAX = 10.0
@@ -54,12 +54,14 @@ def register(subparsers) -> None:
                              "2.5 %% in the flow force, its own curve where the CFD has no "
                              "opening, a cavitation-driven back-pressure dependence; 0 to "
                              f"{MISMATCH_MAX:g}; default: none, the valve is its maps)")
-    required(parser).add_argument("--out", required=True, help="CSV file to write")
+    required(parser).add_argument("--out", required=True,
+                                  help="output folder: the log is written as FOLDER/log.csv")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    guard_outputs(args, Output("--out", args.out, "file"))
+    output, path = output_file(args, "log.csv", ".csv")
+    guard_outputs(args, output)
     if not (math.isfinite(args.noise_scale) and 0 <= args.noise_scale <= 100):
         raise InputError(f"--noise-scale {args.noise_scale:g}: expected 0 to 100 (times the "
                          "shipped bench's sensor noise)")
@@ -97,10 +99,14 @@ def run(args) -> int:
                               reference=reference_spec(None if mismatch else maps_spec),
                               library=library, noise=SensorNoise().scaled(args.noise_scale),
                               mismatch=mismatch, maps_under_test=maps_spec)
-    write_bench_log(case.log, args.out)
-    progress(f"wrote {len(case.log)} samples to {args.out} (truth: {case.truth.name})")
+    if output.kind == "folder":
+        with atomic_directory(output.path) as staging:
+            write_bench_log(case.log, staging / path.name)
+    else:
+        write_bench_log(case.log, path)
+    progress(f"wrote {len(case.log)} samples to {path} (truth: {case.truth.name})")
     if args.json:
-        print_json({"file": str(args.out), "samples": len(case.log),
+        print_json({"file": str(path), "samples": len(case.log),
                     "runs": len(case.log.run_ids), "truth": case.truth.name,
                     "maps": args.maps or "grid", "mismatch": args.mismatch})
     return 0

@@ -133,7 +133,8 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     own_columns = [column for column in own_columns if column.felt]
     classes = [cls for cls in candidate_effects(model, library, candidates)
                if not getattr(cls, "shape_free", False) and cls.name not in exclude]
-    results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers)
+    results, refined = refit_candidates(model, classes, problem, own_columns, steps, workers,
+                                        say)
     judge = Judge(model, problem, own_columns, floor, rule)
     split = hysteresis_split(log.frame.loc[problem.ok])
     median_before, half_before = split.rms(problem.base_evaluation.residual)
@@ -205,8 +206,10 @@ def _say_scores(say, candidates: list[Candidate], refined: set[int]) -> None:
     """One progress line per candidate: its RMS, held-out RMS and ΔBIC."""
     for number, candidate in enumerate(candidates, start=1):
         say(f"  [{number}/{len(candidates)}] {candidate.name}: rms "
-            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, held out "
-            f"{from_si(candidate.heldout_rms, 'bar'):.3f} bar, ΔBIC {candidate.delta_bic:.1f}"
+            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, "
+            + (f"held out {from_si(candidate.heldout_rms, 'bar'):.3f} bar"
+               if np.isfinite(candidate.heldout_rms) else "not judged on held-out runs (per run)")
+            + f", ΔBIC {candidate.delta_bic:.1f}"
             + ("" if number - 1 in refined else " (not refined)"))
 
 

@@ -28,6 +28,7 @@ from ..fitting.residuals import LogReplay, effective_samples, noise_floor, repla
 from ..leastsquares import Evaluation, FitProblem, Minimizer
 from ..model import ValveModel
 from ..parallel import map_threads
+from ..progress import Stage
 from .result import Candidate
 from .rule import BIC_THRESHOLD, delta_bic
 
@@ -37,7 +38,7 @@ REFINED = 4  # candidates refined by those steps (with any as good as the last o
 
 def refit_candidates(model: ValveModel, classes: list[type[Effect]],
                      problem: "DiagnosisProblem", own_columns: list["Column"], steps: int,
-                     workers: int | None) -> tuple[list[Candidate], set[int]]:
+                     workers: int | None, say=None) -> tuple[list[Candidate], set[int]]:
     """Every candidate refitted with the model's free parameters (module docstring, step 2):
     the candidates are independent, so they are linearised and refitted side by side. Each gets
     its linear solution evaluated for real; only the front runners are refined further, the
@@ -57,15 +58,24 @@ def refit_candidates(model: ValveModel, classes: list[type[Effect]],
                             problem.base_evaluation).refine(1)
         return minimizer, columns
 
-    refits = list(map_threads(linearise, classes, workers=workers))
+    linearised = Stage(say or (lambda message: None), "linearising the candidates",
+                       len(classes))
+    refits = []
+    for refit in map_threads(linearise, classes, workers=workers):
+        refits.append(refit)
+        linearised(len(refits))
     probes = [np.column_stack([c.change / c.step for c in columns]) if columns else None
               for _, columns in refits]
     first = [candidate_of(cls, minimizer, len(columns), problem, probe)
              for cls, (minimizer, columns), probe in zip(classes, refits, probes)]
     chosen = front_runners(first)
-    refined = dict(zip(chosen, map_threads(
-        lambda i: candidate_of(classes[i], refits[i][0].refine(steps), len(refits[i][1]),
-                               problem, probes[i]), chosen, workers=workers)))
+    refining = Stage(say or (lambda message: None), "refitting the front runners", len(chosen))
+    refined = {}
+    for i, candidate in zip(chosen, map_threads(
+            lambda i: candidate_of(classes[i], refits[i][0].refine(steps), len(refits[i][1]),
+                                   problem, probes[i]), chosen, workers=workers)):
+        refined[i] = candidate
+        refining(len(refined))
     return [refined.get(i, candidate) for i, candidate in enumerate(first)], set(refined)
 
 

@@ -33,6 +33,7 @@ from ..fitting.residuals import LogReplay
 from ..leastsquares import Minimizer
 from ..model import ValveModel
 from ..parallel import map_threads
+from ..progress import Stage
 from ..units import LPM, from_si, to_si
 from .refit import candidate_of
 from .result import ShapeCurve
@@ -328,8 +329,13 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                           if promising(fit)], judge, problem.n_eff)
     say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
         "better")
-    return list(map_threads(lambda fit: _refitted(model, problem, own_columns, judge, *fit,
-                                                  steps=steps), fits, workers=workers))
+    refitting = Stage(say, "refitting the shapes", len(fits))
+    done = []
+    for candidate in map_threads(lambda fit: _refitted(model, problem, own_columns, judge, *fit,
+                                                       steps=steps), fits, workers=workers):
+        done.append(candidate)
+        refitting(len(done))
+    return done
 
 
 #: shape-free terms refitted for real at most (with any whose linear fit comes within

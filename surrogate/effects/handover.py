@@ -76,7 +76,7 @@ def effect_source(effect: ShapeFreeEffect, *, name: str | None = None, origin: s
 Use it:
 
     python -m surrogate fit --model MODEL --data LOG --effects-file {name}.py \\
-        --add {name} --out fitted.toml
+        --add {name} --out fitted
     python -m surrogate workflow --data LOG --effects-file {name}.py --out DIR
 """
 

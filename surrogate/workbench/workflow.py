@@ -202,10 +202,15 @@ class _Staircase:
             near = self.last.played
         fitted = None
         if model.parameters().free():
+            self.say(f"fitting {model.name} ({len(model.parameters().free())} free "
+                     "parameter(s))")
             fitted = fit_to_log(model, self.log, start=near)
             model = fitted.model
         played = replay_log(model, self.log, guess=near)
         # probed once: for the step's held-out check and the next diagnosis' linearisation
+        if fitted is not None:
+            self.say("checking the step on held-out runs (each run refitted without it and "
+                     "replayed)")
         columns = tuple(probe_columns(model, [key for key, _ in free_parameters(model)],
                                       played)) if fitted is not None else ()
         check = (heldout_rms(fitted, played, self.schemes, list(columns)) if calibration is None
@@ -240,7 +245,8 @@ class _Staircase:
                      + (f" (without {', '.join(refused)})" if refused else ""))
             diagnosis = diagnose(current.model, self.log, library, base=current.played,
                                  candidates=candidates, exclude=refused, shapes=shapes,
-                                 own_columns=list(current.columns) or None)
+                                 own_columns=list(current.columns) or None,
+                                 progress=lambda message: self.say(f"  {message}"))
             summary = summarise(diagnosis)
             self.say(f"  {summary}")
             best = diagnosis.best
