@@ -201,3 +201,19 @@ def test_every_run_has_its_own_loop_on_its_own_scale(workflow):
     assert len(shown) == len(workflow.log.run_ids)
     spans = [ax.get_ylim()[1] - ax.get_ylim()[0] for ax in shown]
     assert min(spans) < 0.5 * max(spans)  # zoomed per run: a 120-bar run is not a 30-bar one's
+
+
+def test_what_to_do_next_follows_from_what_the_workflow_found(workflow):
+    """Each line of advice answers a finding: no shape-free step, no word of an effects file;
+    the maps' limits named when the diagnosis shows them; never an empty list."""
+    from surrogate.reporting.prose import next_steps
+    from surrogate.reporting.report import next_steps_section
+
+    steps = next_steps(workflow)
+    assert steps and steps[-1].startswith("To trust the model beyond this log")
+    shaped = any(step.shape_free for step in workflow.steps)
+    assert shaped == any("found_*.py" in line for line in steps)
+    assert bool(workflow.final_diagnosis.map_limits) == any("suggest-cfd" in line
+                                                             for line in steps)
+    html = next_steps_section(workflow)
+    assert html.count("<li>") == len(steps) and "`" not in html

@@ -14,7 +14,8 @@ from ..outputs import Output, atomic_directory
 from ..presets import maps
 from ..reporting.prose import naming_words, shape_words, summarise
 from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
-                                misfit_figures, misfit_section, staircase_section,
+                                misfit_figures, misfit_section, next_steps_section,
+                                staircase_section,
                                 staircase_table, staircases_section, write_html)
 from ..reporting.staircase import staircase_figure
 from ..spec import ValveSource
@@ -118,7 +119,8 @@ def run(args) -> int:
         write_html(staging / "report.html", "CBV model against bench data: the workflow",
                    [staircase_section(workflow), misfit_section(workflow, misfit), *others,
                     comparison_section(comparison, "The final model against the data", pngs),
-                    diagnosis_section(workflow.final_diagnosis, "What is left: final diagnosis")],
+                    diagnosis_section(workflow.final_diagnosis, "What is left: final diagnosis"),
+                    next_steps_section(workflow)],
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
                         f"Maps: {main}. Run time "
                         f"{sum(w.seconds for w in workflows.values()):.0f} s.")

@@ -301,3 +301,53 @@ def naming_words(candidate: Candidate) -> str:
     return (f"No library term has this shape: the closest, {closest.name}, departs from it by "
             f"{closest.worst:.1f} standard deviations at {closest.worst_at:.3g} "
             f"{candidate.curve.unit}.")
+
+
+def next_steps(workflow) -> list[str]:
+    """What to do next, from what the workflow found (a :class:`~surrogate.workbench.workflow.
+    Workflow`): each line follows from one of its findings, so that the advice never points
+    where the tools found nothing to gain."""
+    final, diagnosis = workflow.final, workflow.final_diagnosis
+    steps = []
+    if diagnosis.best is not None:
+        steps.append(f"The last diagnosis still finds {diagnosis.best.title} "
+                     f"({diagnosis.best.name}): the loop stopped at its limit of additions; run "
+                     "it again with a larger --max-additions, or fit it with fit --add.")
+    if workflow.dropped:
+        steps.append(f"{workflow.dropped}: the log does not confirm it on runs it was not "
+                     "fitted to. Runs at other temperatures or pilot pressures would.")
+    for number, step in enumerate(workflow.steps, start=1):
+        best = None if step.diagnosis is None else step.diagnosis.best
+        if step.diagnosis is not None and best is not None and len(best.group) > 1:
+            steps.append(f"Step {number} added {best.name}, one of "
+                         f"{len(best.group)} explanations this log cannot tell apart "
+                         f"({', '.join(best.group)}): "
+                         + separation_advice(step.diagnosis.separation))
+        if step.shape_free:
+            steps.append(f"Step {number} added a term of free shape ({best.name}): its effects "
+                         f"file (found_*.py, in the output folder) holds the shape as a table. "
+                         "Read it, replace the table by a formula you believe, and fit again "
+                         "with --effects-file FILE --add NAME: the error says whether the "
+                         "formula holds.")
+        for moved in step.pushed:
+            steps.append(f"Step {number} drove {moved.parameter} to its bound: "
+                         f"{', '.join(moved.by)} took over what it carried. Check whether "
+                         "that is physics or a stand-in before trusting either value.")
+    for pair in final.entangled:
+        steps.append(f"The log fixes {pair.first} and {pair.second} only together (correlation "
+                     f"{pair.correlation:+.2f}): runs that move what sets them apart (another "
+                     "pilot pressure at the same load pressure, another temperature) would "
+                     "separate them.")
+    if diagnosis.map_limits:
+        steps.append("What is left is within the maps' own error; it shows most at "
+                     + "; ".join(map_limit_texts(diagnosis))
+                     + ". suggest-cfd ranks CFD runs by how much of the maps' uncertainty over "
+                       "this log each would remove; where that uncertainty is mostly the maps' "
+                       "calibrated floor (the learned maps), no single new run removes much, "
+                       "and the CFD's own accuracy (its mesh) is what would.")
+    if not steps:
+        steps.append("Nothing is left to add: the model explains the log to its noise.")
+    steps.append("To trust the model beyond this log, compare it with a run at a temperature "
+                 "or pilot pressure the log lacks (compare --model final_model.toml --data "
+                 "NEW_LOG).")
+    return steps

@@ -25,7 +25,7 @@ from ..outputs import atomic_file
 from ..units import from_si, label
 from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, all_figures, caption
-from .prose import sensor_check_text, summarise
+from .prose import next_steps, sensor_check_text, summarise
 from .staircase import staircase_figure, staircases_figure, step_label
 from .views import residual_views, run_loops
 
@@ -472,6 +472,12 @@ def misfit_figures(workflow) -> dict[str, bytes]:
     if len(workflow.log.run_ids) <= LOOP_RUNS:
         pngs["run_loops"] = figure_png(run_loops(workflow.log, [models[0], models[-1]]))
     return pngs
+
+
+def next_steps_section(workflow) -> str:
+    """What to do next, each line from a finding of the workflow (:func:`.prose.next_steps`)."""
+    items = "".join(f"<li>{_prose(step)}</li>" for step in next_steps(workflow))
+    return f"<h2>What to do next</h2><ul>{items}</ul>"
 
 
 def misfit_section(workflow, pngs: dict[str, bytes]) -> str:
