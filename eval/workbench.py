@@ -97,7 +97,7 @@ def replay_noise_control(log, seed: int = 1) -> dict:
 
 def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
                     settings: tuple[int, ...] = STRESS_SETTINGS) -> dict:
-    """The workflow on virtual-valve logs (the same settings and seeds as tests/test_mismatch.py
+    """The workflow on virtual-valve logs (the same settings and seeds as tests/workbench/test_mismatch.py
     with its defaults): clean identifications over randomised cases, and the physics or sensor
     effects added where nothing is hidden."""
     sequence = noise_free_sequence(log, every=every)

@@ -45,3 +45,27 @@ def grid_maps(cfd_samples, valve):
     from surrogate.maps import GridFlowMap, GridForceMap
 
     return GridFlowMap.from_samples(cfd_samples), GridForceMap.from_samples(cfd_samples, valve)
+
+
+def write_runs(folder, runs: tuple[str, ...], every: int = 10):
+    """A small real log in ``folder``: the shipped log's ``runs``, every ``every``-th sample of
+    each; returns its path."""
+    lines = SHIPPED_BENCH_LOG.read_text().splitlines()
+    rows = [line for line in lines[1:] if line.split(",")[0] in runs][::every]
+    path = folder / "log.csv"
+    path.write_text("\n".join([lines[0], *rows]) + "\n")
+    return path
+
+
+@pytest.fixture(scope="session")
+def one_run_log(tmp_path_factory):
+    """Run R01 of the shipped log (20 °C, p_Pe 50 bar), every 10th sample: a real log small
+    enough for a command line's round trip."""
+    return write_runs(tmp_path_factory.mktemp("one_run"), ("R01",))
+
+
+@pytest.fixture(scope="session")
+def two_run_log(tmp_path_factory):
+    """Runs R01 and R06 of the shipped log (20 °C and 50 bar; 40 °C and 65 bar), every 10th
+    sample: two temperatures and two pilot pressures."""
+    return write_runs(tmp_path_factory.mktemp("two_runs"), ("R01", "R06"))

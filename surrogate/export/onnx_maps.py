@@ -3,7 +3,7 @@
 Each map kind's own NumPy inference (:mod:`surrogate.maps.network`, :mod:`surrogate.maps.gp`,
 :mod:`surrogate.maps.learned`, :mod:`surrogate.features`, :mod:`surrogate.maps.calibration`) is
 written out operation by operation, in double precision, so that onnxruntime reproduces the
-package to rounding (``tests/test_export_onnx.py`` checks 1e-6 relative on 10,000 states):
+package to rounding (``tests/export/test_export_onnx.py`` checks 1e-6 relative on 10,000 states):
 
 * ``flow.onnx``: inputs u [m], p_L, p_B [Pa], nu [m^2/s], rho [kg/m^3] (each of shape [N]);
   outputs q [m^3/s] and q_std [m^3/s]. The learned flow map gives Δp(q) in closed form; its

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -16,17 +17,14 @@ from surrogate.errors import InputError
 from surrogate.interrupts import Interrupted, deferred, handling_interrupts
 from surrogate.outputs import Output, atomic_directory, atomic_file, check_outputs
 from surrogate.parallel import map_threads
-from surrogate.paths import SHIPPED_BENCH_LOG
 
 
 @pytest.fixture
-def small_log(tmp_path) -> Path:
-    """Two runs of the shipped log, every 10th sample."""
-    lines = SHIPPED_BENCH_LOG.read_text().splitlines()
-    kept = [line for index, line in enumerate(lines[1:])
-            if line.split(",")[0] in ("R01", "R06") and index % 10 == 0]
+def two_runs_here(tmp_path, two_run_log) -> Path:
+    """Runs R01 and R06 of the shipped log, every 10th sample, copied into the test's own folder
+    (the tests check what is left in it)."""
     path = tmp_path / "log.csv"
-    path.write_text("\n".join([lines[0], *kept]) + "\n")
+    shutil.copyfile(two_run_log, path)
     return path
 
 
@@ -35,7 +33,7 @@ def _left_behind(folder: Path) -> list[str]:
 
 
 @pytest.mark.parametrize("signum, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
-def test_a_signal_while_writing_removes_the_staging_folder(signum, code, small_log, tmp_path,
+def test_a_signal_while_writing_removes_the_staging_folder(signum, code, two_runs_here, tmp_path,
                                                            monkeypatch, capsys):
     """The signal arrives while compare's figures are being written into its staging folder."""
     from surrogate.reporting import report
@@ -93,7 +91,7 @@ def test_deferred_raises_nothing_when_no_signal_came():
         pass
 
 
-def test_a_real_process_stopped_by_sigterm_exits_143_and_leaves_nothing(small_log, tmp_path):
+def test_a_real_process_stopped_by_sigterm_exits_143_and_leaves_nothing(two_runs_here, tmp_path):
     process = subprocess.Popen(
         [sys.executable, "-m", "surrogate", "compare", "--model", "cfda", "--data", "log.csv",
          "--out", "out"], cwd=tmp_path, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL,

@@ -25,15 +25,6 @@ from surrogate.valve import load_valve
 VALVE_TEXT = (PROJECT_ROOT / "surrogate" / "valves" / "paper_cbv.toml").read_text()
 
 
-@pytest.fixture(scope="module")
-def small_log(tmp_path_factory):
-    lines = SHIPPED_BENCH_LOG.read_text().splitlines()
-    rows = [line for line in lines[1:] if line.startswith(("R01,", "R06,"))][::10]
-    path = tmp_path_factory.mktemp("log") / "log.csv"
-    path.write_text("\n".join([lines[0], *rows]) + "\n")
-    return path
-
-
 @pytest.mark.parametrize("name", PRESETS)
 def test_every_preset_round_trips_through_toml_exactly(name):
     spec = preset(name)
@@ -108,11 +99,11 @@ def test_paths_in_a_model_file_are_relative_to_the_file(tmp_path):
     assert ModelSpec.read(path) == spec
 
 
-def test_fit_records_and_uses_the_valve_it_was_given(small_log, tmp_path, capsys):
+def test_fit_records_and_uses_the_valve_it_was_given(two_run_log, tmp_path, capsys):
     valve_file = tmp_path / "my_valve.toml"
     valve_file.write_text(VALVE_TEXT.replace("F_cr_N = 226.0", "F_cr_N = 240.0"))
     out = tmp_path / "fitted.toml"
-    assert main(["fit", "--model", "cfda", "--data", str(small_log), "--valve", str(valve_file),
+    assert main(["fit", "--model", "cfda", "--data", str(two_run_log), "--valve", str(valve_file),
                  "--out", str(out), "--quiet"]) == 0
     document = tomllib.loads(out.read_text())
     assert document["valve"]["F_cr_N"] == 240.0
@@ -121,11 +112,11 @@ def test_fit_records_and_uses_the_valve_it_was_given(small_log, tmp_path, capsys
     assert load_model(str(out)).valve.F_cr == 240.0
 
 
-def test_workflow_records_and_uses_the_valve_it_was_given(small_log, tmp_path, capsys):
+def test_workflow_records_and_uses_the_valve_it_was_given(two_run_log, tmp_path, capsys):
     valve_file = tmp_path / "my_valve.toml"
     valve_file.write_text(VALVE_TEXT.replace("F_cr_N = 226.0", "F_cr_N = 240.0"))
     out = tmp_path / "workflow"
-    assert main(["workflow", "--data", str(small_log), "--valve", str(valve_file),
+    assert main(["workflow", "--data", str(two_run_log), "--valve", str(valve_file),
                  "--out", str(out), "--max-additions", "0", "--quiet"]) == 0
     final = load_model(str(out / "final_model.toml"))
     assert final.valve.F_cr == 240.0 and final.valve == load_valve(valve_file)

@@ -14,16 +14,6 @@ from surrogate.paths import SHIPPED_BENCH_LOG
 COMMAND_NAMES = [command.__name__.rsplit(".", 1)[1].replace("_", "-") for command in COMMANDS]
 
 
-@pytest.fixture(scope="module")
-def small_log(tmp_path_factory):
-    """Run R01 of the shipped log, every 10th sample."""
-    lines = SHIPPED_BENCH_LOG.read_text().splitlines()
-    rows = [line for line in lines[1:] if line.startswith("R01,")][::10]
-    path = tmp_path_factory.mktemp("log") / "r01.csv"
-    path.write_text("\n".join([lines[0], *rows]) + "\n")
-    return path
-
-
 @pytest.mark.parametrize("name", COMMAND_NAMES)
 def test_help_lists_exit_codes_and_required_options_under_their_heading(name, capsys):
     assert main([name, "--help"]) == 0
@@ -40,31 +30,31 @@ def test_top_level_help_lists_exit_codes(capsys):
     assert "exit codes:" in capsys.readouterr().out
 
 
-def test_quiet_silences_progress_but_not_results(small_log, capsys):
-    assert main(["compare", "--model", "cfda", "--data", str(small_log)]) == 0
+def test_quiet_silences_progress_but_not_results(one_run_log, capsys):
+    assert main(["compare", "--model", "cfda", "--data", str(one_run_log)]) == 0
     loud = capsys.readouterr()
     assert "replaying cfda" in loud.err
-    assert main(["compare", "--model", "cfda", "--data", str(small_log), "--quiet"]) == 0
+    assert main(["compare", "--model", "cfda", "--data", str(one_run_log), "--quiet"]) == 0
     quiet = capsys.readouterr()
     assert quiet.err == "" and quiet.out == loud.out
 
 
-def test_written_files_get_the_usual_permissions(small_log, tmp_path, capsys):
+def test_written_files_get_the_usual_permissions(one_run_log, tmp_path, capsys):
     previous = os.umask(0o022)
     try:
         out = tmp_path / "fitted.toml"
-        assert main(["fit", "--model", "cfda", "--data", str(small_log), "--out", str(out),
+        assert main(["fit", "--model", "cfda", "--data", str(one_run_log), "--out", str(out),
                      "--quiet"]) == 0
         assert stat.S_IMODE(out.stat().st_mode) == 0o644
         folder = tmp_path / "compare"
-        assert main(["compare", "--model", "cfda", "--data", str(small_log), "--out",
+        assert main(["compare", "--model", "cfda", "--data", str(one_run_log), "--out",
                      str(folder), "--quiet"]) == 0
         assert {stat.S_IMODE(path.stat().st_mode) for path in folder.iterdir()} == {0o644}
     finally:
         os.umask(previous)
 
 
-def test_per_run_parameters_of_runs_the_log_lacks_are_refused(small_log, tmp_path, capsys):
+def test_per_run_parameters_of_runs_the_log_lacks_are_refused(one_run_log, tmp_path, capsys):
     """The model was fitted to another log: its other parameters were fitted beside terms that
     act on no sample here, so it is refused (exit 2) rather than replayed with a warning."""
     model = tmp_path / "model.toml"
@@ -72,7 +62,7 @@ def test_per_run_parameters_of_runs_the_log_lacks_are_refused(small_log, tmp_pat
                      '[effects.parameters]\n'
                      'delta_R01 = { value = 0.1, unit = "bar" }\n'
                      'delta_R99 = { value = 0.2, unit = "bar" }\n')
-    assert main(["compare", "--model", str(model), "--data", str(small_log), "--quiet"]) == 2
+    assert main(["compare", "--model", str(model), "--data", str(one_run_log), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "run(s) R99," in err and "lacks (its runs: R01)" in err
 
@@ -159,18 +149,18 @@ def test_the_shipped_log_is_named_in_the_first_progress_line(argv, tmp_path, mon
                           "measurements/bench_measurements.csv"), first
 
 
-def test_a_given_log_is_read_without_that_line(small_log, capsys):
-    assert main(["compare", "--model", "cfda", "--data", str(small_log)]) == 0
+def test_a_given_log_is_read_without_that_line(one_run_log, capsys):
+    assert main(["compare", "--model", "cfda", "--data", str(one_run_log)]) == 0
     assert "no --data given" not in capsys.readouterr().err
 
 
 # --- one vocabulary: --data and --out (a folder); the old spellings for one release -------------
 
-def test_fit_and_simulate_write_into_the_out_folder(small_log, tmp_path):
-    assert main(["fit", "--model", "cfda", "--data", str(small_log), "--out",
+def test_fit_and_simulate_write_into_the_out_folder(one_run_log, tmp_path):
+    assert main(["fit", "--model", "cfda", "--data", str(one_run_log), "--out",
                  str(tmp_path / "fitted"), "--quiet"]) == 0
     assert (tmp_path / "fitted" / "model.toml").is_file()
-    assert main(["simulate", "--hidden", "friction_viscous", "--sequence", str(small_log),
+    assert main(["simulate", "--hidden", "friction_viscous", "--sequence", str(one_run_log),
                  "--out", str(tmp_path / "virtual"), "--quiet"]) == 0
     assert (tmp_path / "virtual" / "log.csv").is_file()
 
@@ -180,11 +170,11 @@ def test_fit_and_simulate_write_into_the_out_folder(small_log, tmp_path):
     (["simulate", "--hidden", "none", "--sequence", "{log}", "--out", "{tmp}/v.csv"], "v.csv"),
     (["predict", "--maps", "grid", "--input", "{queries}", "--output", "{tmp}/p.csv"], "p.csv"),
 ], ids=["fit --out FILE.toml", "simulate --out FILE.csv", "predict --input --output"])
-def test_the_old_spellings_still_work_for_a_release_and_say_so(old, new, small_log, tmp_path,
+def test_the_old_spellings_still_work_for_a_release_and_say_so(old, new, one_run_log, tmp_path,
                                                                capsys):
     queries = tmp_path / "queries.csv"
     queries.write_text("u_mm,p_L_bar,p_B_bar,temperature_C\n0.1,100,5,40\n")
-    argv = [part.format(log=small_log, tmp=tmp_path, queries=queries) for part in old]
+    argv = [part.format(log=one_run_log, tmp=tmp_path, queries=queries) for part in old]
     assert main([*argv, "--quiet"]) == 0
     assert (tmp_path / new).is_file()
     assert "note:" in capsys.readouterr().err  # said even with --quiet

@@ -13,12 +13,12 @@ from surrogate.modelfile import load_model, save_model
 
 
 @pytest.fixture(scope="module")
-def small_log(tmp_path_factory):
+def viscous_log(tmp_path_factory):
     """A synthetic log with friction growing with viscosity hidden (every 12th sample)."""
-    path = tmp_path_factory.mktemp("logs") / "viscous.csv"
+    folder = tmp_path_factory.mktemp("logs")
     assert main(["simulate", "--hidden", "friction_viscous", "--every", "12", "--seed", "4",
-                 "--out", str(path)]) == 0
-    return path
+                 "--out", str(folder), "--quiet"]) == 0
+    return folder / "log.csv"
 
 
 def run_json(capsys, argv):
@@ -26,9 +26,9 @@ def run_json(capsys, argv):
     return json.loads(capsys.readouterr().out)
 
 
-def test_compare_json_contract(capsys, small_log, tmp_path):
+def test_compare_json_contract(capsys, viscous_log, tmp_path):
     out = tmp_path / "compare"
-    result = run_json(capsys, ["compare", "--model", "cfda", "--data", str(small_log),
+    result = run_json(capsys, ["compare", "--model", "cfda", "--data", str(viscous_log),
                                "--out", str(out), "--json"])
     assert {"rms_bar", "noise_floor_bar", "runs"} <= set(result)
     assert len(result["runs"]) == 12
@@ -47,15 +47,15 @@ def test_compare_json_contract(capsys, small_log, tmp_path):
 
 
 @pytest.mark.parametrize("kind", ["nn", "gp"])
-def test_compare_on_learned_maps(capsys, small_log, kind):
+def test_compare_on_learned_maps(capsys, viscous_log, kind):
     result = run_json(capsys, ["compare", "--model", "cfda", "--maps", kind, "--data",
-                               str(small_log), "--json"])
+                               str(viscous_log), "--json"])
     assert result["model"] == f"cfda ({kind} maps)"
     assert result["dp_std_bar"] > 0
 
 
-def test_diagnose_json_contract_names_the_hidden_effect(capsys, small_log):
-    result = run_json(capsys, ["diagnose", "--model", "cfda", "--data", str(small_log), "--json"])
+def test_diagnose_json_contract_names_the_hidden_effect(capsys, viscous_log):
+    result = run_json(capsys, ["diagnose", "--model", "cfda", "--data", str(viscous_log), "--json"])
     assert {"rms_before_bar", "noise_floor_bar", "summary", "candidates"} <= set(result)
     best = result["candidates"][0]
     assert {"name", "description", "category", "rms_after_bar", "heldout_rms_bar", "inclusion",
@@ -78,21 +78,21 @@ def test_diagnose_json_contract_names_the_hidden_effect(capsys, small_log):
                for c in result["candidates"])
 
 
-def test_fit_writes_a_model_file_that_loads_and_compares(capsys, small_log, tmp_path):
+def test_fit_writes_a_model_file_that_loads_and_compares(capsys, viscous_log, tmp_path):
     path = tmp_path / "fitted.toml"
-    result = run_json(capsys, ["fit", "--model", "cfda", "--data", str(small_log),
+    result = run_json(capsys, ["fit", "--model", "cfda", "--data", str(viscous_log),
                                "--add", "friction_viscous", "--out", str(path), "--json"])
     assert result["rms_bar"] < 1.3 * result["noise_floor_bar"]
     document = tomllib.loads(path.read_text())
     assert [e["name"] for e in document["effects"]][-1] == "friction_viscous"
-    again = run_json(capsys, ["compare", "--model", str(path), "--data", str(small_log), "--json"])
+    again = run_json(capsys, ["compare", "--model", str(path), "--data", str(viscous_log), "--json"])
     assert again["rms_bar"] == pytest.approx(result["rms_bar"], rel=1e-3)
 
 
 @pytest.mark.slow
-def test_workflow_json_contract(capsys, small_log, tmp_path):
+def test_workflow_json_contract(capsys, viscous_log, tmp_path):
     out = tmp_path / "workflow"
-    result = run_json(capsys, ["workflow", "--data", str(small_log), "--out", str(out),
+    result = run_json(capsys, ["workflow", "--data", str(viscous_log), "--out", str(out),
                                "--maps", "grid", "--kinds", "--max-additions", "1", "--json"])
     steps = result["steps"]
     assert [s["model"] for s in steps[:4]] == ["bmbe", "bmbebf", "cfd-maps", "cfda"]
@@ -114,10 +114,10 @@ def test_workflow_json_contract(capsys, small_log, tmp_path):
 
 @pytest.mark.slow
 def test_workflow_shows_every_kinds_staircase_and_defaults_to_the_most_accurate(capsys,
-                                                                               small_log,
+                                                                               viscous_log,
                                                                                tmp_path):
     out = tmp_path / "workflow"
-    result = run_json(capsys, ["workflow", "--data", str(small_log), "--out", str(out),
+    result = run_json(capsys, ["workflow", "--data", str(viscous_log), "--out", str(out),
                                "--max-additions", "0", "--json"])
     scores = result["maps_flow_force_cv_error"]
     assert set(scores) == {"grid", "nn", "gp"}
@@ -149,17 +149,17 @@ def test_model_file_round_trip(tmp_path):
      "parameters = { K1 = { value = -5.0, unit = 'N' } }\n", "outside"),
     ("not = [toml", "not a valid TOML"),
 ])
-def test_bad_model_files_exit_2_with_a_message(capsys, small_log, tmp_path, text, message):
+def test_bad_model_files_exit_2_with_a_message(capsys, viscous_log, tmp_path, text, message):
     path = tmp_path / "bad.toml"
     path.write_text(text)
-    assert main(["compare", "--model", str(path), "--data", str(small_log)]) == 2
+    assert main(["compare", "--model", str(path), "--data", str(viscous_log)]) == 2
     assert message in capsys.readouterr().err
 
 
-def test_unknown_preset_and_effect_exit_2(capsys, small_log, tmp_path):
-    assert main(["compare", "--model", "nonsense", "--data", str(small_log)]) == 2
+def test_unknown_preset_and_effect_exit_2(capsys, viscous_log, tmp_path):
+    assert main(["compare", "--model", "nonsense", "--data", str(viscous_log)]) == 2
     assert "preset" in capsys.readouterr().err
-    assert main(["fit", "--model", "cfda", "--data", str(small_log), "--add", "warp_drive",
+    assert main(["fit", "--model", "cfda", "--data", str(viscous_log), "--add", "warp_drive",
                  "--out", str(tmp_path / "x.toml")]) == 2
     assert "unknown effect" in capsys.readouterr().err
     assert not (tmp_path / "x.toml").exists()
