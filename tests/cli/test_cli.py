@@ -9,7 +9,6 @@ import pytest
 
 from surrogate.cli import build_parser, main
 from surrogate.commands import COMMANDS
-from surrogate.paths import SHIPPED_BENCH_LOG
 
 COMMAND_NAMES = [command.__name__.rsplit(".", 1)[1].replace("_", "-") for command in COMMANDS]
 

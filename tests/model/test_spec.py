@@ -17,7 +17,7 @@ from surrogate.effects import LIBRARY, EffectLibrary, load_effects_file
 from surrogate.errors import InputError
 from surrogate.maps.registry import MAP_KINDS, MapsSpec
 from surrogate.modelfile import load_model, save_model
-from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG
+from surrogate.paths import PROJECT_ROOT
 from surrogate.presets import PRESETS, basic_maps, maps, preset
 from surrogate.spec import EffectSpec, ModelSpec, ValveSource
 from surrogate.valve import load_valve
