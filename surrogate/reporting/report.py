@@ -26,6 +26,7 @@ from ..units import from_si, label
 from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, all_figures, caption
 from .prose import next_steps, sensor_check_text, summarise
+from ..planning.cfd_runs import operating_points_figure
 from .staircase import staircase_figure, staircases_figure, step_label
 from .views import residual_views, run_loops
 
@@ -471,6 +472,9 @@ def misfit_figures(workflow) -> dict[str, bytes]:
         pngs["residual_views"] = figure_png(views)
     if len(workflow.log.run_ids) <= LOOP_RUNS:
         pngs["run_loops"] = figure_png(run_loops(workflow.log, [models[0], models[-1]]))
+    if workflow.final.model.flow_map.coverage is not None:
+        pngs["operating_points"] = figure_png(operating_points_figure(workflow.final.played,
+                                                                      workflow.final.model))
     return pngs
 
 
@@ -498,6 +502,13 @@ def misfit_section(workflow, pngs: dict[str, bytes]) -> str:
         parts.append(_figure(pngs["run_loops"], "every run's loop",
                              "Every run's Δp(q), each on its own scale: measured ramps against "
                              "the first and the final model."))
+    if "operating_points" in pngs:
+        parts.append(_figure(pngs["operating_points"], "where the bench operates",
+                             "The log's openings and flows in the final model, shaded by the "
+                             "Δp standard deviation its maps imply, over the CFD's sampled "
+                             "openings (dashed): a misfit between them, where no CFD run lies, "
+                             "may be the maps'. suggest-cfd ranks the CFD runs that would "
+                             "settle it."))
     return "\n".join(parts)
 
 
