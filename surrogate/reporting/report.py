@@ -404,6 +404,14 @@ def staircase_section(workflow) -> str:
     ])
 
 
+def _sized(model, name: str) -> str:
+    """An effect of ``model`` with its fitted values: ``pilot_transducer_offset (delta =
+    4.8494 ± 0.076 bar)``; a per-run effect as its range (:func:`parameter_summary`)."""
+    if not model.has_effect(name):
+        return name
+    return f"{name} ({parameter_summary(model.effect(name).params.values(), 80)})"
+
+
 def _category_story(workflow) -> str:
     """The added effects grouped by category, in plain words."""
     found: dict[str, list[str]] = {}
@@ -417,10 +425,12 @@ def _category_story(workflow) -> str:
                      ": they patch where the maps are wrong (new CFD runs there would replace "
                      "them; see the diagnosis' map limits and <code>suggest-cfd</code>).")
     if found.get("sensor"):
-        lines.append(f"<b>Sensor errors</b>: {', '.join(found['sensor'])}: check the bench.")
+        sized = [_sized(workflow.final.model, name) for name in found["sensor"]]
+        lines.append(f"<b>Sensor errors</b>: {html.escape('; '.join(sized))}: check the bench.")
     for category, names in found.items():
         if " or " in category:  # look-alikes: one finding, explanations of different kinds
-            lines.append(f"<b>One finding, {html.escape(category)}</b>: {', '.join(names)} "
+            sized = "; ".join(_sized(workflow.final.model, name) for name in names)
+            lines.append(f"<b>One finding, {html.escape(category)}</b>: {html.escape(sized)} "
                          "stands for look-alikes this log cannot tell apart (see its step's "
                          "reason); check the cheaper explanation.")
     lines += _identifiability_lines(workflow)
