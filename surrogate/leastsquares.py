@@ -276,13 +276,15 @@ class Minimizer:
 
     # --- trust-region least squares -----------------------------------------------------------------
 
-    def least_squares(self, *, max_evaluations: int = 200, tolerance: float = 1e-8) -> FitResult:
+    def least_squares(self, *, max_evaluations: int = 200, tolerance: float = 1e-8,
+                      progress=None) -> FitResult:
         """Minimise the sum of squares (trust-region reflective, within the bounds).
 
         ``tolerance``: the relative change of the sum of squares, and of the parameters, below
         which the fit stops. The Jacobian's columns are evaluated side by side on threads, each
         with its own copy of the model. A penalty of the model's (:meth:`penalty`) is minimised
-        with the sum of squares.
+        with the sum of squares. ``progress``: called as ``progress(evaluations, rss)`` after
+        each of the fit's own evaluations (not the Jacobian's columns).
         """
         if not self.parameters:
             evaluation = self.problem.evaluate(self.model)
@@ -293,6 +295,8 @@ class Minimizer:
         def objective(x):
             evaluation = self._evaluate(x)
             last["x"], last["evaluation"] = np.array(x), evaluation
+            if progress is not None:
+                progress(self.evaluations, float(np.sum(evaluation.residual ** 2)))
             penalty = self.penalty(len(evaluation.residual))
             if penalty is None:
                 return evaluation.residual

@@ -59,7 +59,7 @@ def run(args) -> int:
         raise InputError(f"nothing to diagnose: model {model.name!r} has every candidate "
                          f"({', '.join(args.candidates or ['the whole library'])}) already")
     progress(f"fitting the free parameters of {model.name}")
-    model = fit_to_log(model, log).model
+    model = fit_to_log(model, log, progress=progress).model
     progress(f"diagnosing {model.name}")
     comparison = compare(model, log)
     diagnosis = diagnose(model, log, library, base=comparison.played,

@@ -47,7 +47,7 @@ def run(args) -> int:
     model = model.with_effects([*model.effects, *(cls.for_runs(log.run_ids) for cls in classes)],
                                name=name)
     progress(f"fitting {name}")
-    result = fit_to_log(model, log)
+    result = fit_to_log(model, log, progress=progress)
     played = replay_log(result.model, log).require_solved(result.model.name)
     floor = noise_floor(played.residual, played.runs, source=played.log.source)
     note = f"fitted to {log.source}: rms {from_si(played.rms(), 'bar'):.3f} bar"

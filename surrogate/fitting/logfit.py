@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -12,6 +13,8 @@ from ..leastsquares import Evaluation, FitProblem, FitResult, Minimizer, free_pa
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..parameters import Parameter
+from ..progress import Stage
+from ..units import from_si
 from .residuals import LogReplay, effective_samples, replay_log, run_rows
 
 
@@ -53,7 +56,7 @@ class LogProblem(FitProblem):
 
 def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = None, *,
                start: LogReplay | None = None, max_evaluations: int = 60,
-               tolerance: float = 1e-4) -> FitResult:
+               tolerance: float = 1e-4, progress=None) -> FitResult:
     """Least-squares fit of the free parameters (or ``names``) by replaying the whole log.
 
     ``start``: a replay of ``log`` near the model's, to warm-start from. A parameter of one run
@@ -64,11 +67,30 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
     prints, and the parameters to far less than their standard errors. A friction play's
     residual is not smooth in the parameters at finer scales (samples switch between sticking
     and sliding), so a tighter tolerance mostly buys rejected trust-region steps. Standard errors
-    are widened for the residuals' correlation in time.
+    are widened for the residuals' correlation in time. ``progress``: called with a line of
+    text every few seconds while the fit runs (its evaluations and RMS so far).
     """
     names = _felt(model, log, names, start)
-    return Minimizer(model, LogProblem(log, start), names).least_squares(
-        max_evaluations=max_evaluations, tolerance=tolerance)
+    say = None
+    if progress is not None:
+        # a fit's length is not known ahead (it stops when it settles): its evaluations and the
+        # best RMS so far, every few seconds, against the most it may take
+        clock = getattr(progress, "clock", time.perf_counter)
+        state = {"best": np.inf, "said": clock()}
+
+        def say(evaluations: int, rss: float) -> None:
+            state["best"] = min(state["best"], rss)
+            if clock() - state["said"] >= Stage.INTERVAL:
+                state["said"] = clock()
+                rms = from_si(np.sqrt(state["best"] / max(len(log), 1)), "bar")
+                progress(f"fitting {model.name}: {evaluations} evaluations (at most "
+                         f"{max_evaluations}), rms so far {rms:.3f} bar")
+    result = Minimizer(model, LogProblem(log, start), names).least_squares(
+        max_evaluations=max_evaluations, tolerance=tolerance, progress=say)
+    if progress is not None:
+        progress(f"fitted {model.name} in {result.evaluations} evaluations: rms "
+                 f"{from_si(result.rms, 'bar'):.3f} bar")
+    return result
 
 
 #: [Pa] a change of the predicted Δp smaller than this is not felt

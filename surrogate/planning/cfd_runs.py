@@ -260,9 +260,16 @@ def _rounded(values: pd.Series, step: float) -> pd.Series:
 def suggestion_figure(suggestion: Suggestion, model: ValveModel):
     """The log's operating points (opening over flow, shaded by the Δp standard deviation the
     maps imply) over the sampled openings, with the suggested runs numbered."""
+    return operating_points_figure(suggestion.played, model, suggestion.runs)
+
+
+def operating_points_figure(played, model: ValveModel, runs: pd.DataFrame | None = None):
+    """Where the bench operates: the openings and flows of a replay (``played``, with the maps'
+    Δp standard deviation) over the CFD's sampled openings, and the suggested CFD ``runs``
+    numbered, if any."""
     from matplotlib.figure import Figure
 
-    replay = suggestion.played.replay
+    replay = played.replay
     ok = replay.ok
     figure = Figure(figsize=(9.5, 5.2), layout="constrained")
     ax = figure.subplots()
@@ -276,20 +283,20 @@ def suggestion_figure(suggestion: Suggestion, model: ValveModel):
         for opening in openings:
             ax.axhline(opening, color="0.5", linewidth=0.8, linestyle="--")
         ax.plot([], [], color="0.5", linewidth=0.8, linestyle="--", label="sampled openings")
-    runs = suggestion.runs
-    ax.plot(runs["q_lpm"], runs["u_mm"], "*", color="tab:red", markersize=13,
-            markeredgecolor="black", label="suggested CFD runs")
-    for r in runs.itertuples(index=False):
-        ax.annotate(str(r.rank), (r.q_lpm, r.u_mm), textcoords="offset points", xytext=(7, 4),
-                    fontsize=9, color="tab:red", fontweight="bold")
+    if runs is not None:
+        ax.plot(runs["q_lpm"], runs["u_mm"], "*", color="tab:red", markersize=13,
+                markeredgecolor="black", label="suggested CFD runs")
+        for r in runs.itertuples(index=False):
+            ax.annotate(str(r.rank), (r.q_lpm, r.u_mm), textcoords="offset points",
+                        xytext=(7, 4), fontsize=9, color="tab:red", fontweight="bold")
     ax.set_yscale("log")
     if coverage is not None:  # the sampled openings as the ticks, in plain numbers
         ax.set_yticks(openings, [f"{opening:g}" for opening in openings])
         ax.minorticks_off()
     ax.set_xlabel("q [L/min]")
     ax.set_ylabel("piston opening u [mm]")
-    ax.set_title(f"Where the bench operates, and where to run CFD next ({model.flow_map.kind} "
-                 "maps)")
-    ax.legend(loc="lower right", fontsize=8)
+    ax.set_title(f"Where the bench operates ({model.flow_map.kind} maps)"
+                 + (", and where to run CFD next" if runs is not None else ""))
+    ax.legend(loc="lower right", fontsize=10)
     ax.grid(alpha=0.3, which="both")
     return figure

@@ -26,6 +26,7 @@ from ..units import from_si, label
 from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, all_figures, caption
 from .prose import next_steps, sensor_check_text, summarise
+from ..planning.cfd_runs import operating_points_figure
 from .staircase import staircase_figure, staircases_figure, step_label
 from .views import residual_views, run_loops
 
@@ -403,6 +404,14 @@ def staircase_section(workflow) -> str:
     ])
 
 
+def _sized(model, name: str) -> str:
+    """An effect of ``model`` with its fitted values: ``pilot_transducer_offset (delta =
+    4.8494 ± 0.076 bar)``; a per-run effect as its range (:func:`parameter_summary`)."""
+    if not model.has_effect(name):
+        return name
+    return f"{name} ({parameter_summary(model.effect(name).params.values(), 80)})"
+
+
 def _category_story(workflow) -> str:
     """The added effects grouped by category, in plain words."""
     found: dict[str, list[str]] = {}
@@ -416,10 +425,12 @@ def _category_story(workflow) -> str:
                      ": they patch where the maps are wrong (new CFD runs there would replace "
                      "them; see the diagnosis' map limits and <code>suggest-cfd</code>).")
     if found.get("sensor"):
-        lines.append(f"<b>Sensor errors</b>: {', '.join(found['sensor'])}: check the bench.")
+        sized = [_sized(workflow.final.model, name) for name in found["sensor"]]
+        lines.append(f"<b>Sensor errors</b>: {html.escape('; '.join(sized))}: check the bench.")
     for category, names in found.items():
         if " or " in category:  # look-alikes: one finding, explanations of different kinds
-            lines.append(f"<b>One finding, {html.escape(category)}</b>: {', '.join(names)} "
+            sized = "; ".join(_sized(workflow.final.model, name) for name in names)
+            lines.append(f"<b>One finding, {html.escape(category)}</b>: {html.escape(sized)} "
                          "stands for look-alikes this log cannot tell apart (see its step's "
                          "reason); check the cheaper explanation.")
     lines += _identifiability_lines(workflow)
@@ -471,6 +482,9 @@ def misfit_figures(workflow) -> dict[str, bytes]:
         pngs["residual_views"] = figure_png(views)
     if len(workflow.log.run_ids) <= LOOP_RUNS:
         pngs["run_loops"] = figure_png(run_loops(workflow.log, [models[0], models[-1]]))
+    if workflow.final.model.flow_map.coverage is not None:
+        pngs["operating_points"] = figure_png(operating_points_figure(workflow.final.played,
+                                                                      workflow.final.model))
     return pngs
 
 
@@ -498,6 +512,13 @@ def misfit_section(workflow, pngs: dict[str, bytes]) -> str:
         parts.append(_figure(pngs["run_loops"], "every run's loop",
                              "Every run's Δp(q), each on its own scale: measured ramps against "
                              "the first and the final model."))
+    if "operating_points" in pngs:
+        parts.append(_figure(pngs["operating_points"], "where the bench operates",
+                             "The log's openings and flows in the final model, shaded by the "
+                             "Δp standard deviation its maps imply, over the CFD's sampled "
+                             "openings (dashed): a misfit between them, where no CFD run lies, "
+                             "may be the maps'. suggest-cfd ranks the CFD runs that would "
+                             "settle it."))
     return "\n".join(parts)
 
 

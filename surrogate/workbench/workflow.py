@@ -204,7 +204,7 @@ class _Staircase:
         if model.parameters().free():
             self.say(f"fitting {model.name} ({len(model.parameters().free())} free "
                      "parameter(s))")
-            fitted = fit_to_log(model, self.log, start=near)
+            fitted = fit_to_log(model, self.log, start=near, progress=self.say)
             model = fitted.model
         played = replay_log(model, self.log, guess=near)
         # probed once: for the step's held-out check and the next diagnosis' linearisation

@@ -217,3 +217,13 @@ def test_what_to_do_next_follows_from_what_the_workflow_found(workflow):
                                                              for line in steps)
     html = next_steps_section(workflow)
     assert html.count("<li>") == len(steps) and "`" not in html
+
+
+def test_the_report_shows_where_the_bench_operates_over_the_cfds_openings(workflow):
+    """The misfit section draws the log's openings over the sampled ones (suggest-cfd's view,
+    without its runs) for maps built from CFD samples."""
+    from surrogate.reporting.report import misfit_figures, misfit_section
+
+    pngs = misfit_figures(workflow)
+    assert {"residual_views", "run_loops", "operating_points"} <= set(pngs)
+    assert misfit_section(workflow, pngs).count("<figure>") == 3
