@@ -31,7 +31,8 @@ def draw(workflow, run: str) -> Figure:
     model, each ramp in its own shade."""
     figure = Figure(figsize=(14, 5.6), layout="constrained")
     left, right = figure.subplots(1, 2, width_ratios=[1.35, 1])
-    plot_staircase(left, workflow.steps, workflow.noise_floor, fontsize=9, width=20)
+    plot_staircase(left, workflow.steps, workflow.noise_floor, fontsize=9, width=30,
+                   lines=2)
     left.set_title(f"From the paper's basic model to {from_si(workflow.final.rms, 'bar'):.2f} "
                    "bar: the error staircase on the shipped log", fontsize=11)
     frame = workflow.log.frame

@@ -42,7 +42,7 @@ def colour(category: str) -> str:
 
 
 def plot_staircase(axes, steps, noise_floor: float, *, fontsize: float = 9,
-                   width: int = 22) -> float:
+                   width: int = 22, lines: int = 4) -> float:
     """The RMS after each step on ``axes`` as bars coloured by category, each labelled with its
     value, the held-out RMS as a diamond on it, and the noise floor and 1.3 times it [Pa in,
     bar shown]. A linear axis: the last steps' tenths of a bar are written on their bars, where
@@ -61,7 +61,7 @@ def plot_staircase(axes, steps, noise_floor: float, *, fontsize: float = 9,
     axes.axhline(floor, color="black", linestyle="--", linewidth=1,
                  label=f"noise floor {floor:.2f} bar")
     axes.axhline(1.3 * floor, color="black", linestyle=":", linewidth=1, label="1.3 × floor")
-    axes.set_xticks(positions, [f"{i + 1}. {step_label(step, width)}"
+    axes.set_xticks(positions, [f"{i + 1}. {step_label(step, width, lines)}"
                                 for i, step in enumerate(steps)],
                     rotation=45, ha="right", rotation_mode="anchor", fontsize=fontsize)
     axes.set_ylabel("residual RMS [bar]", fontsize=fontsize + 1)
