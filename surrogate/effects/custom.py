@@ -58,7 +58,8 @@ _HOOKS = {"sensor": "correct_inputs", "flow": "restriction_flow", "leakage": "le
 def custom_effect(kind: str, *, units: dict[str, str] | None = None,
                   bounds: dict[str, tuple[float, float]] | None = None,
                   title: str | None = None, validity: str = "user-defined",
-                  category: str | None = None):
+                  category: str | None = None,
+                  penalties: dict[str, float] | None = None):
     """Decorator: turn a function into an :class:`Effect` class (named after the function).
 
     Parameters
@@ -77,6 +78,11 @@ def custom_effect(kind: str, *, units: dict[str, str] | None = None,
         One of ``"physics"``, ``"map correction"``, ``"sensor"`` (:data:`.base.CATEGORIES`):
         what the effect says if a diagnosis picks it. Default ``"sensor"`` for a sensor effect,
         ``"physics"`` otherwise.
+    penalties : dict, optional
+        Parameter name -> w [bar per unit of the parameter], >= 0: every fit of n residuals adds
+        n·(w·value)² to its sum of squares, a pull towards 0 that weighs the same whatever the
+        log's length. A handed-over shape (:mod:`.handover`) carries the roughness it was
+        fitted under this way, so that a fit of its ``scale`` is as cautious as the diagnosis.
     """
     if kind not in KINDS:
         raise InputError(f"custom effect kind {kind!r} is not one of {', '.join(KINDS)}")
@@ -84,16 +90,23 @@ def custom_effect(kind: str, *, units: dict[str, str] | None = None,
     if category not in CATEGORIES:
         raise InputError(f"custom effect category {category!r} is not one of "
                          f"{', '.join(CATEGORIES)}")
-    units, bounds = dict(units or {}), dict(bounds or {})
+    units, bounds, penalties = dict(units or {}), dict(bounds or {}), dict(penalties or {})
+    for key, weight in penalties.items():
+        if isinstance(weight, bool) or not isinstance(weight, (int, float)) \
+                or not np.isfinite(weight) or weight < 0:
+            raise InputError(f"custom effect penalty of {key!r} is {weight!r}; expected a "
+                             "finite number >= 0 [bar per unit of the parameter]")
 
     def make(function) -> type[Effect]:
-        return effect_from_function(function, kind, units, bounds, title, validity, category)
+        return effect_from_function(function, kind, units, bounds, title, validity, category,
+                                    penalties)
 
     return make
 
 
 def effect_from_function(function, kind: str, units: dict, bounds: dict, title: str | None,
-                         validity: str, category: str = "physics") -> type[Effect]:
+                         validity: str, category: str = "physics",
+                         penalties: dict | None = None) -> type[Effect]:
     """The :class:`Effect` subclass behind :func:`custom_effect`."""
     name = function.__name__
     where = f"custom effect {name!r}"
@@ -120,10 +133,14 @@ def effect_from_function(function, kind: str, units: dict, bounds: dict, title: 
             raise InputError(f"{where}: default of {argument.name!r} lies outside its bounds")
         specs.append(Parameter(argument.name, default, unit, min=low, max=high,
                                description=f"parameter of {name}"))
-    unknown = (set(units) | set(bounds)) - {spec.name for spec in specs}
+    penalties = dict(penalties or {})
+    unknown = (set(units) | set(bounds) | set(penalties)) - {spec.name for spec in specs}
     if unknown:
-        raise InputError(f"{where}: units or bounds for unknown parameter(s) "
+        raise InputError(f"{where}: units, bounds or penalties for unknown parameter(s) "
                          f"{', '.join(sorted(unknown))}")
+    # w [bar per display unit] as a row of L [Pa per SI unit] at one residual
+    pulls = np.array([to_si(penalties.get(spec.name, 0.0), "bar")
+                      / (to_si(1.0, spec.unit) - to_si(0.0, spec.unit)) for spec in specs])
     doc = inspect.getdoc(function) or ""
     names = [spec.name for spec in specs]
     hook = _HOOKS[kind]
@@ -139,11 +156,16 @@ def effect_from_function(function, kind: str, units: dict, bounds: dict, title: 
                              f"{_shown(values, specs)})") from None
         return checked_result(name, kind, result, positional, values, specs)
 
+    def penalty(self, samples: int) -> np.ndarray | None:
+        if not pulls.any():
+            return None
+        return np.diag(np.sqrt(samples) * pulls)[pulls > 0]
+
     attributes = {
         "name": name, "kind": kind, "category": category, "title": title or (doc.splitlines()[0] if doc else name),
         "parameter_specs": tuple(specs), "validity": validity, "__doc__": doc or name,
         "__module__": function.__module__, hook: call, "custom": True, "function": function,
-        "source": function.__module__,
+        "source": function.__module__, "penalty": penalty,
     }
     return type(f"Custom_{name}", (Effect,), attributes)
 

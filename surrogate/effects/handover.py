@@ -3,7 +3,7 @@
 A shape a diagnosis found (:mod:`.shapes`) is a hypothesis, not a finding with a name. The user
 needs it in a form they can own: a ``@custom_effect`` file (:mod:`.custom`) holding the fitted
 shape as a table in display units and one parameter, ``scale``, that a fit sets (about 1 when the
-shape is right). Added with ``--effects-file FILE --add NAME`` to ``fit`` or ``workflow``, it
+shape is right), under the roughness penalty the shape was fitted with (:func:`roughness_pull`). Added with ``--effects-file FILE --add NAME`` to ``fit`` or ``workflow``, it
 reproduces the shape-free term's gain with a single parameter; the user can then replace the
 table by a formula of their own (a spring with a kink, a detent) and watch the error.
 """
@@ -59,6 +59,7 @@ def effect_source(effect: ShapeFreeEffect, *, name: str | None = None, origin: s
     shape = (f"scale * np.interp({variable.source} / {x_factor!r}, X, VALUES) "
              f"* {value_factor!r}")
     bounds = (0.0, 3.0)
+    pull = roughness_pull(effect)
     title = effect.title.replace(", of free shape", ", as found")
     doc = [f"{title[0].upper()}{title[1:]}."]
     if origin:
@@ -69,6 +70,12 @@ def effect_source(effect: ShapeFreeEffect, *, name: str | None = None, origin: s
                f"{effect.quantity} [{value_unit}], linear between rows and held beyond them. "
                "scale = 1 reproduces it; a fit of scale says how much of it the data want. "
                "Replace the table by a formula of your own to test a physical explanation.")
+    if pull > 0:
+        doc.append("ROUGHNESS is the roughness penalty the shape was fitted under, carried "
+                   "along scale: it pulls scale towards 0 as the diagnosis's fit pulled the "
+                   "shape towards a straight line, so that a refit without some runs is as "
+                   "cautious as the diagnosis's held-out check was. Set it to 0 to let the "
+                   "data alone set scale.")
     docstring = "\n\n".join(textwrap.fill(paragraph, 95, initial_indent="    ",
                                           subsequent_indent="    ") for paragraph in doc)
     return f'''"""{textwrap.fill(doc[0], 95)}
@@ -88,16 +95,31 @@ from surrogate.effects import custom_effect
 X = np.array({_numbers(x)})
 #: the {effect.quantity} there [{value_unit}]
 VALUES = np.array({_numbers(values)})
+#: a fit adds n·(ROUGHNESS·scale)² to its sum of squares over n residuals [bar]
+ROUGHNESS = {pull:.6g}
 
 
 @custom_effect({effect.kind!r}, units={{"scale": "1"}}, bounds={{"scale": {bounds!r}}},
-               category={effect.category!r},
+               penalties={{"scale": ROUGHNESS}}, category={effect.category!r},
                title={title!r})
 def {name}({_SIGNATURES[effect.kind]}, scale=0.0):
     """{docstring.strip()}
     """
     return {effect.formula.format(shape=f"({shape})")}
 '''
+
+
+def roughness_pull(effect: ShapeFreeEffect) -> float:
+    """w [bar]: the shape's roughness penalty at its fitted coefficients c, per residual,
+    ‖L·c‖ with L = ``effect.penalty(1)``, so that the penalty on ``scale``·c is n·(w·scale)²
+    over n residuals (0 for a shape fitted without one)."""
+    matrix = effect.penalty(1)
+    if matrix is None:
+        return 0.0
+    values = np.array([parameter.value for parameter in effect.params.values()])
+    names = set(effect.coefficient_names())
+    along = np.array([name in names for name in effect.params], float)
+    return float(np.linalg.norm(matrix @ (values * along))) / float(to_si(1.0, "bar"))
 
 
 def write_effect_file(effect: ShapeFreeEffect, path: str | Path, **options) -> Path:
@@ -133,4 +155,4 @@ def _numbers(values: np.ndarray) -> str:
     return "[" + ",\n    ".join(lines) + "]"
 
 
-__all__ = ["effect_name", "effect_source", "hand_over", "write_effect_file"]
+__all__ = ["effect_name", "effect_source", "hand_over", "roughness_pull", "write_effect_file"]

@@ -121,3 +121,28 @@ def test_a_custom_effect_is_not_blamed_for_a_state_the_solver_has_no_value_for()
     with pytest.raises(InputError, match="1 non-finite value.*from finite inputs"), \
             np.errstate(invalid="ignore"):
         broken().leakage(np.array([100e5, np.nan, 20e5]), state)
+
+
+def test_a_custom_effects_penalty_pulls_its_parameter_towards_zero_in_every_fit():
+    """``penalties={"k": w}`` [bar per unit]: every fit over n residuals adds n·(w·k)², with k in
+    its display unit; a parameter without one has no row; a negative weight or an unknown
+    parameter is refused by name."""
+    from surrogate.effects import custom_effect
+    from surrogate.errors import InputError
+
+    @custom_effect("friction", units={"k": "N", "m": "N/bar"}, penalties={"k": 0.5})
+    def pulled(state, k=1.0, m=0.0):
+        return k + m * state.p_L
+
+    rows = pulled().penalty(100)
+    assert rows.shape == (1, 2)
+    k_display = 3.0
+    assert np.linalg.norm(rows @ [k_display, 0.0]) ** 2 == pytest.approx(100 * (0.5e5 * 3.0) ** 2)
+    assert np.all(rows[:, 1] == 0.0)
+    model = ValveModel(load_valve(), None, None, [pulled()])
+    assert model.penalty(["pulled.k"], 100)[0].shape == (1, 1)
+
+    with pytest.raises(InputError, match="penalty of 'k' is -1.0"):
+        custom_effect("friction", penalties={"k": -1.0})
+    with pytest.raises(InputError, match="unknown parameter.*nope"):
+        custom_effect("friction", penalties={"nope": 1.0})(lambda state, k=1.0: k)

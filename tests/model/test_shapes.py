@@ -129,6 +129,9 @@ def test_a_shape_handed_over_as_an_effects_file_reproduces_it(cls, tmp_path):
     effect = cls.on_knots(cls.knots_for(x))
     for index, name in enumerate(effect.coefficient_names()):
         effect.params[name].value = effect.params[name].max * 0.1 * (1 + index % 3)
+    assert write_effect_file(effect, tmp_path / "rough.py").read_text().count(
+        "ROUGHNESS = 0\n") == 1  # fitted without a roughness penalty: none comes along
+    effect.params["smoothing"].set_display(0.3)
     path = write_effect_file(effect, tmp_path / "found.py", origin="a log")
     (found,) = load_effects_file(path).values()
     check_effect(found)
@@ -137,6 +140,13 @@ def test_a_shape_handed_over_as_an_effects_file_reproduces_it(cls, tmp_path):
     states = _effect_states(0, 40, load_valve())
     assert np.allclose(_call(handed, states), _call(effect, states), rtol=2e-3,
                        atol=2e-3 * np.max(np.abs(_call(effect, states))))
+    # the roughness the shape was fitted under comes along: at scale = s the file's penalty is
+    # the shape's own penalty on s·c, so a refit of scale is as cautious as one of the shape
+    coefficients = np.array([effect.params[name].value if name in effect.coefficient_names()
+                             else 0.0 for name in effect.params])
+    for scale in (1.0, 0.4):
+        own = np.linalg.norm(effect.penalty(500) @ (scale * coefficients))
+        assert np.linalg.norm(handed.penalty(500) @ [scale]) == pytest.approx(own, rel=1e-5)
 
 
 @pytest.mark.parametrize("smoothing, rough", [(0.0, True), (2.0, False)])
