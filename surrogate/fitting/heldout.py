@@ -45,7 +45,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from ..data.loaders import BenchLog
 from ..model import ValveModel
@@ -108,21 +107,6 @@ def held_at_bounds(jacobian: np.ndarray, parameters: list) -> np.ndarray:
     have. Held where the fit left them, such parameters take no part in those refits."""
     pinned = np.array([parameter.at_bound for parameter in parameters], bool)
     return np.where(pinned, 0.0, jacobian) if pinned.any() else jacobian
-
-
-def bounded_quadratic_minimum(gram: np.ndarray, cross: np.ndarray,
-                              bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """argmin of θᵀ·G·θ + 2·cᵀ·θ with lower ≤ θ ≤ upper, G symmetric positive (semi)definite.
-
-    Written as the least-squares problem ‖A·θ − b‖² with AᵀA = G and Aᵀb = −c (A from G's
-    eigen-decomposition) and solved by :func:`scipy.optimize.lsq_linear`, which honours the
-    bounds exactly."""
-    eigenvalues, vectors = np.linalg.eigh(gram)
-    floor = 1e-14 * max(float(eigenvalues.max()), 1e-300)
-    roots = np.sqrt(np.maximum(eigenvalues, floor))
-    matrix = roots[:, None] * vectors.T
-    target = -(vectors.T @ cross) / roots
-    return lsq_linear(matrix, target, bounds=bounds, method="bvls").x
 
 
 @dataclass
@@ -203,19 +187,14 @@ class RunBlocks:
             matrix, offset = roughness
             self.rough = (matrix.T @ matrix, matrix.T @ offset)
 
-    def step(self, weights: np.ndarray,
-             bounds: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-        """The linear refit's parameter step θ with each run weighted by ``weights``; within
-        ``bounds`` (lower, upper θ), if given, by a bounded least-squares solve."""
+    def step(self, weights: np.ndarray) -> np.ndarray:
+        """The linear refit's parameter step θ with each run weighted by ``weights``."""
         p = self.p
         gram = np.tensordot(weights, self.gram[:, :p, :p], axes=1) + self.ridge
         cross = np.tensordot(weights, self.cross[:, :p], axes=1)
         if self.rough is not None:
             gram, cross = gram + self.rough[0], cross + self.rough[1]
-        theta = -np.linalg.solve(gram, cross)
-        if bounds is None or np.all((theta >= bounds[0]) & (theta <= bounds[1])):
-            return theta
-        return bounded_quadratic_minimum(gram, cross, bounds)
+        return -np.linalg.solve(gram, cross)
 
     def objective(self, weights: np.ndarray) -> float:
         """min over θ and a of the weighted sum of squares of r + J·θ + N·a plus s²·‖a‖² [Pa²]
@@ -270,16 +249,11 @@ class RunBlocks:
         return float(self.squares[run] + 2.0 * self.cross[run, :p] @ theta
                      + theta @ self.gram[run, :p, :p] @ theta)
 
-    def shifts(self, groups: dict[str, list[str]],
-               bounds: tuple[np.ndarray, np.ndarray] | None = None
-               ) -> dict[str, tuple[list[int], np.ndarray]]:
+    def shifts(self, groups: dict[str, list[str]]) -> dict[str, tuple[list[int], np.ndarray]]:
         """For each group of runs that can be left out (some runs remain): the indices of its
-        runs in :attr:`labels` and δ_g, the parameters' step when the fit leaves it out, kept
-        within ``bounds`` (lowest and highest δ_g), if given."""
+        runs in :attr:`labels` and δ_g, the parameters' step when the fit leaves it out."""
         index = {run: i for i, run in enumerate(self.labels)}
         whole = self.step(np.ones(len(self.labels)))
-        if bounds is not None:
-            bounds = (whole + bounds[0], whole + bounds[1])
         result = {}
         for label, runs in groups.items():
             held = [index[run] for run in runs if run in index]
@@ -287,7 +261,7 @@ class RunBlocks:
                 continue
             weights = np.ones(len(self.labels))
             weights[held] = 0.0
-            result[label] = (held, self.step(weights, bounds) - whole)
+            result[label] = (held, self.step(weights) - whole)
         return result
 
     def heldout_rms(self, schemes: dict[str, dict[str, list[str]]]) -> dict[str, float]:
@@ -355,15 +329,6 @@ def replayed_heldout_rms(model: ValveModel, keys: list[str], played: LogReplay,
         steps = np.r_[steps, np.ones(len(prior.keys))]
         values = np.r_[values, [parameters[key].value for key in prior.keys]]
     blocks = RunBlocks(fit, None, played.runs[ok], 0.0)
-    # the refits keep every parameter within its bounds: clipping each one after an unbounded
-    # solve would break the trade between correlated ones (a laminar leak refitted below zero
-    # and clipped to it, while a leak of free shape grew to make up for the negative part,
-    # predicted a hot run 0.7 bar worse than the bounded refit: off-library case 4257)
-    lowest = np.array([parameters[key].min if key in parameters else -np.inf for key in keys])
-    highest = np.array([parameters[key].max if key in parameters else np.inf for key in keys])
-    scale = np.where(steps > 0, steps, 1.0)
-    bounds = ((np.where(steps > 0, lowest - values, -np.inf)) / scale,
-              (np.where(steps > 0, highest - values, np.inf)) / scale)
 
     def predict(entry) -> np.ndarray:
         held, shift = entry
@@ -380,7 +345,7 @@ def replayed_heldout_rms(model: ValveModel, keys: list[str], played: LogReplay,
         return np.where(np.isfinite(again.residual), again.residual, played.residual[rows])
 
     residuals = [r[np.isfinite(r)]
-                 for r in map_threads(predict, list(blocks.shifts(groups, bounds).values()))]
+                 for r in map_threads(predict, list(blocks.shifts(groups).values()))]
     count = sum(len(r) for r in residuals)
     return float(np.sqrt(sum(float(r @ r) for r in residuals) / count)) if count else float("nan")
 

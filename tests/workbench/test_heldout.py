@@ -142,29 +142,3 @@ def test_each_group_left_out_has_the_refit_that_its_held_out_rms_is_made_of():
     explicit = np.linalg.lstsq(jacobian[keep], -residual[keep], rcond=None)[0]
     whole = np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
     assert held == [0] and np.allclose(shift, explicit - whole, atol=1e-6)
-
-
-def test_a_bounded_refit_keeps_the_trade_between_correlated_parameters():
-    """Two nearly collinear columns, one of them near its lower bound: the bounded refit is the
-    constrained least-squares solution (the other parameter makes up for the one held at its
-    bound), where clipping the unbounded solution leaves the other one far off."""
-    rng = np.random.default_rng(7)
-    runs = np.repeat(["R1", "R2", "R3", "R4"], 40)
-    base = rng.normal(size=160)
-    jacobian = np.column_stack([base, base + 0.05 * rng.normal(size=160)])
-    # the data want θ = (-2, +2.5): the first parameter may move down by 0.5 at most
-    residual = -(jacobian @ [-2.0, 2.5]) + rng.normal(0.0, 0.01, 160)
-    blocks = RunBlocks(Linearised(residual, jacobian), None, runs, 0.0)
-    lower, upper = np.array([-0.5, -np.inf]), np.array([np.inf, np.inf])
-    step = blocks.step(np.ones(4), (lower, upper))
-    assert step[0] == pytest.approx(-0.5, abs=1e-9)
-    from scipy.optimize import lsq_linear
-    explicit = lsq_linear(jacobian, -residual, bounds=(lower, upper)).x
-    assert np.allclose(step, explicit, atol=1e-6)
-    clipped = np.clip(blocks.step(np.ones(4)), lower, upper)
-    assert np.sum((residual + jacobian @ step) ** 2) \
-        < 0.1 * np.sum((residual + jacobian @ clipped) ** 2)
-    # within the bounds, the bounded refit is the plain one
-    assert np.allclose(blocks.step(np.ones(4), (lower - 10, upper)), blocks.step(np.ones(4)))
-    shifts = blocks.shifts({"R1": ["R1"]}, (lower - blocks.step(np.ones(4)), upper))
-    assert shifts["R1"][1][0] + blocks.step(np.ones(4))[0] >= lower[0] - 1e-9
