@@ -301,13 +301,18 @@ class Peer:
     candidates: tuple[dict, ...]
     requires: tuple[str, ...] = field(default=())
 
+    @property
+    def key(self) -> str:
+        """The name on the command line: lower case, words joined by hyphens."""
+        return "-".join("".join(c if c.isalnum() else " " for c in self.name).lower().split())
+
     def missing(self) -> list[str]:
         """The modules it needs that are not installed."""
         return [module for module in self.requires if importlib.util.find_spec(module) is None]
 
 
 GP_KERNELS = ({"kernel": "Matern 5/2"}, {"kernel": "Matern 3/2"}, {"kernel": "RBF"})
-PEERS = {peer.name: peer for peer in (
+PEERS = {peer.key: peer for peer in (
     Peer("sklearn GP, raw", "scikit-learn GP on (ln u, ln q or ln Δp, ln ν, p_B)", "raw",
          build_sklearn_gp, GP_KERNELS),
     Peer("sklearn GP", "scikit-learn GP on the project's features", "dimensionless",
@@ -560,8 +565,8 @@ def main() -> int:
     project = {kind: cross_validation_summary(map_kind(kind).source(), valve) for kind in KINDS}
     project_folds = {kind: per_fold(project_errors(kind, valve)) for kind in KINDS}
     peers, skipped = {}, {}
-    for name in args.peers or list(PEERS):
-        peer = PEERS[name]
+    for key in args.peers or list(PEERS):
+        peer, name = PEERS[key], PEERS[key].name
         if missing := peer.missing():
             skipped[name] = (f"not installed: {', '.join(missing)} (the optional extra `peers`: "
                              "pip install -e \".[peers]\" -c constraints.txt)")
