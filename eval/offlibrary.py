@@ -77,7 +77,7 @@ def handed_over(workflow) -> dict[str, float]:
             effect = load_effects_file(path)["found_shape"]()
         fitted = fit_to_log(before.model.with_effects([*before.model.effects, effect]),
                             workflow.log, start=before.played)
-        played = replay_log(fitted.model, workflow.log, guess=before.played)
+        played = replay_log(fitted.model, workflow.log, guess=fitted.evaluation.payload)
         gain = before.heldout_check - step.heldout_check
         kept[name] = float((before.heldout_check - heldout_rms(fitted, played, schemes))
                            / gain) if gain > 0 else float("nan")
