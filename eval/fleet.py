@@ -1,0 +1,236 @@
+"""A virtual fleet through the `fleet` command: parameters recovered, faults flagged, throughput.
+
+The fleet (:mod:`surrogate.synthetic.fleet`): ``--valves`` virtual valves of one design, each with
+its own draws of Coulomb friction K1 and K2, spring preload F_cr, spring rate K_f and flow-force
+scale, all on the design's CFD-size map mismatch (one draw for the whole fleet: the CFD errs for
+the design), each bench run with its own sensor noise, on the shipped test sequence subsampled
+(``--every``). About 5 % of the valves carry a fault the others lack: a seal friction growing with
+|p_L − p_P| or a laminar leakage, 0.6 to 1.5 times its realistic size.
+
+The model fitted to every valve is CFDA (flow-force scale, K1, K2) with a spring-preload offset
+and a laminar leakage: each valve's friction, preload and leakage, as a valve maker asks. It is
+run as a user runs it: ``python -m surrogate fleet`` in its own process, fit-only and (with
+``--diagnose``) diagnosed.
+
+Reported:
+
+* recovered against drawn parameters, K1 and preload (F_cr + the fitted offset): Pearson
+  correlation and bias (mean recovered − drawn), over the valves without a fault;
+* faults flagged (share of the faulty valves) and false flags (share of the others): flagged is
+  an outlier of the fit-only fleet, or, with ``--diagnose``, also a significant finding of the
+  fault's kind (friction, leakage) by the valve's diagnosis;
+* throughput of the fit-only fleet on ``--throughput-valves`` of the valves, in valves per
+  minute: local pool with 1 and with 2 workers, and a ``distributed.LocalCluster`` of 2 worker
+  processes of 1 thread, as ratios to the 1-worker pool, from the same run. Each is timed from
+  the command's start to its end (worker start-up included; the cluster itself is started
+  before, as a user's cluster is).
+
+Targets (issue 30): K1 and preload correlation >= 0.9; >= 90 % of the faults flagged with <= 2 %
+false flags; >= 1.7x from 1 to 2 workers.
+
+Writes OUT/logs/ (the virtual logs), OUT/fit/ and OUT/diagnose/ (the command's outputs),
+OUT/throughput/ and OUT/fleet_eval.json. Run:
+``python eval/fleet.py [--valves 200] [--every 8] [--diagnose] [--throughput-valves 24]``
+(200 valves: about 6 minutes fit-only, 20 with --diagnose, on 2 cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from surrogate.data import load_bench_log, load_cfd_samples
+from surrogate.data.writer import write_bench_log
+from surrogate.effects import LIBRARY
+from surrogate.paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.presets import preset
+from surrogate.spec import EffectSpec
+from surrogate.synthetic.fleet import draw_fleet, virtual_log
+from surrogate.synthetic.simulate import noise_free_sequence, reference_spec
+
+#: the model every valve is fitted with: CFDA, a spring-preload offset and a laminar leakage
+MODEL_EFFECTS = ("spring_preload_offset", "laminar_leakage")
+#: the kind of finding that flags each fault
+FAULT_KINDS = {"friction_seal_pressure": "friction", "laminar_leakage": "leakage"}
+
+
+def write_fleet(out: Path, valves: int, every: int, seed: int) -> tuple[list, Path]:
+    """The virtual logs in OUT/logs (made anew) and the model file; returns the valves and the
+    model file's path."""
+    logs = out / "logs"
+    shutil.rmtree(logs, ignore_errors=True)
+    logs.mkdir(parents=True)
+    sequence = noise_free_sequence(load_bench_log(SHIPPED_BENCH_LOG), every=every)
+    samples = load_cfd_samples(SHIPPED_CFD_SAMPLES)
+    fleet = draw_fleet(valves, seed=seed)
+    began = time.perf_counter()
+    for valve in fleet:
+        write_bench_log(virtual_log(valve, sequence, samples, mismatch_seed=seed),
+                        logs / f"{valve.serial}.csv")
+    print(f"{valves} virtual logs of {len(sequence)} samples written in "
+          f"{time.perf_counter() - began:.0f} s; faults: "
+          + ", ".join(f"{v.serial} {v.fault}" for v in fleet if v.fault), flush=True)
+    # the preset's start values, not the reference valve's: the fit must find each valve's own
+    model = preset("cfda").adding(*(EffectSpec.start(LIBRARY.effect(name))
+                                    for name in MODEL_EFFECTS), name="fleet model")
+    path = out / "fleet_model.toml"
+    model.write(path, "the model eval/fleet.py fits to every virtual valve")
+    return fleet, path
+
+
+def run_fleet(logs: Path | str, model: Path, out: Path, *extra: str) -> tuple[float, dict]:
+    """``python -m surrogate fleet`` in its own process, into a fresh ``out``; (wall time [s],
+    its JSON)."""
+    shutil.rmtree(out, ignore_errors=True)
+    command = [sys.executable, "-m", "surrogate", "fleet", "--data", str(logs), "--model",
+               str(model), "--out", str(out), "--json", *extra]
+    began = time.perf_counter()
+    done = subprocess.run(command, check=False, capture_output=True, text=True,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    seconds = time.perf_counter() - began
+    if done.returncode not in (0, 3):
+        raise SystemExit(f"{' '.join(command)} failed ({done.returncode}):\n{done.stderr[-3000:]}")
+    return seconds, json.loads(done.stdout)
+
+
+def recovery(fleet, table: pd.DataFrame, preload_model: float) -> dict:
+    """Correlation and bias of the recovered K1 and preload against the drawn ones, over the
+    valves without a fault."""
+    drawn = pd.DataFrame([{"serial": v.serial, "K1": v.K1, "preload": v.preload,
+                           "fault": v.fault} for v in fleet])
+    merged = drawn.merge(table, on="serial")
+    healthy = merged[merged["fault"].isna()]
+    recovered = {"K1": healthy["friction_constant.K1 [N]"],
+                 "preload": preload_model + healthy["spring_preload_offset.delta_F [N]"]}
+    result = {}
+    for name, values in recovered.items():
+        truth = healthy[name]
+        result[name] = {"correlation": round(float(np.corrcoef(truth, values)[0, 1]), 4),
+                        "bias": round(float(np.mean(values - truth)), 4),
+                        "rms_error": round(float(np.sqrt(np.mean((values - truth) ** 2))), 4),
+                        "drawn_spread": round(float(np.std(truth)), 4), "valves": len(truth)}
+    return result
+
+
+def flags(fleet, outliers: set[str], table: pd.DataFrame | None) -> dict:
+    """Shares of the faulty valves flagged and of the others falsely flagged: an outlier, or a
+    finding of the fault's kind (with a diagnosis table)."""
+    findings = {}
+    if table is not None and "finding" in table:
+        findings = {row.serial: row._asdict().get("finding_kind")
+                    for row in table.rename(columns={"finding kind": "finding_kind"})
+                    .itertuples() if isinstance(row.finding, str)}
+
+    def flagged(valve) -> bool:
+        if valve.serial in outliers:
+            return True
+        kinds = {FAULT_KINDS[valve.fault]} if valve.fault else set(FAULT_KINDS.values())
+        return findings.get(valve.serial) in kinds
+
+    faulty = [v for v in fleet if v.fault]
+    healthy = [v for v in fleet if not v.fault]
+    return {"faults": len(faulty), "faults_flagged": sum(map(flagged, faulty)),
+            "faults_flagged_share": round(sum(map(flagged, faulty)) / max(len(faulty), 1), 4),
+            "false_flags": sum(map(flagged, healthy)),
+            "false_flag_share": round(sum(map(flagged, healthy)) / max(len(healthy), 1), 4),
+            "missed": [f"{v.serial} {v.fault} {v.fault_values}" for v in faulty
+                       if not flagged(v)],
+            "false": [v.serial for v in healthy if flagged(v)]}
+
+
+def throughput(logs: Path, model: Path, out: Path, count: int) -> dict:
+    """Valves per minute of the fit-only fleet on the first ``count`` logs: local pool with 1
+    and 2 workers, and a LocalCluster of 2 single-threaded worker processes."""
+    subset = out / "subset"
+    shutil.rmtree(subset, ignore_errors=True)
+    subset.mkdir(parents=True)
+    for path in sorted(logs.glob("*.csv"))[:count]:
+        shutil.copyfile(path, subset / path.name)
+    seconds = {}
+    for workers in (1, 2):
+        seconds[f"local_{workers}"], _ = run_fleet(subset, model, out / f"local_{workers}",
+                                                   "--workers", str(workers), "--quiet")
+        print(f"  {count} valves on {workers} local worker(s): "
+              f"{seconds[f'local_{workers}']:.1f} s", flush=True)
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        seconds["cluster_2"], _ = run_fleet(subset, model, out / "cluster_2", "--scheduler",
+                                            cluster.scheduler_address, "--quiet")
+    print(f"  {count} valves on a LocalCluster of 2 workers: {seconds['cluster_2']:.1f} s",
+          flush=True)
+    rates = {name: 60.0 * count / value for name, value in seconds.items()}
+    return {"valves": count, "seconds": {k: round(v, 1) for k, v in seconds.items()},
+            "valves_per_minute": {k: round(v, 2) for k, v in rates.items()},
+            "ratio_2_to_1_workers": round(rates["local_2"] / rates["local_1"], 3),
+            "ratio_cluster_to_1_worker": round(rates["cluster_2"] / rates["local_1"], 3),
+            "ratio_cluster_to_2_workers": round(rates["cluster_2"] / rates["local_2"], 3)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--valves", type=int, default=200)
+    parser.add_argument("--every", type=int, default=8, help="keep every n-th sample")
+    parser.add_argument("--seed", type=int, default=2030, help="the fleet's draws")
+    parser.add_argument("--diagnose", action="store_true", help="run the diagnosed fleet too")
+    parser.add_argument("--throughput-valves", type=int, default=24,
+                        help="valves timed three ways (0: skip)")
+    parser.add_argument("--workers", type=int, default=2, help="for the main runs")
+    parser.add_argument("--out", default="results/fleet")
+    args = parser.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    fleet, model = write_fleet(out, args.valves, args.every, args.seed)
+    preload_model = reference_spec().valve.parameters.F_cr
+    seconds, fitted = run_fleet(out / "logs", model, out / "fit", "--workers",
+                                str(args.workers), "--quiet")
+    table = pd.read_csv(out / "fit" / "valves.csv")
+    outliers = {o["serial"] for o in fitted["outliers"]}
+    summary = {"valves": args.valves, "every": args.every, "seed": args.seed,
+               "samples_per_log": int(table["samples"].median()),
+               "fit_seconds": round(seconds, 1), "failed": fitted["failed"],
+               "recovery": recovery(fleet, table, preload_model),
+               "flags_fit_only": flags(fleet, outliers, None),
+               "outliers": fitted["outliers"]}
+    print(f"fit-only fleet of {args.valves} valves on {args.workers} workers: {seconds:.0f} s; "
+          + "; ".join(f"{name}: correlation {r['correlation']:.3f}, bias {r['bias']:+.3f} "
+                      f"(drawn spread {r['drawn_spread']:.2f})"
+                      for name, r in summary["recovery"].items()), flush=True)
+    result = summary["flags_fit_only"]
+    print(f"  fit-only: {result['faults_flagged']} of {result['faults']} faults flagged "
+          f"({result['faults_flagged_share']:.0%}), {result['false_flags']} false flags "
+          f"({result['false_flag_share']:.1%}); missed {result['missed']}", flush=True)
+    if args.diagnose:
+        seconds, diagnosed = run_fleet(out / "logs", model, out / "diagnose", "--diagnose",
+                                       "--workers", str(args.workers), "--quiet")
+        diagnosed_table = pd.read_csv(out / "diagnose" / "valves.csv")
+        summary["diagnose_seconds"] = round(seconds, 1)
+        summary["flags_diagnosed"] = result = flags(
+            fleet, {o["serial"] for o in diagnosed["outliers"]}, diagnosed_table)
+        summary["findings"] = diagnosed["population"].get("findings", {})
+        print(f"  with --diagnose ({seconds:.0f} s): {result['faults_flagged']} of "
+              f"{result['faults']} faults flagged ({result['faults_flagged_share']:.0%}), "
+              f"{result['false_flags']} false flags ({result['false_flag_share']:.1%}); "
+              f"findings {summary['findings']}; missed {result['missed']}", flush=True)
+    if args.throughput_valves:
+        summary["throughput"] = rates = throughput(out / "logs", model, out / "throughput",
+                                                   args.throughput_valves)
+        print(f"throughput, fit-only, {rates['valves']} valves: "
+              f"{rates['valves_per_minute']} valves/min; 2 workers / 1: "
+              f"{rates['ratio_2_to_1_workers']:.2f}x, LocalCluster(2) / 1 worker: "
+              f"{rates['ratio_cluster_to_1_worker']:.2f}x", flush=True)
+    (out / "fleet_eval.json").write_text(json.dumps(summary, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
