@@ -39,6 +39,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -147,6 +148,19 @@ def flags(fleet, outliers: set[str], table: pd.DataFrame | None) -> dict:
             "false": [v.serial for v in healthy if flagged(v)]}
 
 
+def _children_cpu() -> float:
+    """CPU seconds [s] of this process's finished children and their own children."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _say_throughput(rates: dict) -> None:
+    print(f"throughput, fit-only, {rates['valves']} valves: {rates['valves_per_minute']} "
+          f"valves/min; 2 workers / 1: {rates['ratio_2_to_1_workers']:.2f}x, LocalCluster(2) / "
+          f"1 worker: {rates['ratio_cluster_to_1_worker']:.2f}x; cores busy "
+          f"{rates['cores_busy']}", flush=True)
+
+
 def throughput(logs: Path, model: Path, out: Path, count: int) -> dict:
     """Valves per minute of the fit-only fleet on the first ``count`` logs: local pool with 1
     and 2 workers, and a LocalCluster of 2 single-threaded worker processes."""
@@ -155,26 +169,82 @@ def throughput(logs: Path, model: Path, out: Path, count: int) -> dict:
     subset.mkdir(parents=True)
     for path in sorted(logs.glob("*.csv"))[:count]:
         shutil.copyfile(path, subset / path.name)
-    seconds = {}
+    seconds, cores = {}, {}
     for workers in (1, 2):
-        seconds[f"local_{workers}"], _ = run_fleet(subset, model, out / f"local_{workers}",
-                                                   "--workers", str(workers), "--quiet")
-        print(f"  {count} valves on {workers} local worker(s): "
-              f"{seconds[f'local_{workers}']:.1f} s", flush=True)
+        name = f"local_{workers}"
+        used = _children_cpu()
+        seconds[name], _ = run_fleet(subset, model, out / name, "--workers", str(workers),
+                                     "--quiet")
+        cores[name] = (_children_cpu() - used) / seconds[name]
+        print(f"  {count} valves on {workers} local worker(s): {seconds[name]:.1f} s, "
+              f"{cores[name]:.2f} cores busy", flush=True)
     from distributed import LocalCluster
 
+    used, began = _children_cpu(), time.perf_counter()
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster:
         seconds["cluster_2"], _ = run_fleet(subset, model, out / "cluster_2", "--scheduler",
                                             cluster.scheduler_address, "--quiet")
-    print(f"  {count} valves on a LocalCluster of 2 workers: {seconds['cluster_2']:.1f} s",
-          flush=True)
+    # the cluster's workers are reaped when it closes: their CPU over the cluster's lifetime
+    cores["cluster_2"] = (_children_cpu() - used) / (time.perf_counter() - began)
+    print(f"  {count} valves on a LocalCluster of 2 workers: {seconds['cluster_2']:.1f} s, "
+          f"{cores['cluster_2']:.2f} cores busy", flush=True)
     rates = {name: 60.0 * count / value for name, value in seconds.items()}
     return {"valves": count, "seconds": {k: round(v, 1) for k, v in seconds.items()},
+            # CPU the runs got per second of wall time: on a machine shared with other work the
+            # scheduler may give a run fewer cores than it has workers (Linux's autogroups share
+            # the CPU between sessions, not processes), and the ratios then say so
+            "cores_busy": {k: round(v, 2) for k, v in cores.items()},
             "valves_per_minute": {k: round(v, 2) for k, v in rates.items()},
             "ratio_2_to_1_workers": round(rates["local_2"] / rates["local_1"], 3),
             "ratio_cluster_to_1_worker": round(rates["cluster_2"] / rates["local_1"], 3),
             "ratio_cluster_to_2_workers": round(rates["cluster_2"] / rates["local_2"], 3)}
+
+
+def draw(fleet, table: pd.DataFrame, cutoff: float, method: str, preload_model: float,
+         path: Path) -> None:
+    """The README's fleet figure: recovered against drawn K1 and preload, and every valve's
+    robust distance against the cutoff, the faulty valves marked by their fault."""
+    from matplotlib.figure import Figure
+
+    drawn = pd.DataFrame([{"serial": v.serial, "K1": v.K1, "preload": v.preload,
+                           "fault": v.fault or ""} for v in fleet]).merge(table, on="serial")
+    styles = {"": ("tab:blue", ".", "no fault"),
+              "friction_seal_pressure": ("tab:red", "s", "seal friction"),
+              "laminar_leakage": ("tab:orange", "^", "leakage")}
+    figure = Figure(figsize=(14, 4.4), layout="constrained")
+    axes = figure.subplots(1, 3, width_ratios=[1, 1, 1.6])
+    recovered = {"K1": ("friction_constant.K1 [N]", 0.0, "K1 [N]"),
+                 "preload": ("spring_preload_offset.delta_F [N]", preload_model,
+                             "preload F_cr [N]")}
+    for ax, (name, (column, offset, unit)) in zip(axes[:2], recovered.items()):
+        for fault, (colour, marker, text) in styles.items():
+            rows = drawn[drawn["fault"] == fault]
+            ax.plot(rows[name], offset + rows[column], marker, color=colour, label=text,
+                    markersize=4 if fault == "" else 6)
+        low, high = drawn[name].min(), drawn[name].max()
+        ax.plot([low, high], [low, high], "-", color="0.5", linewidth=0.8)
+        healthy = drawn[drawn["fault"] == ""]
+        r = np.corrcoef(healthy[name], offset + healthy[column])[0, 1]
+        ax.set_title(f"{name}: recovered against drawn (r = {r:.3f})", fontsize=10)
+        ax.set_xlabel(f"drawn {unit}")
+        ax.set_ylabel(f"fitted {unit}")
+    axes[0].legend(fontsize=8)
+    ax = axes[2]
+    position = np.arange(len(drawn))
+    for fault, (colour, marker, text) in styles.items():
+        rows = drawn["fault"] == fault
+        ax.plot(position[rows], drawn["robust distance"][rows], marker, color=colour,
+                label=text, markersize=4 if fault == "" else 6)
+    ax.axhline(cutoff, color="k", linestyle="--", linewidth=0.8, label="outlier cutoff")
+    ax.set_yscale("log")
+    ax.set_xlabel("valve")
+    ax.set_ylabel("robust distance from the fleet")
+    short = {"minimum covariance determinant": "MCD"}.get(method, method)
+    ax.set_title(f"Robust distance of each of {len(drawn)} valves from the fleet ({short})",
+                 fontsize=10)
+    ax.legend(fontsize=8)
+    figure.savefig(path, dpi=110)
 
 
 def main() -> None:
@@ -187,11 +257,20 @@ def main() -> None:
                         help="valves timed three ways (0: skip)")
     parser.add_argument("--workers", type=int, default=2, help="for the main runs")
     parser.add_argument("--out", default="results/fleet")
+    parser.add_argument("--throughput-only", action="store_true",
+                        help="only the throughput (the fleet's logs made anew)")
+    parser.add_argument("--figure", help="write the README's fleet figure here "
+                                         "(docs/figures/fleet.png)")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     fleet, model = write_fleet(out, args.valves, args.every, args.seed)
     preload_model = reference_spec().valve.parameters.F_cr
+    if args.throughput_only:
+        rates = throughput(out / "logs", model, out / "throughput", args.throughput_valves)
+        _say_throughput(rates)
+        (out / "throughput.json").write_text(json.dumps(rates, indent=2) + "\n")
+        return
     seconds, fitted = run_fleet(out / "logs", model, out / "fit", "--workers",
                                 str(args.workers), "--quiet")
     table = pd.read_csv(out / "fit" / "valves.csv")
@@ -225,10 +304,10 @@ def main() -> None:
     if args.throughput_valves:
         summary["throughput"] = rates = throughput(out / "logs", model, out / "throughput",
                                                    args.throughput_valves)
-        print(f"throughput, fit-only, {rates['valves']} valves: "
-              f"{rates['valves_per_minute']} valves/min; 2 workers / 1: "
-              f"{rates['ratio_2_to_1_workers']:.2f}x, LocalCluster(2) / 1 worker: "
-              f"{rates['ratio_cluster_to_1_worker']:.2f}x", flush=True)
+        _say_throughput(rates)
+    if args.figure:
+        judged = fitted["population"]["outliers"]
+        draw(fleet, table, judged["cutoff"], judged["method"], preload_model, Path(args.figure))
     (out / "fleet_eval.json").write_text(json.dumps(summary, indent=2) + "\n")
 
 

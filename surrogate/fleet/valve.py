@@ -44,7 +44,8 @@ def valve_result(task: ValveTask, progress=None) -> dict:
     """
     say = progress or (lambda message: None)
     log = load_bench_log(task.log)
-    model = _model(task.model_toml, task.model_label, task.effects_files).copy()
+    model = _model(task.model_toml, task.model_label, task.effects_files,
+                   task.model_sha256).copy()
     fitted = None
     if model.parameters().free():
         fitted = fit_to_log(model, log)
@@ -63,7 +64,7 @@ def valve_result(task: ValveTask, progress=None) -> dict:
     if task.diagnose:
         say(f"{task.serial}: diagnosing")
         result["diagnosis"] = diagnosis_record(model, log, played,
-                                               _library(task.effects_files))
+                                               _library(task.effects_files, task.model_sha256))
     return result
 
 
@@ -114,7 +115,10 @@ def diagnosis_record(model: ValveModel, log, played, library: EffectLibrary) -> 
 
 
 @lru_cache(maxsize=4)
-def _library(effects_files: tuple[str, ...]) -> EffectLibrary:
+def _library(effects_files: tuple[str, ...], model_sha256: str) -> EffectLibrary:
+    """The built-in effects and the files', loaded once per worker process for a model
+    (``model_sha256`` covers the files' content: a file changed between two fleets on one
+    cluster is loaded again)."""
     library = KNOWN
     for path in effects_files:
         library = library + load_effects_file(path)
@@ -122,11 +126,12 @@ def _library(effects_files: tuple[str, ...]) -> EffectLibrary:
 
 
 @lru_cache(maxsize=4)
-def _model(model_toml: str, label: str, effects_files: tuple[str, ...]) -> ValveModel:
+def _model(model_toml: str, label: str, effects_files: tuple[str, ...],
+           model_sha256: str) -> ValveModel:
     """The model a task names, built once per worker process (maps take a while to build; a
     worker fits many valves); callers fit a copy."""
     spec = ModelSpec.from_toml(model_toml, label)
-    return spec.build(_library(effects_files), label)
+    return spec.build(_library(effects_files, model_sha256), label)
 
 
 def _bar(value: float) -> float | None:
