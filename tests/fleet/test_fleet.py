@@ -105,6 +105,11 @@ def change_load_pressure(path: Path, line: int, by: float) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+def local_run_logs(out: Path) -> Path:
+    """The folder of the logs a fleet's results were made from."""
+    return Path(next(iter(results(out).values()))["log"]).parent
+
+
 def results(out: Path) -> dict[str, dict]:
     return {path.stem: json.loads(path.read_text()) for path in (out / "valves").glob("*.json")}
 
@@ -174,6 +179,31 @@ def test_a_rerun_skips_finished_valves_and_redoes_a_missing_or_changed_one(local
     assert now["V3.json"] != times["V3.json"] and "V2.json" in now
     assert results(out)["V2"]["parameters"] == results(finished)["V2"]["parameters"]
     assert document["fitted"] == 3
+
+
+@pytest.mark.slow  # a whole fleet command: seconds
+def test_without_the_fleet_extra_it_runs_locally_and_says_parquet_is_missing(local_run, tmp_path,
+                                                                             monkeypatch, capsys):
+    """No Dask and no pyarrow: the fleet runs on the local pool (here every valve is already
+    done), valves.csv is written, valves.parquet is not, and one note says why."""
+    _, _, _, finished = local_run
+    out = tmp_path / "out"
+    shutil.copytree(finished, out)
+    (out / "valves.parquet").unlink()
+    for name in ("dask", "distributed", "pyarrow"):
+        monkeypatch.setitem(sys.modules, name, None)  # importing them now fails
+    code, document, err = run_fleet(capsys, "--data", str(local_run_logs(finished)), "--model",
+                                    "cfda", "--out", str(out), "--quiet")
+    assert code == 3
+    assert err.count("pyarrow is not installed") == 1 and ".[fleet]" in err
+    assert not (out / "valves.parquet").exists() and (out / "valves.csv").exists()
+    assert "valves.parquet" not in document["files"]
+
+
+def test_importing_the_package_and_its_command_line_does_not_import_dask():
+    code = ("import sys, surrogate.cli, surrogate.fleet.runner; "
+            "assert not {'dask', 'distributed'} & set(sys.modules), 'dask imported'")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=PROJECT_ROOT)
 
 
 @pytest.mark.slow  # a whole fleet command: seconds
