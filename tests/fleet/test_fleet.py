@@ -282,6 +282,29 @@ def test_diagnose_records_the_top_candidate_of_a_faulty_valve(sequence, samples,
     assert document["population"]["findings"] == {"friction_seal_pressure": 1}
 
 
+def test_an_earlier_result_stands_only_for_the_same_log_model_and_work():
+    from surrogate.fleet.results import still_stands, task_identity
+    from surrogate.fleet.tasks import ValveTask
+
+    task = ValveTask("V1", "/logs/V1.csv", "log-hash", "[model]", "model-hash", "cfda")
+    done = {**task_identity(task), "status": "ok"}
+    assert still_stands(done, task)
+    assert not still_stands(None, task)
+    assert not still_stands({**done, "log_sha256": "changed"}, task)
+    assert not still_stands({**done, "model_sha256": "changed"}, task)
+    assert still_stands({**done, "log": "/moved/V1.csv"}, task)  # the same bytes elsewhere
+    diagnosing = ValveTask(*[getattr(task, f) for f in ("serial", "log", "log_sha256",
+                                                        "model_toml", "model_sha256",
+                                                        "model_label")], diagnose=True)
+    assert not still_stands(done, diagnosing)  # fitted, but not diagnosed
+    assert still_stands({**done, "diagnose": True}, task)  # diagnosed serves a plain fit
+    refused = {**done, "status": "failed", "error": {"kind": "bad input", "message": "..."}}
+    assert still_stands(refused, task)  # the same log is refused again: not redone
+    crashed = {**refused, "error": {"kind": "internal error", "message": "..."}}
+    assert not still_stands(crashed, task)  # worth another try
+    assert not still_stands({**done, "format": 0}, task)
+
+
 # --- the command line's own mistakes: exit 2, nothing written -------------------------------------
 
 @pytest.mark.parametrize("case", ["empty folder", "no match", "unknown model", "out in data",
