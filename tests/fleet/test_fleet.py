@@ -212,10 +212,15 @@ def test_a_local_cluster_gives_the_same_results_as_the_local_pool(local_run, log
     distributed = pytest.importorskip("distributed")
     _, _, _, local = local_run
     out = tmp_path / "out"
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
-        code, _, err = run_fleet(capsys, "--data", str(logs), "--model", "cfda", "--out",
-                                 str(out), "--scheduler", cluster.scheduler_address)
+    kept = dict(os.environ)  # Dask's nanny writes its workers' variables into ours
+    try:
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                      dashboard_address=None) as cluster:
+            code, _, err = run_fleet(capsys, "--data", str(logs), "--model", "cfda", "--out",
+                                     str(out), "--scheduler", cluster.scheduler_address)
+    finally:
+        os.environ.clear()
+        os.environ.update(kept)
     assert code == 3, err
     assert "on the Dask scheduler at tcp://" in err
     on_cluster, on_pool = results(out), results(local)
