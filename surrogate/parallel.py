@@ -26,16 +26,25 @@ Result = TypeVar("Result")
 
 #: BLAS threads while a pool runs (None: leave the BLAS as it is, the baseline the eval times)
 BLAS_THREADS_IN_POOL: int | None = 1
+#: most threads :func:`default_workers` hands out in this process (None: as many as the cores).
+#: A fleet's worker processes set 1 (:mod:`surrogate.fleet.runner`): there the processes are the
+#: parallelism, one valve each, and threads inside each would only contend for the same cores
+THREAD_LIMIT: int | None = None
 
 
 def default_workers() -> int:
     """Threads to use: the cores this process may run on, at most 4 (beyond that the
-    interpreter lock leaves little to gain)."""
+    interpreter lock leaves little to gain) and at most :data:`THREAD_LIMIT`."""
+    cores = available_cores()
+    return max(1, min(cores, 4, THREAD_LIMIT or cores))
+
+
+def available_cores() -> int:
+    """The cores this process may run on."""
     try:
-        cores = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(cores, 4))
+        return os.cpu_count() or 1
 
 
 def map_threads(function: Callable[[Item], Result], items: Iterable[Item], *,

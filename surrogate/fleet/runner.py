@@ -1,0 +1,211 @@
+"""Running a fleet's tasks: on a local process pool, or on a Dask cluster, each valve's result
+handed back as soon as it is done.
+
+Both executors run the same task function, :func:`run_valve`, which never raises for a valve's
+own trouble: a log the loaders refuse, a model that cannot be fitted to it, even a bug, becomes
+that valve's failure record, and the fleet goes on. Only an interruption (Ctrl-C, SIGTERM) stops
+the batch; the executor then cancels what is queued and stops its workers, and what was already
+written stays (:mod:`.results`), so a rerun resumes.
+
+One valve, one thread: the processes are the parallelism. A fit differentiates its parameters on
+threads of its own (:mod:`surrogate.parallel`) and NumPy's BLAS starts threads too; two workers
+each starting two threads on two cores contend with each other and run slower than without
+(:func:`surrogate.maps.crossval._one_thread` measured four times slower for the maps' training).
+Each task keeps to one thread (:func:`one_thread`) and a local pool's workers start as fresh
+interpreters (spawn: a forked copy of a process that ran PyTorch's thread pool can hang).
+
+Dask is optional (the ``fleet`` extra) and imported only when ``--scheduler`` asks for it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import signal
+import socket
+import sys
+import time
+import traceback
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+
+from .. import parallel
+from ..data.errors import DataFileError
+from ..errors import InputError
+from .results import failure_record, task_identity
+from .tasks import ValveTask
+from .valve import valve_result
+
+#: [s] to wait for a Dask scheduler to answer before calling its address wrong
+CONNECT_TIMEOUT = 30
+#: what installs Dask, for the message when it is missing
+DASK_EXTRA = "pip install -c constraints.txt -e '.[fleet]'"
+#: [s] a stopped local worker gets to exit before it is killed
+STOP_GRACE = 5.0
+
+
+def run_valve(task: ValveTask) -> dict:
+    """The task function both executors run: the valve's result record (:mod:`.results`), or its
+    failure with the error located (file, line, column for a refused log). Never raises but for
+    an interruption."""
+    began = time.perf_counter()
+    record = task_identity(task)
+    try:
+        with one_thread():
+            record.update(valve_result(task))
+        record["status"] = "ok"
+    except InputError as error:
+        problems = ([vars(problem) for problem in error.problems]
+                    if isinstance(error, DataFileError) else None)
+        record.update(failure_record(task, "bad input", str(error), problems=problems))
+    except Exception as error:  # noqa: BLE001  (a bug: this valve fails, the fleet goes on)
+        record.update(failure_record(task, "internal error", f"{type(error).__name__}: {error}",
+                                     details=traceback.format_exc()))
+    record["seconds"] = round(time.perf_counter() - began, 2)
+    record["worker"] = f"{socket.gethostname()}:{os.getpid()}"
+    return record
+
+
+@contextlib.contextmanager
+def one_thread():
+    """Keep this process to one thread of math while the block runs: the package's own thread
+    pools (:data:`surrogate.parallel.THREAD_LIMIT`), the BLAS, and PyTorch's."""
+    from threadpoolctl import threadpool_limits
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")  # read by PyTorch if the task imports it
+    kept = parallel.THREAD_LIMIT
+    parallel.THREAD_LIMIT = 1
+    torch = sys.modules.get("torch")
+    torch_threads = torch.get_num_threads() if torch is not None else None
+    if torch is not None:
+        torch.set_num_threads(1)
+    try:
+        with threadpool_limits(1):
+            yield
+    finally:
+        parallel.THREAD_LIMIT = kept
+        if torch is not None:
+            torch.set_num_threads(torch_threads)
+
+
+def _worker_start() -> None:
+    """A local worker's start: Ctrl-C is the driver's to handle (it stops the workers), and one
+    thread of math from the first import on."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.environ["OMP_NUM_THREADS"] = "1"
+    parallel.THREAD_LIMIT = 1
+
+
+class LocalPool:
+    """``workers`` fresh processes on this machine, one valve each at a time."""
+
+    def __init__(self, workers: int):
+        self.workers = workers
+
+    def describe(self) -> str:
+        return f"{self.workers} local worker process{'es' if self.workers != 1 else ''}"
+
+    def check(self) -> None:
+        """Nothing to check before work: a local pool needs nothing set up."""
+
+    def results(self, tasks: list[ValveTask]) -> Iterator[dict]:
+        """Each task's record, in the order they complete."""
+        if not tasks:
+            return
+        pool = ProcessPoolExecutor(min(self.workers, len(tasks)),
+                                   mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_worker_start)
+        try:
+            futures = {pool.submit(run_valve, task): task for task in tasks}
+            for future in as_completed(futures):
+                try:
+                    record = future.result()
+                except Exception as error:  # noqa: BLE001  (its worker died: killed, out of memory)
+                    record = {**task_identity(futures[future]), **failure_record(
+                        futures[future], "internal error",
+                        f"the worker process stopped: {type(error).__name__}: {error}")}
+                yield record
+        except BaseException:  # Ctrl-C, SIGTERM, or the caller gave up: stop every worker now
+            _stop(pool)
+            raise
+        pool.shutdown(wait=True)
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Cancel what is queued and end the workers at once, not after their current valve (the
+    pool's own shutdown would wait for it)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    deadline = time.monotonic() + STOP_GRACE
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():
+            process.kill()
+
+
+class DaskCluster:
+    """The Dask distributed scheduler at ``address``; its workers must have this package
+    installed and see the logs at the same paths (a shared file system)."""
+
+    def __init__(self, address: str, source: str = "--scheduler"):
+        self.address, self.source = address, source
+        self.client = None
+
+    def describe(self) -> str:
+        return f"the Dask scheduler at {self.address}"
+
+    def check(self) -> None:
+        """Connect, before any work: a missing Dask or a scheduler that does not answer is the
+        command line's mistake (exit 2)."""
+        try:
+            from distributed import Client
+        except ImportError:
+            raise InputError(f"{self.source} {self.address}: running on a Dask cluster needs "
+                             f"Dask, which is not installed; install the fleet extra "
+                             f"({DASK_EXTRA}), or leave out {self.source} to run on this "
+                             "machine") from None
+        try:
+            self.client = Client(self.address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except (OSError, TimeoutError, ValueError, TypeError) as error:
+            raise InputError(f"{self.source} {self.address}: no Dask scheduler answered there "
+                             f"within {CONNECT_TIMEOUT} s ({type(error).__name__}: {error}); "
+                             "give the address `dask scheduler` prints, such as "
+                             "tcp://host:8786") from None
+
+    def results(self, tasks: list[ValveTask]) -> Iterator[dict]:
+        """Each task's record, in the order they complete."""
+        from distributed import as_completed as completed
+
+        if self.client is None:
+            self.check()
+        futures = {}
+        try:
+            for task in tasks:
+                # a key of its own per submission: a rerun of a valve must not reuse a result
+                # the scheduler still holds from before its log changed
+                future = self.client.submit(run_valve, task, pure=False,
+                                            key=f"fleet-{task.serial}-{os.urandom(6).hex()}")
+                futures[future] = task
+            # this client is not the default one: the iterator must be told its event loop
+            for future in completed(list(futures), loop=self.client.loop):
+                try:
+                    record = future.result()
+                except Exception as error:  # noqa: BLE001  (a worker died on it: KilledWorker)
+                    record = {**task_identity(futures[future]), **failure_record(
+                        futures[future], "internal error",
+                        f"the Dask task failed: {type(error).__name__}: {error}")}
+                yield record
+        except BaseException:
+            if futures:
+                self.client.cancel(list(futures))
+            raise
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+            self.client = None
