@@ -31,6 +31,8 @@ PAIR_PARAMETERS = 4
 #: flows per branch of a drawn Δp(q), from the largest flow / RANGE to the largest
 CURVE_POINTS, CURVE_RANGE = 60, 30.0
 OUTLIER_COLOUR, FLEET_COLOUR = "tab:red", "tab:blue"
+#: legend text [pt]: 10 px or more once a page 1,000 px wide shrinks the widest figure to fit
+LEGEND_SIZE = 13
 
 
 @dataclass
@@ -82,12 +84,15 @@ def histograms_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]
         if np.any(finite & outlier):
             ax.plot(values[finite & outlier], np.zeros(int(np.sum(finite & outlier))), "|",
                     color=OUTLIER_COLOUR, markersize=18, markeredgewidth=2,
-                    label="outliers", clip_on=False)
-            ax.legend(fontsize=8)
+                    label="the outliers' values", clip_on=False)
         ax.set_xlabel(column, fontsize=9)
         ax.set_ylabel("valves")
     for ax in axes[count:]:
         ax.set_visible(False)
+    # one legend for the figure, large enough to read once the page shrinks the image
+    handles, labels = axes[0].get_legend_handles_labels()
+    if handles:
+        figure.legend(handles[:1], labels[:1], loc="outside upper right", fontsize=LEGEND_SIZE)
     return figure
 
 
@@ -153,14 +158,17 @@ def curves_figure(model: ValveModel, median: dict[str, float],
         own = branches(valve_with(model, values, serial))
         for branch, style in (("up", "-"), ("down", "--")):
             ax.plot(flow, reference[branch], style, color="0.45",
-                    label=f"median valve, {branch}")
-            ax.plot(flow, own[branch], style, color=OUTLIER_COLOUR, label=f"{serial}, {branch}")
+                    label=f"the fleet's median valve, {branch}")
+            ax.plot(flow, own[branch], style, color=OUTLIER_COLOUR,
+                    label=f"the valve named above, {branch}")
         ax.set_title(serial, fontsize=10)
         ax.set_xlabel("q [L/min]")
         ax.set_ylabel("Δp [bar]")
-        ax.legend(fontsize=7)
     for ax in axes[count:]:
         ax.set_visible(False)
+    if count:
+        figure.legend(*axes[0].get_legend_handles_labels(), loc="outside upper center",
+                      ncols=2, fontsize=LEGEND_SIZE)
     return figure
 
 

@@ -425,3 +425,35 @@ def test_too_few_valves_flag_none():
     frame = gaussian_fleet(5, seed=6)
     analysis = robust_outliers(frame, list(frame.columns))
     assert analysis.method == "none" and analysis.outliers == []
+
+
+def test_the_fleet_reports_legends_stay_readable_on_a_narrow_page():
+    """The histograms and the outliers' Δp(q) against the median valve, shrunk to a page
+    1,000 px wide: every legend's text stays 10 px high (the workflow report's rule)."""
+    from surrogate.fleet.report import curves_figure, histograms_figure
+    from surrogate.modelfile import load_model
+    from surrogate.reporting.figures import DPI
+
+    rng = np.random.default_rng(3)
+    table = pd.DataFrame({"serial": [f"V{i:03d}" for i in range(30)],
+                          "friction_constant.K1 [N]": rng.normal(6.0, 1.0, 30),
+                          "rms [bar]": rng.normal(1.0, 0.05, 30),
+                          "friction_load_pressure.K2 [N/bar]": rng.normal(0.08, 0.005, 30)})
+    model = load_model("bmbe")
+    key = "friction_constant.K1"
+    median = {key: 6.0}
+    outliers = [(f"V{i:03d}", {key: 6.0 + 2.0 * i}) for i in range(5)]
+    condition = {"q_max_lpm": 10.0, "p_Pe_bar": 70.0, "p_B_bar": 3.0, "temperature_C": 40.0}
+    figures = {"histograms": histograms_figure(table, list(table.columns[1:]), {"V001"}),
+               "curves": curves_figure(model, median, outliers, condition)}
+    small = {}
+    for name, figure in figures.items():
+        shown = min(1.0, (1000 - 2 * 16) / (figure.get_figwidth() * DPI))
+        legends = [*figure.legends, *(ax.get_legend() for ax in figure.axes)]
+        assert any(legends), name
+        for legend in filter(None, legends):
+            for text in legend.get_texts():
+                pixels = text.get_fontsize() * DPI / 72 * shown
+                if pixels < 10.0:
+                    small[name] = round(pixels, 1)
+    assert not small, small
