@@ -31,7 +31,7 @@ false flags; >= 1.7x from 1 to 2 workers.
 
 Writes OUT/logs/ (the virtual logs), OUT/fit/ and OUT/diagnose/ (the command's outputs),
 OUT/throughput/ and OUT/fleet_eval.json. Run:
-``python eval/fleet.py [--valves 200] [--every 8] [--diagnose] [--throughput-valves 24]``
+``python eval/fleet.py [--valves 200] [--every 8] [--diagnose] [--throughput-valves 60]``
 (200 valves: about 6 minutes fit-only, 20 with --diagnose, on 2 cores).
 """
 
@@ -273,7 +273,7 @@ def main() -> None:
     parser.add_argument("--every", type=int, default=8, help="keep every n-th sample")
     parser.add_argument("--seed", type=int, default=2030, help="the fleet's draws")
     parser.add_argument("--diagnose", action="store_true", help="run the diagnosed fleet too")
-    parser.add_argument("--throughput-valves", type=int, default=24,
+    parser.add_argument("--throughput-valves", type=int, default=60,
                         help="valves timed three ways (0: skip)")
     parser.add_argument("--workers", type=int, default=2, help="for the main runs")
     parser.add_argument("--out", default="results/fleet")
