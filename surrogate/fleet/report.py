@@ -18,9 +18,7 @@ from matplotlib.figure import Figure
 from ..export.characteristic import steady_characteristic
 from ..export.valve_only import valve_physics
 from ..model import ValveModel
-from ..reporting.report import _figure as figure_html
-from ..reporting.report import _table as table_html
-from ..reporting.report import figure_png, write_html
+from ..reporting.report import figure_html, figure_png, table_html, write_html
 from ..units import from_si, to_si
 from .population import OutlierAnalysis
 

@@ -64,7 +64,7 @@ def figure_png(figure: Figure) -> bytes:
     return buffer.getvalue()
 
 
-def _figure(png: bytes, alt: str, caption: str) -> str:
+def figure_html(png: bytes, alt: str, caption: str) -> str:
     """An embedded PNG with its caption (which carries what the short title leaves out)."""
     data = base64.b64encode(png).decode("ascii")
     return (f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
@@ -96,8 +96,8 @@ def parameter_summary(parameters, limit: int = CELL_LENGTH) -> str:
     return "; ".join(shown)
 
 
-def _table(frame: pd.DataFrame, text_columns: tuple[str, ...] = (),
-           formats: dict[str, str] | None = None) -> str:
+def table_html(frame: pd.DataFrame, text_columns: tuple[str, ...] = (),
+               formats: dict[str, str] | None = None) -> str:
     """An HTML table; numbers as ``formats[column]`` (a format spec such as ``".3f"``) or with
     four significant digits."""
     formats = formats or {}
@@ -171,10 +171,10 @@ def comparison_section(comparison: Comparison, heading: str,
         f"{100 * comparison.extrapolating_fraction:.0f} % of the samples.</p>",
         "<h3>Per run</h3><p>Bias is the mean residual; hysteresis width is Δp on the ramp up minus "
         "Δp on the ramp down at equal flow; <i>maps extrapolate</i> is the share of samples where "
-        f"the model leaves its maps' data.{shown_runs}</p>", _table(runs, ("run",), bar),
-        "<h3>RMS by pilot set point and temperature [bar]</h3>", _table(pivot, (), bar),
+        f"the model leaves its maps' data.{shown_runs}</p>", table_html(runs, ("run",), bar),
+        "<h3>RMS by pilot set point and temperature [bar]</h3>", table_html(pivot, (), bar),
         "<h3>Worst operating regions</h3><p>Flow band × temperature × set point, worst first.</p>",
-        _table(regions, (), bar),
+        table_html(regions, (), bar),
     ]
     headings = {"dp_vs_q": "Δp over q",
                 "residuals": "Residual against the operating variables",
@@ -189,7 +189,7 @@ def comparison_section(comparison: Comparison, heading: str,
         pngs = figure_pngs(comparison)
     for name, png in pngs.items():
         parts.append(f"<h3>{headings.get(name, name)}</h3>"
-                     + _figure(png, name, f"{caption(comparison)} {captions.get(name, '')}"))
+                     + figure_html(png, name, f"{caption(comparison)} {captions.get(name, '')}"))
     return "\n".join(parts)
 
 
@@ -322,24 +322,24 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         f'<p class="summary">{_prose(summarise(diagnosis))}</p>',
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
-        _table(_heldout_shown(diagnosis_table(diagnosis)),
-               ("effect", "what", "category", "significant", "parameters", "same as"),
-               {"rms after [bar]": ".3f", "median line [bar]": ".3f",
-                "half-width [bar]": ".3f", "ΔBIC": ".1f",
-                "chosen in [%]": ".0f"}),
-        _figure(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
-                f"Diagnosis of {readable(diagnosis.model.name)}: each candidate's line runs from "
-                "the current RMS to the RMS after refitting with it."),
-        *([_figure(figure_png(shape_figure(diagnosis.best)), "shape",
-                   f"The shape-free term {diagnosis.best.name} as fitted, with its band "
-                   f"({WITHIN:g} standard deviations from the fit's covariance), and the "
-                   "library terms of its kind fitted to it: one inside the band says the same "
-                   "with a name.")]
-          if diagnosis.best is not None and diagnosis.best.shape_free else []),
+        table_html(_heldout_shown(diagnosis_table(diagnosis)),
+                   ("effect", "what", "category", "significant", "parameters", "same as"),
+                   {"rms after [bar]": ".3f", "median line [bar]": ".3f",
+                    "half-width [bar]": ".3f", "ΔBIC": ".1f",
+                    "chosen in [%]": ".0f"}),
+        figure_html(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
+                    f"Diagnosis of {readable(diagnosis.model.name)}: each candidate's line runs "
+                    "from the current RMS to the RMS after refitting with it."),
+        *([figure_html(figure_png(shape_figure(diagnosis.best)), "shape",
+                       f"The shape-free term {diagnosis.best.name} as fitted, with its band "
+                       f"({WITHIN:g} standard deviations from the fit's covariance), and the "
+                       "library terms of its kind fitted to it: one inside the band says the same "
+                       "with a name.")]
+              if diagnosis.best is not None and diagnosis.best.shape_free else []),
         "<h3>Correlation of the residual with candidate variables</h3><p><i>residual</i>: the "
         "residual itself; <i>hysteresis</i>: the residual signed by the ramp direction (a misfit "
         "of the hysteresis width).</p>",
-        _table(correlations, ("variable", "what"), {"correlation": "+.3f"}),
+        table_html(correlations, ("variable", "what"), {"correlation": "+.3f"}),
     ])
 
 
@@ -369,7 +369,7 @@ def _step_parameters(number: int, step) -> str:
         return f"<details><summary>Step {number} ({html.escape(what)}): no fitted parameters" \
                "</summary></details>"
     return (f"<details><summary>Step {number} ({html.escape(what)}): {len(rows)} fitted "
-            f"parameter(s)</summary>{_table(pd.DataFrame(rows), ('parameter', 'unit', 'note'))}"
+            f"parameter(s)</summary>{table_html(pd.DataFrame(rows), ('parameter', 'unit', 'note'))}"
             "</details>")
 
 
@@ -391,16 +391,16 @@ def staircase_section(workflow) -> str:
         "or a sensor error; <i>free shape</i> marks a term whose shape the data drew, which "
         "no library effect has (its effects file, found_*.py, is in the output folder).</p>",
         _category_story(workflow),
-        _table(staircase_table(workflow.steps).drop(columns="parameters").assign(
-            **{"× noise floor": [step.rms / workflow.noise_floor for step in workflow.steps]}),
-            ("added", "category"), {"rms [bar]": ".3f", "held out [bar]": ".3f",
-                                    "× noise floor": ".2f"}),
+        table_html(staircase_table(workflow.steps).drop(columns="parameters").assign(
+                **{"× noise floor": [step.rms / workflow.noise_floor for step in workflow.steps]}),
+                ("added", "category"), {"rms [bar]": ".3f", "held out [bar]": ".3f",
+                                        "× noise floor": ".2f"}),
         "<p>The parameters fitted at each step (all of them are in <i>staircase.csv</i> and the "
         "final model file):</p>",
         *(_step_parameters(number, step) for number, step in enumerate(workflow.steps, 1)),
-        _figure(figure_png(staircase_figure(workflow.steps, workflow.noise_floor)), "staircase",
-                f"Residual RMS after each step on {workflow.log.source}; the final model is "
-                f"{readable(workflow.final.model.name)}."),
+        figure_html(figure_png(staircase_figure(workflow.steps, workflow.noise_floor)), "staircase",
+                    f"Residual RMS after each step on {workflow.log.source}; the final model is "
+                    f"{readable(workflow.final.model.name)}."),
     ])
 
 
@@ -504,21 +504,21 @@ def misfit_section(workflow, pngs: dict[str, bytes]) -> str:
              "before and after each added effect. A term that helps brings its line to zero "
              "where it acts.</p>"]
     if "residual_views" in pngs:
-        parts.append(_figure(pngs["residual_views"], "residual views",
-                             "The residual's median line (top) and half-width (bottom), per run "
-                             "and flow bin (dots: the last model), against the state; lines: "
-                             "the bins' median for each model."))
+        parts.append(figure_html(pngs["residual_views"], "residual views",
+                                 "The residual's median line (top) and half-width (bottom), per "
+                                 "run and flow bin (dots: the last model), against the state; "
+                                 "lines: the bins' median for each model."))
     if "run_loops" in pngs:
-        parts.append(_figure(pngs["run_loops"], "every run's loop",
-                             "Every run's Δp(q), each on its own scale: measured ramps against "
-                             "the first and the final model."))
+        parts.append(figure_html(pngs["run_loops"], "every run's loop",
+                                 "Every run's Δp(q), each on its own scale: measured ramps against "
+                                 "the first and the final model."))
     if "operating_points" in pngs:
-        parts.append(_figure(pngs["operating_points"], "where the bench operates",
-                             "The log's openings and flows in the final model, shaded by the "
-                             "Δp standard deviation its maps imply, over the CFD's sampled "
-                             "openings (dashed): a misfit between them, where no CFD run lies, "
-                             "may be the maps'. suggest-cfd ranks the CFD runs that would "
-                             "settle it."))
+        parts.append(figure_html(pngs["operating_points"], "where the bench operates",
+                                 "The log's openings and flows in the final model, shaded by the "
+                                 "Δp standard deviation its maps imply, over the CFD's sampled "
+                                 "openings (dashed): a misfit between them, where no CFD run lies, "
+                                 "may be the maps'. suggest-cfd ranks the CFD runs that would "
+                                 "settle it."))
     return "\n".join(parts)
 
 
@@ -545,11 +545,11 @@ def staircases_section(workflows: dict, main: str, scores: dict | None = None) -
         f"this report follows the <b>{html.escape(main)}</b> maps: {why}. Effects that only one "
         f"kind's loop adds are more likely to make up for that kind's map error than to be "
         f"physics.</p>",
-        _table(pd.DataFrame(rows), ("maps", "added by diagnosis"),
-               {"flow-force CV error [%]": ".1f", "final rms [bar]": ".3f",
-                "× noise floor": ".2f"}),
-        _figure(figure_png(staircases_figure(workflows)), "staircases of every map kind",
-                "Residual RMS after each step, per kind of map, on one axis."),
+        table_html(pd.DataFrame(rows), ("maps", "added by diagnosis"),
+                   {"flow-force CV error [%]": ".1f", "final rms [bar]": ".3f",
+                    "× noise floor": ".2f"}),
+        figure_html(figure_png(staircases_figure(workflows)), "staircases of every map kind",
+                    "Residual RMS after each step, per kind of map, on one axis."),
     ])
 
 
