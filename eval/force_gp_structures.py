@@ -1,0 +1,120 @@
+"""Force-map GP structures by the four-scheme cross-validation: which kernel parts carry the flow
+force best between openings, across temperatures and at other back pressures.
+
+    python eval/force_gp_structures.py [--restarts 3] [--out results/force_gp_structures]
+
+The shipped GP's force map (``surrogate/learn/training.py``: ``FORCE_GP_PARTS``) predicts
+ln(−α), α = f_ff/(A_L·Δp), from (ln Re, ln u/U, ln σ) with a Brownian-motion bridge over the
+opening times an RBF of Re, an RBF of (Re, u) and an RBF of σ. Here the same fit
+(scikit-learn, the project's kernels) is tried with other parts, some over a fourth input,
+ln(Δp/p_atm), on the folds of :mod:`surrogate.maps.crossval`; the score is the relative RMS
+error of the flow force at each left-out sample's pressure drop (``force_error`` of
+:func:`~surrogate.maps.crossval.errors_on`, here exp(L̂ − L) − 1 of the latent target).
+
+Issue 29 asks the GP to lead every off-the-shelf surrogate in every scheme (``eval/peers.py``:
+best peers 3.9 / 3.8 / 2.4 / 11.0 %). Prints one row per structure and writes
+``structures.json``; about a minute on one core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+from sklearn.gaussian_process import GaussianProcessRegressor
+from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
+
+from surrogate import load_valve
+from surrogate.data import load_cfd_samples
+from surrogate.features import FeatureSpec, targets
+from surrogate.learn.gaussian_process import (
+    LENGTH_SCALE_BOUNDS,
+    NOISE_BOUNDS,
+    BridgeKernel,
+    ProjectedRBF,
+)
+from surrogate.maps.crossval import SCHEMES, folds
+from surrogate.outputs import atomic_directory
+from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.units import P_ATM
+
+#: input columns: 0 ln Re, 1 ln(u/U), 2 ln σ, 3 ln(Δp/p_atm)
+STRUCTURES = {
+    "shipped: bridge(u; Re) + RBF(Re, u) + RBF(σ)":
+        (("bridge", (1, 0)), ("rbf", (0, 1)), ("rbf", (2,))),
+    "+ RBF(Δp, u)": (("bridge", (1, 0)), ("rbf", (0, 1)), ("rbf", (2,)), ("rbf", (3, 1))),
+    "+ bridge(u; Δp)": (("bridge", (1, 0)), ("rbf", (0, 1)), ("rbf", (2,)), ("bridge", (1, 3))),
+    "bridge(u; Re, Δp) + RBF(Re, u) + RBF(σ)":
+        (("bridge", (1, 0, 3)), ("rbf", (0, 1)), ("rbf", (2,))),
+}
+
+
+def kernel_of(parts, z: np.ndarray):
+    """The additive kernel of ``parts`` over standardised inputs ``z`` (the bridge spans the
+    training range of its opening column, as :func:`~surrogate.learn.gaussian_process.fit_gp`
+    builds it)."""
+    kernel = None
+    for kind, dims in parts:
+        if kind == "bridge":
+            span = (float(z[:, dims[0]].min()), float(z[:, dims[0]].max()))
+            factor = BridgeKernel(dims[0], span, span[0] - 1.0)
+            if len(dims) > 1:
+                factor = factor * ProjectedRBF(dims[1:], (1.0,) * len(dims[1:]),
+                                               LENGTH_SCALE_BOUNDS)
+        else:
+            factor = ProjectedRBF(dims, (1.0,) * len(dims), LENGTH_SCALE_BOUNDS)
+        part = ConstantKernel(1.0, (1e-4, 1e3)) * factor
+        kernel = part if kernel is None else kernel + part
+    return kernel + WhiteKernel(1e-4, NOISE_BOUNDS)
+
+
+def scores(parts, inputs: np.ndarray, latent: np.ndarray, frame, restarts: int) -> dict:
+    """Relative RMS error [%] of the flow force per scheme, each fold fitted on its training
+    samples only (standardisation included)."""
+    errors = {scheme: [] for scheme in SCHEMES}
+    for fold in folds(frame):
+        train = inputs[fold.train]
+        mean, std = train.mean(axis=0), train.std(axis=0)
+        std = np.where(std > 0, std, 1.0)
+        z = (inputs - mean) / std
+        regressor = GaussianProcessRegressor(kernel_of(parts, z[fold.train]), normalize_y=True,
+                                             n_restarts_optimizer=restarts, random_state=0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a hyperparameter on its bound: scored all the same
+            regressor.fit(z[fold.train], latent[fold.train])
+        predicted = regressor.predict(z[fold.test])
+        errors[fold.scheme].append(np.exp(predicted - latent[fold.test]) - 1.0)
+    return {scheme: 100.0 * float(np.sqrt(np.mean(np.concatenate(found) ** 2)))
+            for scheme, found in errors.items() if found}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--restarts", type=int, default=3)
+    parser.add_argument("--out", default="results/force_gp_structures")
+    args = parser.parse_args()
+    valve = load_valve()
+    frame = load_cfd_samples(SHIPPED_CFD_SAMPLES).frame
+    data = targets(FeatureSpec.for_valve(valve), frame)
+    latent = np.log(-data.flow_force_fraction)
+    pressure_drop = (frame["p_L"] - frame["p_B"]).to_numpy()
+    inputs = np.column_stack([data.force_features, np.log(pressure_drop / P_ATM)])
+    print(f"{'structure':45s} " + " ".join(f"{s[:14]:>14s}" for s in SCHEMES) + "    mean")
+    results = {}
+    for name, parts in STRUCTURES.items():
+        began = time.perf_counter()
+        row = scores(parts, inputs, latent, frame, args.restarts)
+        results[name] = {**row, "mean": float(np.mean(list(row.values()))),
+                         "seconds": round(time.perf_counter() - began, 1)}
+        print(f"{name:45s} " + " ".join(f"{row[s]:13.2f}%" for s in SCHEMES)
+              + f"  {results[name]['mean']:5.2f}%", flush=True)
+    with atomic_directory(Path(args.out)) as staging:
+        (staging / "structures.json").write_text(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    main()
