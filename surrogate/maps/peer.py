@@ -71,8 +71,8 @@ def force_inputs(spec: FeatureSpec, inputs: str, p_L, p_B, u, fluid: FluidState)
                             np.log(fluid.nu.ravel()), p_B.ravel()])
 
 
-class PeerFlowMap(FlowMap):
-    """Flow map whose ln C_d comes from a fitted regressor of :func:`flow_inputs`."""
+class _Peer:
+    """What a peer's flow and force maps share: the regressor, its inputs, and no uncertainty."""
 
     def __init__(self, spec: FeatureSpec, regressor: Regressor, inputs: str = "dimensionless",
                  kind: str = "peer"):
@@ -83,7 +83,15 @@ class PeerFlowMap(FlowMap):
         self.kind = kind
 
     def __repr__(self) -> str:
-        return f"PeerFlowMap({self.kind}, {self.inputs})"
+        return f"{type(self).__name__}({self.kind}, {self.inputs})"
+
+    def calibration_inputs(self, *query):
+        """No spread and no distances: a peer is judged on its error, not its uncertainty."""
+        return None, {}
+
+
+class PeerFlowMap(_Peer, FlowMap):
+    """Flow map whose ln C_d comes from a fitted regressor of :func:`flow_inputs`."""
 
     def log_discharge(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
         """ln C_d [-] at flow ``q`` [m^3/s], flattened."""
@@ -101,25 +109,10 @@ class PeerFlowMap(FlowMap):
         dp = np.where(q > 0, np.where(u > 0, dp, np.inf), 0.0)
         return dp.reshape(shape)
 
-    def calibration_inputs(self, q, p_B, u, fluid: FluidState):
-        """No spread and no distances: a peer is judged on its error, not its uncertainty."""
-        return None, {}
 
-
-class PeerForceMap(ForceMap):
+class PeerForceMap(_Peer, ForceMap):
     """Force map whose flow-force fraction α comes from a fitted regressor of
     :func:`force_inputs`."""
-
-    def __init__(self, spec: FeatureSpec, regressor: Regressor, inputs: str = "dimensionless",
-                 kind: str = "peer"):
-        _check_inputs(inputs)
-        self.spec = spec
-        self.regressor = regressor
-        self.inputs = inputs
-        self.kind = kind
-
-    def __repr__(self) -> str:
-        return f"PeerForceMap({self.kind}, {self.inputs})"
 
     def flow_force_fraction(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """α = f_ff/(A_L·Δp) [-] at load pressure ``p_L`` [Pa], flattened."""
@@ -136,10 +129,6 @@ class PeerForceMap(ForceMap):
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
         return (self.spec.uniform_force(p_L, p_B).reshape(p_L.shape)
                 + self.flow_force(p_L, p_B, u, fluid))
-
-    def calibration_inputs(self, p_L, p_B, u, fluid: FluidState):
-        """No spread and no distances: a peer is judged on its error, not its uncertainty."""
-        return None, {}
 
 
 def fit_peer_maps(frame: pd.DataFrame, valve: ValveParameters, flow_regressor: Regressor,
