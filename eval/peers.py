@@ -55,7 +55,9 @@ from surrogate.paths import SHIPPED_CFD_SAMPLES
 
 KINDS = ("grid", "nn", "gp")
 LABELS = {"grid": "grid", "nn": "NN", "gp": "GP"}
-INPUT_COUNT = {"dimensionless": 3, "raw": 4}
+#: input columns of the (flow, force) regressors: the project's features (three for the flow, the
+#: GP's four for the force), or raw ones (surrogate.maps.peer)
+INPUT_COUNT = {"dimensionless": (3, 4), "raw": (4, 4)}
 SEED = 0  # every random start of every peer: the run is repeatable
 
 
@@ -379,11 +381,11 @@ def cross_validate_candidate(peer: Peer, settings: dict, samples, valve) -> dict
     """One candidate's cross-validated errors per scheme and per fold, with its seconds and the
     warnings its fits raised, counted per distinct message (a GP at a bound of its
     hyperparameters, an MLP stopped at its iteration limit)."""
-    count = INPUT_COUNT[peer.inputs]
+    flow_count, force_count = INPUT_COUNT[peer.inputs]
 
     def fit_maps(train):
-        return fit_peer_maps(samples.frame[train], valve, peer.build(settings, count),
-                             peer.build(settings, count), peer.inputs, peer.name)
+        return fit_peer_maps(samples.frame[train], valve, peer.build(settings, flow_count),
+                             peer.build(settings, force_count), peer.inputs, peer.name)
 
     started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:

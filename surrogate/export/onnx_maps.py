@@ -178,12 +178,16 @@ def flow_features(g: Graph, spec, q: str, p_B: str, u: str, nu: str, rho: str) -
                                 g.mul(g.mul(rho, 0.5), g.square(velocity))))])
 
 
-def force_features(g: Graph, spec, p_L: str, p_B: str, u: str, nu: str, rho: str) -> str:
-    """(ln Re, ln(u/U), ln σ) built from Δp, [N, 3]."""
+def force_features(g: Graph, spec, p_L: str, p_B: str, u: str, nu: str, rho: str,
+                   count: int = 3) -> str:
+    """The first ``count`` of (ln Re, ln(u/U), ln σ, ln(Δp/p_atm)) built from Δp, [N, count]."""
     dp = g.max(g.sub(p_L, p_B), _SMALLEST_DP)
     reynolds = g.div(g.mul(g.sqrt(g.div(g.mul(dp, 2.0), rho)), spec.length), nu)
     opening = g.div(g.max(u, _SMALLEST_OPENING), spec.length)
-    return g.stack([g.log(reynolds), g.log(opening), g.log(g.div(_margin(g, spec, p_B), dp))])
+    columns = [g.log(reynolds), g.log(opening), g.log(g.div(_margin(g, spec, p_B), dp))]
+    if count == 4:
+        columns.append(g.log(g.div(dp, spec.p_atm)))
+    return g.stack(columns)
 
 
 # --- predictors -----------------------------------------------------------------------------------
@@ -275,6 +279,9 @@ def _process(g: Graph, predictor: GaussianProcessPredictor, features: str
 
     a = predictor.arrays
     z = g.div(g.sub(features, a.feature_mean[None]), a.feature_std[None])
+    if predictor.gp.held is not None:  # held columns clamped to their training range
+        low, high = predictor.gp.held
+        z = g.max(g.min(z, high[None]), low[None])
     total, prior = None, None
     for kind, dims, rbf, scales, amplitude, scaled, norms, bridge in predictor.gp._parts:
         if rbf:
@@ -365,7 +372,7 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str) -> 
 def force_graph(force_map: LearnedForceMap):
     """f_sim and its σ from (u, p_L, p_B, nu, rho)."""
     g, spec = Graph(), force_map.spec
-    features = force_features(g, spec, "p_L", "p_B", "u", "nu", "rho")
+    features = force_features(g, spec, "p_L", "p_B", "u", "nu", "rho", force_map.feature_count)
     latent, spread = _latent(g, force_map.predictor, features)
     fraction = _target(g, force_map.predictor, latent)
     uniform = g.add(g.mul("p_L", spec.A_L), g.mul("p_B", spec.back_area))

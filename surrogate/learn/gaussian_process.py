@@ -85,12 +85,15 @@ class BridgeKernel(Kernel):
 
 
 def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool,
-           restarts: int = 3, seed: int = 0) -> GPArrays:
+           restarts: int = 3, seed: int = 0, held: tuple[int, ...] = (),
+           held_margin: float = 0.0) -> GPArrays:
     """Fit an additive GP to ``target`` and return its arrays.
 
     ``parts``: the kernel's additive parts, each ``("rbf", columns)`` or ``("bridge", columns)``
     (the first column the opening, linearly bridged; the others in an RBF factor); a bare tuple of
     columns is an RBF part. Each part has its own amplitude; a white-noise term is learned too.
+    ``held``: feature columns clamped to their training range, widened by ``held_margin``
+    standard deviations, when predicting (:mod:`surrogate.maps.gp`).
     """
     parts = [("rbf", tuple(p)) if not isinstance(p[0], str) else (p[0], tuple(p[1]))
              for p in parts]
@@ -135,7 +138,10 @@ def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool
         length_scales, feature_mean, feature_std, trend, z,
         np.asarray(regressor.alpha_, float).ravel(), np.asarray(regressor.L_, float),
         float(fitted.k2.noise_level), float(regressor._y_train_mean),
-        float(regressor._y_train_std), float(np.linalg.cond(fitted(z))), span, origin)
+        float(regressor._y_train_std), float(np.linalg.cond(fitted(z))), span, origin,
+        np.asarray(held, int),
+        np.array([[z[:, c].min() - held_margin, z[:, c].max() + held_margin] for c in held],
+                 float).reshape(-1, 2))
 
 
 def _fitted_parts(kernel, count: int):

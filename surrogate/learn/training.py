@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from ..data.loaders import CfdSamples
-from ..features import ADDITIVE_GROUPS, FEATURE_NAMES, FeatureSpec, Targets, targets
+from ..features import (ADDITIVE_GROUPS, FEATURE_NAMES, FORCE_FEATURE_NAMES, FeatureSpec,
+                        Targets, targets)
 from ..maps.gp import GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.nn import NetworkEnsemble
@@ -54,7 +55,18 @@ FORCE_WIDTH = 8
 # the data instead of following the networks' linear terms off (which made f_sim fall with p_L
 # far outside the data).
 FORCE_HOLD_MARGIN = 0.5
-FORCE_GP_PARTS = (("bridge", (1, 0)), ("rbf", (0, 1)), ("rbf", (2,)))
+# The GP's flow force: ln(−α) from (ln Re, ln(u/U), ln σ, ln(Δp/p_atm)) (columns 0-3): the
+# opening bridged linearly between sampled openings, its factor an RBF of Re and the pressure
+# level; plus an RBF of (Re, u) and one of σ. Chosen by the four-scheme cross-validation
+# (eval/force_gp_structures.py): 1.9/3.4/2.0/4.5 % flow-force error by k-fold / left-out opening
+# / left-out temperature / back-pressure set, where the three-feature structure had
+# 3.6/4.0/3.5/4.6 %.
+FORCE_GP_PARTS = (("bridge", (1, 0, 3)), ("rbf", (0, 1)), ("rbf", (2,)))
+# Beyond the samples' Re, σ and pressure level (plus FORCE_HOLD_MARGIN standard deviations) the
+# force GP holds those inputs, as the force network does (surrogate/maps/gp.py): its parts
+# reverting to the mean far below the sampled pressure drops made α < −1 there, and f_sim fell
+# as p_L rose. The cross-validated errors are the same to 0.01 % with and without.
+FORCE_GP_HELD = (0, 2, 3)
 GP_RESTARTS = 10
 
 
@@ -84,16 +96,20 @@ class TrainedSurrogate:
                                                            self.flow_map.predictor))
             force_entry = seal(staging, kind.save_predictor(staging, "force",
                                                             self.force_map.predictor))
+            force_names = FORCE_FEATURE_NAMES[:self.force_map.feature_count]
             write_manifest(staging, {
                 "kind": self.kind,
                 "feature_names": list(FEATURE_NAMES),
                 "features": self.flow_map.spec.to_dict(),
                 "coverage": self.flow_map.coverage.to_dict(),
                 "flow": {"target": "ln C_d from (ln Re_q, ln(u/U), ln sigma_q)",
+                         "feature_names": list(FEATURE_NAMES),
                          "constraints": kind.constraints["flow"],
                          "predictor": flow_entry, "domain": self.flow_map.domain.to_dict(),
                          "calibration": self.flow_map.calibration.to_dict()},
-                "force": {"target": "alpha = f_ff/(A_L*dp) from (ln Re, ln(u/U), ln sigma)",
+                "force": {"target": "alpha = f_ff/(A_L*dp) from (ln Re, ln(u/U), ln sigma"
+                                    + (", ln(dp/p_atm))" if len(force_names) == 4 else ")"),
+                          "feature_names": list(force_names),
                           "constraints": kind.constraints["force"],
                           "predictor": force_entry, "domain": self.force_map.domain.to_dict(),
                           "calibration": self.force_map.calibration.to_dict()},
@@ -126,7 +142,9 @@ def train_surrogate(kind: str, samples: CfdSamples, valve: ValveParameters,
     coverage = Coverage.of_samples(frame[frame["q"] > 0])
     flow_map = LearnedFlowMap(spec, flow_predictor, FeatureDomain.fit(data.flow_features), kind,
                               coverage=coverage)
-    force_map = LearnedForceMap(spec, force_predictor, FeatureDomain.fit(data.force_features),
+    # a predictor reads the first few force features (FORCE_FEATURE_NAMES); its domain the same
+    force_features = data.force_features[:, :force_predictor.feature_count]
+    force_map = LearnedForceMap(spec, force_predictor, FeatureDomain.fit(force_features),
                                 kind, coverage=coverage)
     return TrainedSurrogate(kind, flow_map, force_map, seconds,
                             {"training_samples": int(len(frame))})
@@ -202,7 +220,7 @@ def _bridged_ensemble(data: Targets, progress) -> NetworkEnsemble:
     from .bridged_nn import train_bridged
 
     target, output = force_target(data)
-    features = data.force_features
+    features = data.force_features[:, :len(FEATURE_NAMES)]  # the bridged network reads three
     mean, std = features.mean(axis=0), features.std(axis=0)
     z = (features - mean) / std
     knots = tuple(float(k) for k in np.unique(np.round(z[:, FORCE_BRIDGE["bridge_column"]], 9)))
@@ -228,7 +246,8 @@ def train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, 
     target, name = force_target(data)
     force = GaussianProcessPredictor(
         fit_gp(data.force_features, target, FORCE_GP_PARTS, linear_mean=name == "plain_fraction",
-               restarts=GP_RESTARTS), "fraction" if name == "plain_fraction" else name)
+               restarts=GP_RESTARTS, held=FORCE_GP_HELD, held_margin=FORCE_HOLD_MARGIN),
+        "fraction" if name == "plain_fraction" else name)
     progress(f"GP force ({force.target}): fitted, condition number "
              f"{force.arrays.condition_number:.1e}")
     return flow, force

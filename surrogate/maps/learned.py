@@ -89,7 +89,7 @@ class LearnedFlowMap(FlowMap):
     def calibration_inputs(self, q, p_B, u, fluid: FluidState):
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         features = self.spec.flow_features(q, p_B, u, fluid)
-        return _inputs(self, features, p_B)
+        return _inputs(self, features, p_B)[1:]
 
 
 class LearnedForceMap(ForceMap):
@@ -107,9 +107,19 @@ class LearnedForceMap(ForceMap):
     def __repr__(self) -> str:
         return f"LearnedForceMap({self.kind})"
 
+    @property
+    def feature_count(self) -> int:
+        """How many of :data:`~surrogate.features.FORCE_FEATURE_NAMES` the predictor reads (3 or
+        4, as its training data's domain records)."""
+        return len(self.domain.lower)
+
+    def features(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
+        """The predictor's force features at flattened queries, shape (n, :attr:`feature_count`)."""
+        return self.spec.force_features(p_L, p_B, u, fluid, count=self.feature_count)
+
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        fraction = self.predictor.predict(self.spec.force_features(p_L, p_B, u, fluid))
+        fraction = self.predictor.predict(self.features(p_L, p_B, u, fluid))
         dp = np.maximum(p_L - p_B, 0.0).ravel()
         force = self.spec.uniform_force(p_L, p_B) + fraction * self.spec.A_L * dp
         return force.reshape(p_L.shape)
@@ -117,7 +127,7 @@ class LearnedForceMap(ForceMap):
     def extrapolation_reasons(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
         flags = super().extrapolation_reasons(p_L, p_B, u, fluid)
-        inside = self.domain.contains(self.spec.force_features(p_L, p_B, u, fluid))
+        inside = self.domain.contains(self.features(p_L, p_B, u, fluid))
         flags = flags | np.where(inside.reshape(p_L.shape), 0, FEATURES_SPARSE)
         return flags | np.where(p_L <= p_B, DP_OUTSIDE, 0)
 
@@ -127,16 +137,26 @@ class LearnedForceMap(ForceMap):
 
     def calibration_inputs(self, p_L, p_B, u, fluid: FluidState):
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        return _inputs(self, self.spec.force_features(p_L, p_B, u, fluid), p_B)
+        return _inputs(self, self.features(p_L, p_B, u, fluid), p_B)[1:]
+
+    def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
+        """Calibrated standard deviation of f_sim [N]: as :meth:`ForceMap.force_std`, with the
+        predictor asked once for its mean and spread (the kernel or the networks are the cost)."""
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        latent, spread, distances = _inputs(self, self.features(p_L, p_B, u, fluid), p_B)
+        dp = np.maximum(p_L - p_B, 0.0).ravel()
+        flow_force = self.predictor.from_latent(latent) * self.spec.A_L * dp
+        relative = self.calibration.std(spread, distances)
+        return np.reshape(np.abs(flow_force) * relative, p_L.shape)
 
 
 def _inputs(learned_map, features: np.ndarray, p_B: np.ndarray):
-    """(spread, distances) of a learned map at its features (:mod:`.calibration`)."""
-    _, spread = learned_map.predictor.latent(features, return_std=True)
+    """(latent mean, spread, distances) of a learned map at its features (:mod:`.calibration`)."""
+    latent, spread = learned_map.predictor.latent(features, return_std=True)
     distances = {"features": learned_map.domain.distance(features)}
     if learned_map.coverage is not None:
         distances["back pressure"] = learned_map.coverage.back_pressure_distance(np.ravel(p_B))
-    return spread, distances
+    return latent, spread, distances
 
 
 def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceMap]:
@@ -159,7 +179,8 @@ def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceM
     maps = []
     for cls, name in ((LearnedFlowMap, "flow"), (LearnedForceMap, "force")):
         entry = manifest[name]
-        maps.append(cls(spec, load(folder, entry["predictor"]),
+        count = len(package.feature_names(entry, name, f"{where}: {name}"))
+        maps.append(cls(spec, load(folder, entry["predictor"], count),
                         FeatureDomain.from_dict(entry["domain"]), manifest["kind"],
                         Calibration.from_dict(entry.get("calibration")), coverage))
     return tuple(maps)

@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..features import FEATURE_NAMES
 from . import package
 from .learned import learned_kind
 from .network import architecture_from_dict, network
@@ -49,6 +48,11 @@ class NetworkEnsemble:
     def target(self) -> str:
         return self.output
 
+    @property
+    def feature_count(self) -> int:
+        """How many feature columns the networks read."""
+        return len(self.feature_mean)
+
     def latent(self, features: np.ndarray, return_std: bool = False):
         """R averaged over the members (and the members' spread: a deep ensemble's
         uncertainty)."""
@@ -62,7 +66,11 @@ class NetworkEnsemble:
 
     def predict(self, features: np.ndarray) -> np.ndarray:
         """The map's target (ln C_d, or α)."""
-        return OUTPUTS[self.output](self.latent(features))
+        return self.from_latent(self.latent(features))
+
+    def from_latent(self, latent: np.ndarray) -> np.ndarray:
+        """The map's target from the networks' mean output R."""
+        return OUTPUTS[self.output](latent)
 
     def describe(self) -> dict:
         return {"architecture": self.architecture.to_dict(), "members": len(self.members),
@@ -79,14 +87,13 @@ def save_ensemble(folder: Path, name: str, ensemble: NetworkEnsemble) -> dict:
     return {**ensemble.describe(), "file": path.name}
 
 
-def load_ensemble(folder: Path, entry: dict) -> NetworkEnsemble:
-    """An ensemble saved by :func:`save_ensemble` (or as PyTorch state_dicts, format 1), its
-    entry and weights checked: the architecture, the feature scaling, and every member's arrays
-    by name, shape (those of the architecture) and finite value."""
+def load_ensemble(folder: Path, entry: dict, features: int) -> NetworkEnsemble:
+    """An ensemble of ``features`` input columns saved by :func:`save_ensemble` (or as PyTorch
+    state_dicts, format 1), its entry and weights checked: the architecture, the feature scaling,
+    and every member's arrays by name, shape (those of the architecture) and finite value."""
     where = f"{folder / MANIFEST}: the predictor of {_named(entry)}:"
     architecture = _architecture(package.table(entry, "architecture", where),
-                                 package.place(where, "architecture"))
-    features = len(FEATURE_NAMES)
+                                 package.place(where, "architecture"), features)
     mean = package.numbers(entry, "feature_mean", where, (features,))
     std = package.numbers(entry, "feature_std", where, (features,), low=0.0, above=True)
     output = package.text(entry, "output", where, OUTPUTS)
@@ -106,7 +113,7 @@ def load_ensemble(folder: Path, entry: dict) -> NetworkEnsemble:
     return NetworkEnsemble(architecture, states, mean, std, output)
 
 
-def _architecture(data: dict, where: str):
+def _architecture(data: dict, where: str, features: int):
     """The architecture a manifest records, checked (its values are not echoed)."""
     try:
         architecture = architecture_from_dict(data)
@@ -115,7 +122,7 @@ def _architecture(data: dict, where: str):
     except (TypeError, ValueError, AttributeError, IndexError):
         raise InputError(f"{where}: malformed; it holds numbers, lists of numbers and null as "
                          "training writes them") from None
-    problem = architecture.problem(len(FEATURE_NAMES))
+    problem = architecture.problem(features)
     if problem:
         raise InputError(f"{where}: {problem}")
     return architecture

@@ -31,7 +31,7 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 import numpy as np
 
 from ..errors import InputError
-from ..features import FEATURE_NAMES
+from ..features import FEATURE_NAMES, FORCE_FEATURE_NAMES
 from ..tomlio import nesting_depth
 
 MANIFEST = "surrogate.json"
@@ -238,7 +238,7 @@ def check_manifest(manifest: Mapping, path: str) -> dict:
         table(entry, "predictor", here)
         domain = table(entry, "domain", here)
         at = place(here, "domain")
-        size = len(FEATURE_NAMES)
+        size = len(feature_names(entry, name, here))
         lower = numbers(domain, "lower", at, (size,))
         upper = numbers(domain, "upper", at, (size,))
         if np.any(upper < lower):
@@ -261,6 +261,23 @@ def check_manifest(manifest: Mapping, path: str) -> dict:
             for key in slopes:
                 number(slopes, key, place(at, "slopes"), low=0.0)
     return dict(manifest)
+
+
+#: the feature lists a map may read: the flow's three; the force's first three or all four
+ALLOWED_FEATURES = {"flow": (FEATURE_NAMES,),
+                    "force": (FEATURE_NAMES, FORCE_FEATURE_NAMES)}
+
+
+def feature_names(entry: Mapping, name: str, where: str) -> tuple[str, ...]:
+    """The features the ``name`` map ("flow" or "force") of a manifest reads, in order: its
+    entry's ``feature_names``, or the three shared ones (a manifest written before a map could
+    read a fourth)."""
+    names = entry.get("feature_names", list(FEATURE_NAMES))
+    allowed = ALLOWED_FEATURES[name]
+    if not isinstance(names, list) or tuple(names) not in allowed:
+        raise InputError(f"{place(where, 'feature_names')}: must be "
+                         + " or ".join(json.dumps(list(option)) for option in allowed))
+    return tuple(names)
 
 
 # --- the files -----------------------------------------------------------------------------------

@@ -61,10 +61,11 @@ def flow_inputs(spec: FeatureSpec, inputs: str, q, p_B, u, fluid: FluidState) ->
 
 def force_inputs(spec: FeatureSpec, inputs: str, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
     """The force regressor's inputs at load pressure ``p_L`` [Pa], back pressure ``p_B`` [Pa] and
-    opening ``u`` [m], flattened, shape (n, 3) (``"dimensionless"``) or (n, 4) (``"raw"``)."""
+    opening ``u`` [m], flattened, shape (n, 4): the four force features the project's GP reads
+    (``"dimensionless"``, :data:`~surrogate.features.FORCE_FEATURE_NAMES`) or raw ones."""
     _check_inputs(inputs)
     if inputs == "dimensionless":
-        return spec.force_features(p_L, p_B, u, fluid)
+        return spec.force_features(p_L, p_B, u, fluid, count=4)
     p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
     return np.column_stack([np.log(np.maximum(u.ravel(), _SMALLEST)),
                             np.log(np.maximum((p_L - p_B).ravel(), _SMALLEST)),

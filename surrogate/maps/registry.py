@@ -97,7 +97,7 @@ class MapKind:
         train: training may need PyTorch, evaluation never does.
     save_predictor, load_predictor : callable or None
         Write a trained predictor into a surrogate folder (returning its manifest entry) and read
-        it back (learned kinds).
+        it back, ``load_predictor(folder, entry, feature_count)`` (learned kinds).
     constraints : mapping
         What the learned flow and force maps guarantee by construction, for the manifest.
     data : callable or None
