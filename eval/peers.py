@@ -10,13 +10,14 @@ leave one temperature out, back-pressure set out), then asked about the fold's l
 exactly as the project's kinds are (:func:`~surrogate.maps.crossval.errors_on`).
 
 Each peer has a short list of candidate settings (kernel family, smoothing, network size,
-regularisation), each cross-validated whole. The peer's force map takes the candidate with the
-lowest mean flow-force error over the schemes (:func:`~surrogate.maps.crossval.flow_force_score`,
-by which the project ranks its kinds); its flow map, whose settings do not enter the flow-force
-error at all, the candidate with the lowest mean q error. The settings are chosen on the same
-folds that score them, so a peer's row is slightly optimistic (the best of three to five
-candidates). ``--quick`` runs the first candidate of each peer only (a smoke test, nothing
-chosen).
+regularisation), each cross-validated whole; a peer on the project's features tries each with
+the project's three force features and with the four the project's GP reads (the pressure level
+ln(Δp/p_atm) added). The peer's force map takes the candidate with the lowest mean flow-force
+error over the schemes (:func:`~surrogate.maps.crossval.flow_force_score`, by which the project
+ranks its kinds); its flow map, whose settings do not enter the flow-force error at all, the
+candidate with the lowest mean q error. The settings are chosen on the same folds that score
+them, so a peer's row is slightly optimistic (the best of three to ten candidates). ``--quick``
+runs the first candidate of each peer only (a smoke test, nothing chosen).
 
 The project's kinds are read as ``eval/surrogates.py`` reads them, nothing retrained: the grid's
 cross-validation computed now (a second), the learned kinds' from the committed
@@ -55,9 +56,12 @@ from surrogate.paths import SHIPPED_CFD_SAMPLES
 
 KINDS = ("grid", "nn", "gp")
 LABELS = {"grid": "grid", "nn": "NN", "gp": "GP"}
-#: input columns of the (flow, force) regressors: the project's features (three for the flow, the
-#: GP's four for the force), or raw ones (surrogate.maps.peer)
-INPUT_COUNT = {"dimensionless": (3, 4), "raw": (4, 4)}
+#: input columns of the (flow, force) regressors (surrogate.maps.peer): the project's three
+#: features, the force's with the pressure level the project's GP reads, or raw ones
+INPUT_COUNT = {"dimensionless": (3, 3), "dimensionless+level": (3, 4), "raw": (4, 4)}
+#: the force features a peer on the project's features may read, a setting chosen by the folds
+#: like the others: the three, or the four the project's GP reads
+FORCE_FEATURES = (3, 4)
 SEED = 0  # every random start of every peer: the run is repeatable
 
 
@@ -381,11 +385,12 @@ def cross_validate_candidate(peer: Peer, settings: dict, samples, valve) -> dict
     """One candidate's cross-validated errors per scheme and per fold, with its seconds and the
     warnings its fits raised, counted per distinct message (a GP at a bound of its
     hyperparameters, an MLP stopped at its iteration limit)."""
-    flow_count, force_count = INPUT_COUNT[peer.inputs]
+    inputs = ("dimensionless+level" if settings.get("force features") == 4 else peer.inputs)
+    flow_count, force_count = INPUT_COUNT[inputs]
 
     def fit_maps(train):
         return fit_peer_maps(samples.frame[train], valve, peer.build(settings, flow_count),
-                             peer.build(settings, force_count), peer.inputs, peer.name)
+                             peer.build(settings, force_count), inputs, peer.name)
 
     started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
@@ -394,8 +399,10 @@ def cross_validate_candidate(peer: Peer, settings: dict, samples, valve) -> dict
             errors = cross_validate(samples, valve, fit_maps)
             result = {"summary": error_summary(errors), "per_fold": per_fold(errors)}
         # a peer whose fit breaks (a singular matrix, a kernel that is not positive definite,
-        # NaN from a diverged optimiser) is reported and the others still run
-        except (ArithmeticError, RuntimeError, ValueError) as error:
+        # NaN from a diverged optimiser) is reported and the others still run; SMT raises a
+        # bare Exception for a trend it cannot fit (ln σ and ln Δp are one column at a fixed
+        # back pressure)
+        except Exception as error:  # noqa: BLE001
             result = {"summary": None, "per_fold": None,
                       "failed": f"{type(error).__name__}: {error}"}
     kinds = {}
@@ -435,6 +442,9 @@ def evaluate_peer(peer: Peer, samples, valve, quick: bool, log: Callable[[str], 
     two maps apart, and ``errors_on`` takes the force at the sample's p_L), the candidate with
     the lowest mean q error."""
     candidates = peer.candidates[:1] if quick else peer.candidates
+    if peer.inputs == "dimensionless" and not quick:  # each with three and four force features
+        candidates = tuple({**settings, "force features": count}
+                           for count in FORCE_FEATURES for settings in candidates)
     results = []
     for index, settings in enumerate(candidates, start=1):
         result = cross_validate_candidate(peer, settings, samples, valve)

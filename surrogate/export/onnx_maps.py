@@ -220,11 +220,11 @@ def _numpy_net(g: Graph, net: NumpyNet, z: str) -> str:
     return total
 
 
-def _bridged_net(g: Graph, net: BridgedNet, z: str) -> str:
+def _bridged_net(g: Graph, net: BridgedNet, z: str, width: int) -> str:
     a, s = net.architecture, net.state
     knots = np.asarray(a.knots, float)
     x_bridge = g.column(z, a.bridge_column)
-    held = _hold(g, z, a.held, 3)
+    held = _hold(g, z, a.held, width)
     x = g.op("Unsqueeze", g.column(held, a.local_column), g.const([1, 2], np.int64))
     # every opening's small network at once: [N, knots, width] -> [N, knots]
     hidden = g.tanh(g.add(g.mul(x, s["local_W"][None]), s["local_b"][None]))
@@ -261,7 +261,8 @@ def _ensemble(g: Graph, ensemble: NetworkEnsemble, features: str) -> tuple[str, 
     deviation (ddof 1)."""
     z = g.div(g.sub(features, ensemble.feature_mean[None]), ensemble.feature_std[None])
     outputs = [_numpy_net(g, member, z) if isinstance(member, NumpyNet)
-               else _bridged_net(g, member, z) for member in ensemble.members]
+               else _bridged_net(g, member, z, ensemble.feature_count)
+               for member in ensemble.members]
     stacked = g.stack(outputs)
     mean = g.op("ReduceMean", stacked, axes=[1], keepdims=0)
     if len(outputs) < 2:

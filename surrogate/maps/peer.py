@@ -29,7 +29,9 @@ from ..fluid import FluidState, broadcast_query
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
 
-INPUTS = ("dimensionless", "raw")
+#: the inputs a peer may read: the project's three features; the same with the force map's
+#: pressure level, ln(Δp/p_atm), as the project's GP reads it; or raw ones
+INPUTS = ("dimensionless", "dimensionless+level", "raw")
 # floors under quantities that go into a logarithm of the raw inputs, far below anything physical
 _SMALLEST = 1e-30
 
@@ -51,7 +53,7 @@ def flow_inputs(spec: FeatureSpec, inputs: str, q, p_B, u, fluid: FluidState) ->
     """The flow regressor's inputs at flow ``q`` [m^3/s], back pressure ``p_B`` [Pa] and opening
     ``u`` [m], flattened, shape (n, 3) (``"dimensionless"``) or (n, 4) (``"raw"``)."""
     _check_inputs(inputs)
-    if inputs == "dimensionless":
+    if inputs.startswith("dimensionless"):  # the flow map has no fourth feature
         return spec.flow_features(q, p_B, u, fluid)
     q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
     return np.column_stack([np.log(np.maximum(u.ravel(), _SMALLEST)),
@@ -61,11 +63,13 @@ def flow_inputs(spec: FeatureSpec, inputs: str, q, p_B, u, fluid: FluidState) ->
 
 def force_inputs(spec: FeatureSpec, inputs: str, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
     """The force regressor's inputs at load pressure ``p_L`` [Pa], back pressure ``p_B`` [Pa] and
-    opening ``u`` [m], flattened, shape (n, 4): the four force features the project's GP reads
-    (``"dimensionless"``, :data:`~surrogate.features.FORCE_FEATURE_NAMES`) or raw ones."""
+    opening ``u`` [m], flattened: the project's three force features (``"dimensionless"``, shape
+    (n, 3)), with the pressure level as the GP reads them (``"dimensionless+level"``, (n, 4),
+    :data:`~surrogate.features.FORCE_FEATURE_NAMES`), or raw ones ((n, 4))."""
     _check_inputs(inputs)
-    if inputs == "dimensionless":
-        return spec.force_features(p_L, p_B, u, fluid, count=4)
+    if inputs.startswith("dimensionless"):
+        return spec.force_features(p_L, p_B, u, fluid,
+                                   count=4 if inputs == "dimensionless+level" else 3)
     p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
     return np.column_stack([np.log(np.maximum(u.ravel(), _SMALLEST)),
                             np.log(np.maximum((p_L - p_B).ravel(), _SMALLEST)),
