@@ -10,6 +10,7 @@ import pytest
 
 from surrogate.cli import main
 from surrogate.export.onnx_maps import parity, random_states
+from surrogate.fluid import FluidState
 from surrogate.maps.learned import load_learned_maps, trained_folder
 
 ort = pytest.importorskip("onnxruntime")  # the test extra installs it
@@ -24,6 +25,27 @@ def test_onnx_maps_reproduce_the_package(kind):
         relative = np.abs(found - value) / np.abs(value)
         print(f"{kind} {name}: largest relative difference {relative.max():.2e}")
         assert relative.max() < 1e-6, name
+
+
+def test_the_gp_graph_holds_its_inputs_beyond_the_data_as_the_package_does():
+    """Far below the sampled pressure drops and viscosities the force GP holds Re, σ and the
+    pressure level at the edge of its data: the graph clamps the same columns to the same
+    range (what it would not if it clamped none, or others)."""
+    flow, force = load_learned_maps(trained_folder("gp"))
+    states = random_states(flow.coverage, count=2_000, seed=1)
+    states["p_L"] = states["p_B"] + (states["p_L"] - states["p_B"]) * 1e-3  # mbar drops
+    states["nu"] = states["nu"] * 0.2  # a thin oil the CFD never ran
+    z = force.predictor.gp.arrays
+    standardised = (force.features(states["p_L"], states["p_B"], states["u"],
+                                   FluidState(states["nu"], states["rho"])) - z.feature_mean
+                    ) / z.feature_std
+    low, high = force.predictor.gp.held
+    assert np.mean((standardised < low) | (standardised > high)) > 0.2  # the clamp is at work
+    compared = parity(flow, force, states)
+    for name in ("f_sim", "f_sim_std"):
+        found, value = compared[name]
+        assert np.all(np.isfinite(found)), name
+        assert np.max(np.abs(found - value) / np.abs(value)) < 1e-6, name
 
 
 def test_export_writes_the_onnx_files(tmp_path):

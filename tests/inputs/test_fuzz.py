@@ -758,6 +758,13 @@ CASES = [
     predict_with("gp", weights="force", arrays=lambda a: a.update(dual=a["dual"][:-1]),
                  words=("gp/force.npz", "'dual'", "shape (153,)", "(154,)"),
                  id="surrogate: GP array of the wrong shape"),
+    predict_with("gp", weights="force", arrays=lambda a: a.update(
+        held_range=a["held_range"][:, ::-1]),
+        words=("gp/force.npz", "'held_range'", "(low, high)"),
+        id="surrogate: GP held range upside down"),
+    predict_with("gp", manifest=lambda m: m["force"].update(feature_names=["log_reynolds"]),
+                 words=("gp/surrogate.json", "force", "feature_names", "log_pressure_drop"),
+                 id="surrogate: force map naming features it cannot read"),
     predict_with("gp", arrays=lambda a: a.update(cholesky=a["cholesky"].T),
                  words=("gp/flow.npz", "'cholesky'", "lower triangular"),
                  id="surrogate: GP Cholesky factor not triangular"),
