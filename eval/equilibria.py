@@ -9,7 +9,7 @@ the rule's equilibrium is read off the samples (opening and no friction: the fir
 crossing from a positive h at the floor, else none; closing: the stop where h >= 0 there, else
 the last downward crossing). The point counts as right where the solver returns it (to 1 %)
 from no guess and from a guess at each downward crossing. Run for the shipped check and for
-others: ``python eval/equilibria.py [--models 120] [--factors 2,6 3 2,5,12]``.
+others: ``python eval/equilibria.py [--models 120] [--factors 3 2,6 2,5,12 ""]``.
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ def share_right(models: int, seed: int = 1) -> tuple[int, int]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--models", type=int, default=120)
-    parser.add_argument("--factors", nargs="*", default=["2,6", "3", ""],
+    parser.add_argument("--factors", nargs="*", default=["3", "2,6", ""],
                         help="the check's factors to try, comma-separated ('' for no check)")
     args = parser.parse_args()
     shipped = steady._RULE_FACTORS

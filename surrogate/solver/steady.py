@@ -31,23 +31,26 @@ below the stop. (A piston already sitting beyond the first equilibrium of a side
 to the next one; the replay's play keeps it where it is instead.)
 
 The check is cheap, not exhaustive: once a root u* is found (near a guess or over the stroke),
-h is sampled at u*/2 and u*/6 for the opening side, at min(2·u*, U_max) and min(6·u*, U_max) for
-the closing side [m]; a point on the stop is checked from u* = U_max on the opening side. Where a
-sample lies on the far side of zero (h <= 0 below the root while opening, h >= 0 above it while
-closing), an equilibrium of higher priority lies beyond it: the root is solved again in the
-bracket that sample opens (with the next sample out, or the floor, or the stop) and checked again
-from there. Over the stroke, a closing point with h <= 0 at both ends is searched from the stop
-down (every factor 3 in u) for a place where h >= 0, which a piston coming down would stop above.
+h is sampled once more, at u*/3 for the opening side and at min(3·u*, U_max) for the closing side
+[m]; a point on the stop is checked from u* = U_max on the opening side. Where the sample lies on
+the far side of zero (h <= 0 below the root while opening, h >= 0 above it while closing), an
+equilibrium of higher priority lies beyond it: the root is solved again in the bracket the
+sample opens with the floor or the stop (where h still on the far side means no equilibrium from
+closed, or the stop), and checked again from there. Over the stroke, a closing point with h <= 0
+at both ends is searched from the stop down (every factor 3 in u) for a place where h >= 0,
+which a piston coming down would stop above.
 
 The rule does not depend on the guess; the check's reach does: an interval where h has the other
 sign that holds none of the samples is not seen (a narrow one, as near the parameters where a
 pair of equilibria is born, or one far from the root found), and a guess that lands the first
 root elsewhere can then change the answer. On a made-up family of models with a force bump (and
-half of them a leak; tests/model/test_solver.py has two of them), the two samples return the
-rule's equilibrium whatever the guess at 76 % of the points that have several (one sample 62 %,
-without the check 7 %; ``python eval/equilibria.py``). On a model whose h falls with u the check
-finds nothing: the answer is the one root, at the cost of two more evaluations of h per point.
-Points without flow are solved as before, unchecked.
+half of them a leak; tests/model/test_solver.py has some), the one sample returns the rule's
+equilibrium whatever the guess at 62 % of the points that have several, without the check 7 %
+(``python eval/equilibria.py``). Two samples (u*/2 and u*/6) would reach 76 %, but each costs an
+evaluation of h per point and solve, and a fit spends most of its time there: two made the
+workflow 1.2 times as slow, one about 1.1 (eval/speed_vs_baseline.py). On a model whose h falls
+with u the check finds nothing: the answer is the one root. Points without flow are solved as
+before, unchecked.
 
 Edge cases get a status instead of a number that looks valid:
 
@@ -82,9 +85,8 @@ _OPENING_FLOOR = 1e-7  # smallest opening tried, as a fraction of the stroke
 _GUESS_WIDTHS = (0.02, 0.1, 0.4)
 _U_RTOL = 1e-14  # relative tolerance on u: near closing eq. 15 amplifies u errors ~1e4-fold
 # the rule's check of a root u*: h sampled at u*/f (opening side) or u*·f (closing side) for
-# these f (module docstring); each costs an evaluation of h per point, and a third sample (2, 5,
-# 12) would lift the made-up family's share from 76 to 80 %
-_RULE_FACTORS = (2.0, 6.0)
+# these f, nearest first (module docstring); each costs an evaluation of h per point and solve
+_RULE_FACTORS = (3.0,)
 # re-solves after a check found an equilibrium of higher priority, each checked again
 _RULE_ROUNDS = 8
 
@@ -401,7 +403,9 @@ def _down_from_the_stop(h: _FlowingBalance, which: np.ndarray, top: np.ndarray) 
     first = np.argmax(held[rows], axis=1)  # the highest sample with h >= 0
     above = np.where(first > 0, ladder[np.maximum(first - 1, 0)], h.stroke)
     h_above = np.where(first > 0, values[rows, np.maximum(first - 1, 0)], top[rows])
-    h.solve_in(ladder[first], above, which[rows], values[rows, first], h_above)
+    sign_change = np.isfinite(h_above)  # a map failure above leaves the point as it was
+    h.solve_in(ladder[first][sign_change], above[sign_change], which[rows][sign_change],
+               values[rows, first][sign_change], h_above[sign_change])
 
 
 def _first_met(h: _FlowingBalance) -> None:

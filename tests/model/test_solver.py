@@ -275,7 +275,8 @@ def force_bump(state, f=0.0, u0=0.1, w=0.3):
 def dip_model(valve):
     """A laminar leak keeps Δp, and h, bounded at small openings (about 120 bar at 6 L/min);
     a closing force of 60 N around 0.01 mm pulls h below zero there: three equilibria per side
-    at 6 L/min and a pilot pressure of 50 bar, about 0.007, 0.016 and 0.05 mm."""
+    at 6 L/min and a pilot pressure of 50 bar, about 0.006, 0.02 and 0.05 mm (the check's
+    sample, a factor 3 from the outer ones, falls between the inner two)."""
     return basic_model(valve, effects=[LaminarLeakage(G=0.05), ConstantFriction(K1=5.0),
                                        force_bump(f=-60.0, u0=0.01, w=0.7)])
 
@@ -352,6 +353,23 @@ def test_a_piston_closing_from_the_stop_stays_on_it_one_opening_stops_below(valv
     assert solution.u[2] == valve.U_max
 
 
+@pytest.mark.parametrize("guess_at", [None, 0, 1])
+def test_a_piston_coming_down_from_the_stop_stops_where_h_turns_positive(valve, guess_at):
+    """A leak too weak to hold the valve open at 3 L/min (h < 0 at a vanishing opening and on
+    the stop) and an opening force around 0.003 mm that lifts h above zero between about 0.0016
+    and 0.005 mm: closing from the stop, the piston stops where h turns positive; opening from
+    closed, it never leaves the seat."""
+    model = basic_model(valve, effects=[LaminarLeakage(G=0.05), ConstantFriction(K1=5.0),
+                                        force_bump(f=40.0, u0=0.003, w=0.6)])
+    points = OperatingPoints.from_display(np.full(3, 3.0), 53.0, 3.0, 40.0, DIRECTIONS)
+    roots = every_root(model, points)
+    assert [len(r) for r in roots] == [2, 2, 2]  # up through zero, then down again
+    guess = None if guess_at is None else np.array([r[guess_at] * 1.01 for r in roots])
+    solution = solve_steady(model, points, guess=guess)
+    assert list(solution.status) == [Status.NO_EQUILIBRIUM] * 2 + [Status.OK]
+    assert solution.u[2] == pytest.approx(roots[2][1], rel=1e-10)
+
+
 def test_without_the_rule_a_guess_would_pick_the_equilibrium(valve, monkeypatch):
     """The models above need the rule: without its check the root follows the guess."""
     model = dip_model(valve)
@@ -367,7 +385,7 @@ def test_without_the_rule_a_guess_would_pick_the_equilibrium(valve, monkeypatch)
 def test_a_replay_with_several_equilibria_does_not_depend_on_its_guess(valve):
     """Up and down a flow ramp through the three equilibria, started from a replay of a model
     with a weaker dip (whose band sits on the upper branch): the same replay as from cold."""
-    q = np.concatenate([np.linspace(5.2, 6.6, 40), np.linspace(6.6, 5.2, 40)])
+    q = np.concatenate([np.linspace(5.8, 6.0, 40), np.linspace(6.0, 5.8, 40)])
     points = OperatingPoints.from_display(q, 53.0, 3.0, 40.0)
     model = dip_model(valve)
     other = basic_model(valve, effects=[LaminarLeakage(G=0.05), ConstantFriction(K1=5.0),
