@@ -10,9 +10,14 @@ which rises with q_r. Each step solves that equation with Δp_r(q_r) replaced by
 through the last two evaluations of the map (an orifice is close to one), kept inside the bracket
 on q_r. The power law is the secant of ln Δp(ln q_r) through those two evaluations, so at the step
 its error is ½·f''·ln(step/current)·ln(step/previous) with f'' = d²ln Δp/d(ln q)²; once that
-product is below :data:`SETTLED`, the law's Δp at the step stands in for the map's, which saves
-the map call that would only confirm it. On the shipped log almost every sample settles after
-three map calls. Only the points not yet converged are iterated.
+product is below :data:`SETTLED`, and Newton's residual on the law's equation is within the
+split's tolerance (1e-9 of q [m^3/s]), the law's Δp at the step stands in for the map's, which
+saves the map call that would only confirm it. Without that second condition a leak whose slope
+jumps (a table held beyond its last row) sent Newton round a cycle onto an earlier evaluation,
+where the law is exact but the step no root: the split then ended up to 40 % off in Δp at some
+openings, and the force balance zig-zagged in u (stress case 4262 of eval/offlibrary.py). On
+the shipped log almost every sample settles after three map calls. Only the points not yet
+converged are iterated.
 """
 
 from __future__ import annotations
@@ -68,13 +73,17 @@ def shared_pressure_drop(q: np.ndarray, dp: np.ndarray,
             secant = (np.log(drop / previous_drop[active])
                       / np.log(current / previous[active]))
         exponent = np.where(np.isfinite(secant), np.clip(secant, 0.5, 4.0), 2.0)
-        step = _power_law_step(current, drop, exponent, wanted, leak)
+        step, miss = _power_law_step(current, drop, exponent, wanted, leak)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             predicted = drop * (step / current) ** exponent
             # the secant's error at the step, in ln Δp: ½·f''·ln(step/current)·ln(step/prev)
             spread = np.abs(np.log(step / current) * np.log(step / previous[active]))
+        # a step stands in for the map only where Newton found the power law's root: a leak
+        # whose slope jumps (a table's kink, a table held beyond its last row) can send it round
+        # a cycle, and a step that is no root, on an earlier evaluation, has no error at all
         settled = ((spread <= SETTLED) & (exponent == secant) & (step > lower)
-                   & (step < upper) & np.isfinite(predicted))
+                   & (step < upper) & np.isfinite(predicted)
+                   & (np.abs(miss) <= 1e-9 * wanted))
         dp[index] = np.where(settled, predicted, drop)
         # converged: the flows balance to 1e-9 of q (so the leak, and Δp, to ~1e-9), the
         # power law's next step is settled, or the bracket is down to rounding (the
@@ -90,9 +99,13 @@ def shared_pressure_drop(q: np.ndarray, dp: np.ndarray,
     return dp
 
 
-def _power_law_step(share, drop, exponent, q, leak, newton_steps: int = 3) -> np.ndarray:
-    """Root x of x + leak(Δp(x)) = q with Δp(x) = drop·(x/share)^exponent (no map call)."""
+def _power_law_step(share, drop, exponent, q, leak, newton_steps: int = 3
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Root x of x + leak(Δp(x)) = q with Δp(x) = drop·(x/share)^exponent (no map call), and
+    that equation's residual [m^3/s] at the iterate before Newton's last update: as small as the
+    split's tolerance where Newton has converged, not where it went round a cycle."""
     x = share
+    miss = np.full(np.shape(share), np.inf)
     for _ in range(newton_steps):
         with np.errstate(divide="ignore", invalid="ignore"):
             pressure = drop * (x / share) ** exponent
@@ -100,5 +113,6 @@ def _power_law_step(share, drop, exponent, q, leak, newton_steps: int = 3) -> np
             leaking = leak(pressure)  # once: a leak of free shape costs as much as a map call
             slope = (leak(pressure + nudge) - leaking) / nudge  # d leak / dΔp
             derivative = 1.0 + slope * exponent * pressure / x
-            x = x - (x + leaking - q) / derivative
-    return x
+            miss = x + leaking - q
+            x = x - miss / derivative
+    return x, miss

@@ -2,7 +2,12 @@
 
 At each sample the friction band ±f_μ holds the piston wherever the net force lies inside it. The
 band's two edges are the steady solutions with friction resisting an opening piston, u_open, and
-a closing one, u_close (u_open <= u_close because the net force falls with u). So the piston
+a closing one, u_close (u_open <= u_close because the net force falls with u). Where an effect
+bends the balance so that an edge has several equilibria, u_open is the smallest, the one a piston
+opening from closed meets, and u_close the largest, the one a piston closing from the stop meets
+(:mod:`.steady`, "Several equilibria"): the band is as wide as they allow, whatever the guess a
+replay starts from. (A piston already sitting above the first equilibrium of an edge can be
+pushed on to the next one; the play keeps it where it is instead.) So the piston
 
 * stays where it was while u_open <= u_prev <= u_close (it sticks),
 * is pushed open to u_open when u_prev < u_open,

@@ -6,10 +6,51 @@ closes,
     h(u) = net_force(u) − s·friction(u) = 0,      0 < u <= U_max,
 
 with the load pressure p_L(u) = p_B + Δp(q, u) from the flow map, and s = +1 while the piston opens
-(friction holds it back), −1 while it closes, 0 without friction. h falls with u: a wider opening
-needs less pressure for the same flow, and the spring pushes harder. As u → 0 with flow passing,
-Δp and hence h grow without bound, so the root is bracketed by a vanishing opening and the stop.
-All points are solved together (:func:`surrogate.roots.find_roots`).
+(friction holds it back), −1 while it closes, 0 without friction. h falls with u (unless an
+effect bends it: below): a wider opening needs less pressure for the same flow, and the spring
+pushes harder. As u → 0 with flow passing, Δp and hence h grow without bound, so the root is
+bracketed by a vanishing opening and the stop. All points are solved together
+(:func:`surrogate.roots.find_roots`).
+
+Several equilibria
+------------------
+An effect can bend h so that it rises with u somewhere (a leak that carries the flow at small
+openings, a force of free shape), and a point then has several equilibria: h crosses zero
+downwards at stable ones and upwards at the unstable ones between them. Which one the piston
+holds depends on where it comes from, so the solver picks one by a rule, never by where a
+bracket or a guessed opening happened to land:
+
+* **opening** (s = +1), and **without friction** (s = 0): the *smallest* stable equilibrium, the
+  first one a piston opening from closed meets, the way a valve opens from rest;
+* **closing** (s = −1): the *largest* one, the first one a piston closing from the stop meets,
+  or the stop itself where h >= 0 there.
+
+The friction band of the replay (:mod:`.replay`) is then as wide as the equilibria allow: a
+piston on the way up stops at the first one above closed, one on the way down at the first one
+below the stop. (A piston already sitting beyond the first equilibrium of a side can be pushed on
+to the next one; the replay's play keeps it where it is instead.)
+
+The check is cheap, not exhaustive: once a root u* is found (near a guess or over the stroke),
+h is sampled once more, at u*/3 for the opening side and at min(3·u*, U_max) for the closing side
+[m]; a point on the stop is checked from u* = U_max on the opening side. Where the sample lies on
+the far side of zero (h <= 0 below the root while opening, h >= 0 above it while closing), an
+equilibrium of higher priority lies beyond it: the root is solved again in the bracket the
+sample opens with the floor or the stop (where h still on the far side means no equilibrium from
+closed, or the stop), and checked again from there. Over the stroke, a closing point with h <= 0
+at both ends is searched from the stop down (every factor 3 in u) for a place where h >= 0,
+which a piston coming down would stop above.
+
+The rule does not depend on the guess; the check's reach does: an interval where h has the other
+sign that holds none of the samples is not seen (a narrow one, as near the parameters where a
+pair of equilibria is born, or one far from the root found), and a guess that lands the first
+root elsewhere can then change the answer. On a made-up family of models with a force bump (and
+half of them a leak; tests/model/test_solver.py has some), the one sample returns the rule's
+equilibrium whatever the guess at 62 % of the points that have several, without the check 7 %
+(``python eval/equilibria.py``). Two samples (u*/2 and u*/6) would reach 76 %, but each costs an
+evaluation of h per point and solve, and a fit spends most of its time there: two made the
+workflow 1.2 times as slow, one about 1.1 (eval/speed_vs_baseline.py). On a model whose h falls
+with u the check finds nothing: the answer is the one root. Points without flow are solved as
+before, unchecked.
 
 Edge cases get a status instead of a number that looks valid:
 
@@ -43,6 +84,11 @@ _OPENING_FLOOR = 1e-7  # smallest opening tried, as a fraction of the stroke
 # before the full stroke is tried
 _GUESS_WIDTHS = (0.02, 0.1, 0.4)
 _U_RTOL = 1e-14  # relative tolerance on u: near closing eq. 15 amplifies u errors ~1e4-fold
+# the rule's check of a root u*: h sampled at u*/f (opening side) or u*·f (closing side) for
+# these f, nearest first (module docstring); each costs an evaluation of h per point and solve
+_RULE_FACTORS = (3.0,)
+# re-solves after a check found an equilibrium of higher priority, each checked again
+_RULE_ROUNDS = 8
 
 
 class Status(IntEnum):
@@ -234,11 +280,13 @@ def _solve_batch(model: ValveModel, points: OperatingPoints, *, friction: bool =
 
 
 class _FlowingBalance:
-    """The force balance h(u) = net force − s·friction of flowing points, falling with u, and
-    the roots of it found so far."""
+    """The force balance h(u) = net force − s·friction of flowing points, falling with u (or
+    not: see the module docstring), and the roots of it found so far."""
 
     def __init__(self, model, points, sign):
         self.model, self.points, self.sign = model, points, sign
+        # the side whose rule picks the smallest equilibrium (opening, or no friction)
+        self.opens = sign >= 0
         self.fluid = model.fluid(points)
         self.stroke = model.valve.U_max
         self.floor = self.stroke * _OPENING_FLOOR
@@ -269,6 +317,7 @@ def _solve_flowing(model, points, sign, guess=None, with_dp=True):
         pending = np.setdiff1d(pending, _solve_near_guess(h, guess))
     if pending.size:
         _solve_over_stroke(h, pending)
+    _first_met(h)
     dp = np.full(len(points), np.nan)
     if with_dp:
         solved = np.flatnonzero(h.status >= 0)
@@ -311,7 +360,9 @@ def _solve_near_guess(h: _FlowingBalance, guess: np.ndarray) -> np.ndarray:
 
 def _solve_over_stroke(h: _FlowingBalance, pending: np.ndarray) -> None:
     """The points ``pending`` over the whole stroke: on the stop where h >= 0 at the top, no
-    equilibrium where h <= 0 at the floor, otherwise the root between."""
+    equilibrium where h <= 0 at the floor, otherwise the root between. A closing piston where
+    h <= 0 at both ends may still be held inside the stroke coming down from the stop
+    (:func:`_down_from_the_stop`)."""
     at_top = h(np.full(pending.size, h.stroke), pending)
     broken = ~np.isfinite(at_top)
     at_stop = ~broken & (at_top >= 0)
@@ -329,6 +380,100 @@ def _solve_over_stroke(h: _FlowingBalance, pending: np.ndarray) -> None:
     bracketed = pending[keep]
     h.solve_in(np.full(bracketed.size, h.floor), np.full(bracketed.size, h.stroke), bracketed,
                at_floor[keep], top[keep])
+    closing = no_equilibrium & ~h.opens[pending]
+    if closing.any():
+        _down_from_the_stop(h, pending[closing], top[closing])
+
+
+def _down_from_the_stop(h: _FlowingBalance, which: np.ndarray, top: np.ndarray) -> None:
+    """Closing points with h < 0 on the stop and h <= 0 at the floor: where h >= 0 somewhere
+    between, a piston coming down from the stop stops at the highest such place. h is sampled
+    every factor 3 from the stop down to the floor (14 samples, only for these points, which
+    need a leak or an effect that lifts h in the middle of the stroke); the root is solved
+    between the highest sample with h >= 0 and the one above it."""
+    ladder = h.stroke * 3.0 ** -np.arange(1, int(np.ceil(np.log(1 / _OPENING_FLOOR)
+                                                         / np.log(3.0))) + 1)
+    ladder = ladder[ladder > h.floor]
+    values = h(np.tile(ladder, which.size), np.repeat(which, ladder.size)
+               ).reshape(which.size, ladder.size)
+    held = values >= 0  # NaN: no evidence
+    rows = np.flatnonzero(held.any(axis=1))
+    if not rows.size:
+        return
+    first = np.argmax(held[rows], axis=1)  # the highest sample with h >= 0
+    above = np.where(first > 0, ladder[np.maximum(first - 1, 0)], h.stroke)
+    h_above = np.where(first > 0, values[rows, np.maximum(first - 1, 0)], top[rows])
+    sign_change = np.isfinite(h_above)  # a map failure above leaves the point as it was
+    h.solve_in(ladder[first][sign_change], above[sign_change], which[rows][sign_change],
+               values[rows, first][sign_change], h_above[sign_change])
+
+
+def _first_met(h: _FlowingBalance) -> None:
+    """Where a point has an equilibrium of higher priority than the one found, solve for that
+    one instead (the rule and the check: module docstring).
+
+    Opening side: h <= 0 at a sample below the root means h crossed zero downwards below it
+    (h > 0 at a vanishing opening), so the first equilibrium from closed lies below the lowest
+    such sample: the root is solved again between it and the next sample down, or the floor
+    (where h <= 0 means no equilibrium, as over the stroke: the flow cannot push the piston off
+    its seat). Points on the stop are checked too: an equilibrium inside the stroke comes first.
+    Closing side: h >= 0 at a sample above the root means a piston coming down from the stop is
+    held above it: solved again between the highest such sample and the next one up, or on the
+    stop where h >= 0 there.
+    """
+    factors = np.asarray(_RULE_FACTORS)
+    width = factors.size
+    which = np.flatnonzero((h.status == Status.OK) | ((h.status == Status.AT_STOP) & h.opens))
+    for _ in range(_RULE_ROUNDS):
+        if not which.size:
+            return
+        root, opens = h.u[which], h.opens[which]
+        # the samples [m], nearest to the root first: down towards the floor while opening, up
+        # towards the stop while closing
+        samples = np.where(opens[:, None], np.maximum(h.floor, root[:, None] / factors),
+                           np.minimum(h.stroke, root[:, None] * factors))
+        # a sample clipped to the floor or the stop like the one before it is that one
+        repeated = np.zeros(samples.shape, dtype=bool)
+        repeated[:, 1:] = samples[:, 1:] == samples[:, :-1]
+        values = np.empty(samples.shape)
+        values[~repeated] = h(samples[~repeated], np.broadcast_to(which[:, None],
+                                                                  samples.shape)[~repeated])
+        for k in range(1, width):
+            values[repeated[:, k], k] = values[repeated[:, k], k - 1]
+        # a sample "beyond": the rule's equilibrium lies further out than it (NaN: no evidence)
+        beyond = np.where(opens[:, None], values <= 0, values >= 0)
+        rows = np.flatnonzero(beyond.any(axis=1))
+        if not rows.size:
+            return
+        points, opens = which[rows], opens[rows]
+        # the farthest sample beyond is the bracket's near end; its far end is the next
+        # sample out (not beyond, so of the other sign) or the floor or the stop
+        far = width - 1 - np.argmax(beyond[rows, ::-1], axis=1)
+        near, h_near = samples[rows, far], values[rows, far]
+        limit = np.where(opens, h.floor, h.stroke)
+        outermost = far == width - 1
+        out = np.where(outermost, limit, samples[rows, np.minimum(far + 1, width - 1)])
+        h_out = np.where(outermost, np.nan, values[rows, np.minimum(far + 1, width - 1)])
+        ask = np.flatnonzero(outermost & (near != limit))
+        if ask.size:
+            h_out[ask] = h(out[ask], points[ask])
+        # the limit reached with h still beyond: no equilibrium from closed, or the stop
+        on_limit = (near == limit) | (outermost & np.where(opens, h_out <= 0, h_out >= 0))
+        closed = points[on_limit & opens]
+        h.u[closed], h.status[closed] = np.nan, Status.NO_EQUILIBRIUM
+        stopped = points[on_limit & ~opens]
+        h.u[stopped], h.status[stopped] = h.stroke, Status.AT_STOP
+        # a bracket with a sign change (a map failure at its far end leaves the root found)
+        again = np.flatnonzero(~on_limit & np.isfinite(h_out))
+        if not again.size:
+            return
+        up = opens[again]
+        lower = np.where(up, out[again], near[again])
+        upper = np.where(up, near[again], out[again])
+        h_lower = np.where(up, h_out[again], h_near[again])
+        h_upper = np.where(up, h_near[again], h_out[again])
+        h.solve_in(lower, upper, points[again], h_lower, h_upper)
+        which = points[again][h.status[points[again]] == Status.OK]
 
 
 def _solve_still(model, points, sign):

@@ -60,6 +60,40 @@ def test_laminar_leakage_splits_the_flow_between_restriction_and_clearance(
     assert dp == pytest.approx(expected, rel=1e-7)
 
 
+#: a leakage table [bar] -> [L/min] like the one a diagnosis handed over in stress case 4262 of
+#: eval/offlibrary.py: flat, then steep up to its last row, and held beyond it
+_TABLE_DP_BAR = np.array([0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0, 140.0, 152.0])
+_TABLE_LEAK_LPM = np.array([0.0, 0.029, 0.034, 0.043, 0.086, 0.157, 0.243, 0.343, 0.459])
+
+
+@pytest.mark.parametrize("q_lpm", [0.6, 1.12, 1.5, 2.0])
+@pytest.mark.parametrize("scale", [0.7, 1.0, 1.5])
+def test_a_leakage_table_splits_the_flow_at_every_opening(valve, grid_maps, q_lpm, scale):
+    """At small openings the restriction alone would need far more Δp than the table's last row,
+    where the leak's slope drops to 0: Newton's power-law step can cycle there, and a step that
+    is no root must not stand in for the map (it gave Δp 40 % off at some openings, and a force
+    balance that zig-zagged in u)."""
+    from surrogate.effects import FlowState, custom_effect
+
+    @custom_effect("leakage", units={"scale": "1"})
+    def table_leak(dp, state, scale=0.0):
+        """A leakage from a table, held beyond its rows."""
+        return scale * np.interp(np.maximum(dp, 0.0) / 1e5, _TABLE_DP_BAR, _TABLE_LEAK_LPM) / 6e4
+
+    flow_map, force_map = grid_maps
+    leak = table_leak(scale=scale)
+    model = ValveModel(valve, flow_map, force_map, [leak])
+    u = to_si(np.linspace(0.002, 0.03, 57), "mm")
+    points = OperatingPoints.from_display(np.full(u.size, q_lpm), 56.0, 5.0, 60.0)
+    fluid = model.fluid(points)
+    dp = model.pressure_drop(u, points, fluid)
+    state = FlowState(u, points.q, points.p_B, points.p_P, points.temperature, fluid, valve)
+    through_restriction = points.q - leak.leakage(dp, state)
+    expected = flow_map.pressure_drop(through_restriction, points.p_B, u, fluid)
+    np.testing.assert_allclose(dp, expected, rtol=1e-7)
+    assert np.all(np.diff(dp) < 0)  # a wider opening passes the same flow at less Δp
+
+
 @pytest.mark.parametrize("cls", BUILT_IN, ids=[cls.name for cls in BUILT_IN])
 def test_every_built_in_effect_meets_the_effect_contract(cls):
     check_effect(cls)

@@ -5,12 +5,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from surrogate.effects import ConstantFriction, LoadPressureFriction
+from surrogate.effects import (
+    ConstantFriction,
+    LaminarLeakage,
+    LoadPressureFriction,
+    custom_effect,
+)
 from surrogate.maps import OrificeFlowMap, UniformPressureForceMap
 from surrogate.maps.base import FlowMap
 from surrogate.model import ValveModel
 from surrogate.points import OperatingPoints
-from surrogate.solver import Status, replay, solve_steady
+from surrogate.solver import Status, replay, solve_steady, steady
 from surrogate.units import BAR, LPM
 
 
@@ -258,3 +263,136 @@ def test_extrapolating_solutions_are_reported(valve, grid_maps):
     solution = solve_steady(model, points)
     assert list(solution.extrapolating) == [False, True, True]  # inside; too hot; u < 0.05 mm
     assert solution.u[2] < 0.05e-3
+
+
+@custom_effect("force", units={"f": "N", "u0": "mm", "w": "1"})
+def force_bump(state, f=0.0, u0=0.1, w=0.3):
+    """A force f [N] (negative: closing) around the opening u0, over a width w in ln u: a
+    made-up term that bends the balance so that it rises with u somewhere."""
+    return f * np.exp(-(np.log(state.u / u0) / w) ** 2)
+
+
+def dip_model(valve):
+    """A laminar leak keeps Δp, and h, bounded at small openings (about 120 bar at 6 L/min);
+    a closing force of 60 N around 0.01 mm pulls h below zero there: three equilibria per side
+    at 6 L/min and a pilot pressure of 50 bar, about 0.006, 0.02 and 0.05 mm (the check's
+    sample, a factor 3 from the outer ones, falls between the inner two)."""
+    return basic_model(valve, effects=[LaminarLeakage(G=0.05), ConstantFriction(K1=5.0),
+                                       force_bump(f=-60.0, u0=0.01, w=0.7)])
+
+
+def stop_model(valve):
+    """An opening force of 200 N near the stop: at 8 L/min and a pilot pressure of 53 bar h falls
+    through zero at ~0.19 mm,
+    rises through it again at ~0.52 mm and is positive on the stop."""
+    return basic_model(valve, effects=[ConstantFriction(K1=5.0),
+                                       force_bump(f=200.0, u0=0.63, w=0.25)])
+
+
+def every_root(model, points):
+    """Each point's roots of h [m], from its sign changes on 20,000 openings, refined."""
+    from scipy.optimize import brentq
+
+    stroke = model.valve.U_max
+    grid = np.geomspace(1e-7 * stroke, stroke, 20_000)
+    roots = []
+    for k in range(len(points)):
+        point, sign = points[np.full(grid.size, k)], float(points.direction[k])
+
+        def h(u, k=k, sign=sign):
+            one = points[[k]]
+            balance = model.balance(np.atleast_1d(u), one, model.fluid(one))
+            return float((balance.net_force - sign * balance.friction)[0])
+
+        balance = model.balance(grid, point, model.fluid(point))
+        values = balance.net_force - sign * balance.friction
+        changes = np.flatnonzero(np.sign(values[1:]) != np.sign(values[:-1]))
+        roots.append([brentq(h, grid[i], grid[i + 1], xtol=1e-30, rtol=1e-14)
+                      for i in changes])
+    return roots
+
+
+DIRECTIONS = [1, 0, -1]  # opening, no friction, closing
+
+
+@pytest.mark.parametrize("guess_at", [None, 0, 1, 2, "far above", "far below"])
+def test_of_three_equilibria_the_solver_takes_the_rules_whatever_the_guess(valve, guess_at):
+    """Opening (and without friction) the smallest stable equilibrium, the one a piston opening
+    from closed meets; closing the largest, the one a piston closing from the stop meets. A
+    guess near any of the three roots (the middle one unstable), or none, changes nothing."""
+    model = dip_model(valve)
+    points = OperatingPoints.from_display(np.full(3, 6.0), 53.0, 3.0, 40.0, DIRECTIONS)
+    roots = every_root(model, points)
+    assert [len(r) for r in roots] == [3, 3, 3]  # the model does what it is made for
+    expected = np.array([r[0] if d >= 0 else r[2] for r, d in zip(roots, DIRECTIONS)])
+    if guess_at is None:
+        guess = None
+    elif guess_at == "far above":
+        guess = np.array([r[2] * 3.0 for r in roots])
+    elif guess_at == "far below":
+        guess = np.array([r[0] / 3.0 for r in roots])
+    else:  # inside the first bracket around that root
+        guess = np.array([r[guess_at] * 1.01 for r in roots])
+    solution = solve_steady(model, points, guess=guess)
+    assert list(solution.status) == [Status.OK] * 3
+    np.testing.assert_allclose(solution.u, expected, rtol=1e-10)
+
+
+@pytest.mark.parametrize("guess_at", [None, 0, 1])
+def test_a_piston_closing_from_the_stop_stays_on_it_one_opening_stops_below(valve, guess_at):
+    """h >= 0 on the stop with an equilibrium inside the stroke: opening, the piston meets the
+    equilibrium first; closing from the stop, it never leaves the stop."""
+    model = stop_model(valve)
+    points = OperatingPoints.from_display(np.full(3, 8.0), 56.0, 3.0, 40.0, DIRECTIONS)
+    roots = every_root(model, points)
+    assert [len(r) for r in roots] == [2, 2, 2]  # down through zero, then up again
+    guess = None if guess_at is None else np.array([r[guess_at] * 1.01 for r in roots])
+    solution = solve_steady(model, points, guess=guess)
+    assert list(solution.status) == [Status.OK, Status.OK, Status.AT_STOP]
+    np.testing.assert_allclose(solution.u[:2], [roots[0][0], roots[1][0]], rtol=1e-10)
+    assert solution.u[2] == valve.U_max
+
+
+@pytest.mark.parametrize("guess_at", [None, 0, 1])
+def test_a_piston_coming_down_from_the_stop_stops_where_h_turns_positive(valve, guess_at):
+    """A leak too weak to hold the valve open at 3 L/min (h < 0 at a vanishing opening and on
+    the stop) and an opening force around 0.003 mm that lifts h above zero between about 0.0016
+    and 0.005 mm: closing from the stop, the piston stops where h turns positive; opening from
+    closed, it never leaves the seat."""
+    model = basic_model(valve, effects=[LaminarLeakage(G=0.05), ConstantFriction(K1=5.0),
+                                        force_bump(f=40.0, u0=0.003, w=0.6)])
+    points = OperatingPoints.from_display(np.full(3, 3.0), 53.0, 3.0, 40.0, DIRECTIONS)
+    roots = every_root(model, points)
+    assert [len(r) for r in roots] == [2, 2, 2]  # up through zero, then down again
+    guess = None if guess_at is None else np.array([r[guess_at] * 1.01 for r in roots])
+    solution = solve_steady(model, points, guess=guess)
+    assert list(solution.status) == [Status.NO_EQUILIBRIUM] * 2 + [Status.OK]
+    assert solution.u[2] == pytest.approx(roots[2][1], rel=1e-10)
+
+
+def test_without_the_rule_a_guess_would_pick_the_equilibrium(valve, monkeypatch):
+    """The models above need the rule: without its check the root follows the guess."""
+    model = dip_model(valve)
+    points = OperatingPoints.from_display(np.full(3, 6.0), 53.0, 3.0, 40.0, DIRECTIONS)
+    roots = every_root(model, points)
+    monkeypatch.setattr(steady, "_first_met", lambda h: None)
+    for k in (0, 2):
+        guess = np.array([r[k] * 1.01 for r in roots])
+        np.testing.assert_allclose(solve_steady(model, points, guess=guess).u,
+                                   [r[k] for r in roots], rtol=1e-10)
+
+
+def test_a_replay_with_several_equilibria_does_not_depend_on_its_guess(valve):
+    """Up and down a flow ramp through the three equilibria, started from a replay of a model
+    with a weaker dip (whose band sits on the upper branch): the same replay as from cold."""
+    q = np.concatenate([np.linspace(5.8, 6.0, 40), np.linspace(6.0, 5.8, 40)])
+    points = OperatingPoints.from_display(q, 53.0, 3.0, 40.0)
+    model = dip_model(valve)
+    other = basic_model(valve, effects=[LaminarLeakage(G=0.05), ConstantFriction(K1=5.0),
+                                        force_bump(f=-20.0, u0=0.01, w=0.7)])
+    cold = replay(model, points)
+    warm = replay(model, points, guess=replay(other, points))
+    assert np.all(cold.band[1] > 5 * cold.band[0])  # the band's edges on different branches
+    np.testing.assert_array_equal(warm.status, cold.status)
+    np.testing.assert_allclose(warm.u, cold.u, rtol=1e-10)
+    np.testing.assert_allclose(warm.dp, cold.dp, rtol=1e-9)
