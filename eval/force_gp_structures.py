@@ -26,17 +26,11 @@ from pathlib import Path
 
 import numpy as np
 from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
 
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.features import FeatureSpec, targets
-from surrogate.learn.gaussian_process import (
-    LENGTH_SCALE_BOUNDS,
-    NOISE_BOUNDS,
-    BridgeKernel,
-    ProjectedRBF,
-)
+from surrogate.learn.gaussian_process import additive_kernel
 from surrogate.maps.crossval import SCHEMES, folds
 from surrogate.outputs import atomic_directory
 from surrogate.paths import SHIPPED_CFD_SAMPLES
@@ -52,25 +46,6 @@ STRUCTURES = {
 }
 
 
-def kernel_of(parts, z: np.ndarray):
-    """The additive kernel of ``parts`` over standardised inputs ``z`` (the bridge spans the
-    training range of its opening column, as :func:`~surrogate.learn.gaussian_process.fit_gp`
-    builds it)."""
-    kernel = None
-    for kind, dims in parts:
-        if kind == "bridge":
-            span = (float(z[:, dims[0]].min()), float(z[:, dims[0]].max()))
-            factor = BridgeKernel(dims[0], span, span[0] - 1.0)
-            if len(dims) > 1:
-                factor = factor * ProjectedRBF(dims[1:], (1.0,) * len(dims[1:]),
-                                               LENGTH_SCALE_BOUNDS)
-        else:
-            factor = ProjectedRBF(dims, (1.0,) * len(dims), LENGTH_SCALE_BOUNDS)
-        part = ConstantKernel(1.0, (1e-4, 1e3)) * factor
-        kernel = part if kernel is None else kernel + part
-    return kernel + WhiteKernel(1e-4, NOISE_BOUNDS)
-
-
 def scores(parts, inputs: np.ndarray, latent: np.ndarray, frame, restarts: int) -> dict:
     """Relative RMS error [%] of the flow force per scheme, each fold fitted on its training
     samples only (standardisation included)."""
@@ -80,7 +55,8 @@ def scores(parts, inputs: np.ndarray, latent: np.ndarray, frame, restarts: int) 
         mean, std = train.mean(axis=0), train.std(axis=0)
         std = np.where(std > 0, std, 1.0)
         z = (inputs - mean) / std
-        regressor = GaussianProcessRegressor(kernel_of(parts, z[fold.train]), normalize_y=True,
+        regressor = GaussianProcessRegressor(additive_kernel(parts, z[fold.train])[0],
+                                             normalize_y=True,
                                              n_restarts_optimizer=restarts, random_state=0)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a hyperparameter on its bound: scored all the same

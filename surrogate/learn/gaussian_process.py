@@ -106,20 +106,7 @@ def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool
     else:
         trend = np.zeros(design.shape[1])
     residual = target - design @ trend
-    bridge_column = next((dims[0] for kind, dims in parts if kind == "bridge"), None)
-    span = (np.array([z[:, bridge_column].min(), z[:, bridge_column].max()])
-            if bridge_column is not None else np.array([0.0, 0.0]))
-    origin = float(span[0] - 1.0)
-    kernel = None
-    for kind, dims in parts:
-        rbf = dims[1:] if kind == "bridge" else dims
-        factor = ProjectedRBF(rbf, (1.0,) * len(rbf)) if rbf else None
-        if kind == "bridge":
-            bridge = BridgeKernel(dims[0], tuple(span), origin)
-            factor = bridge if factor is None else bridge * factor
-        part = ConstantKernel(1.0, (1e-4, 1e3)) * factor
-        kernel = part if kernel is None else kernel + part
-    kernel = kernel + WhiteKernel(1e-4, NOISE_BOUNDS)
+    kernel, span, origin = additive_kernel(parts, z)
     regressor = GaussianProcessRegressor(kernel, normalize_y=True, n_restarts_optimizer=restarts,
                                          random_state=seed)
     with warnings.catch_warnings():
@@ -142,6 +129,26 @@ def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool
         np.asarray(held, int),
         np.array([[z[:, c].min() - held_margin, z[:, c].max() + held_margin] for c in held],
                  float).reshape(-1, 2))
+
+
+def additive_kernel(parts, z: np.ndarray) -> tuple[Kernel, np.ndarray, float]:
+    """The unfitted kernel of ``parts`` (``(kind, columns)`` pairs, as :func:`fit_gp` takes
+    them) over standardised inputs ``z``, each part with its own amplitude, plus white noise;
+    with the bridge's span (the training range of its opening column) and origin."""
+    bridge_column = next((dims[0] for kind, dims in parts if kind == "bridge"), None)
+    span = (np.array([z[:, bridge_column].min(), z[:, bridge_column].max()])
+            if bridge_column is not None else np.array([0.0, 0.0]))
+    origin = float(span[0] - 1.0)
+    kernel = None
+    for kind, dims in parts:
+        rbf = dims[1:] if kind == "bridge" else dims
+        factor = ProjectedRBF(rbf, (1.0,) * len(rbf)) if rbf else None
+        if kind == "bridge":
+            bridge = BridgeKernel(dims[0], tuple(span), origin)
+            factor = bridge if factor is None else bridge * factor
+        part = ConstantKernel(1.0, (1e-4, 1e3)) * factor
+        kernel = part if kernel is None else kernel + part
+    return kernel + WhiteKernel(1e-4, NOISE_BOUNDS), span, origin
 
 
 def _fitted_parts(kernel, count: int):
