@@ -1,0 +1,70 @@
+"""The calibration of the maps' σ: likelihood, and the ±2σ band held within 90-98 % per group."""
+
+import numpy as np
+import pytest
+
+from surrogate.maps.calibration import COVERAGE_BAND, Calibration, coverage_of
+
+
+def light_and_heavy_tailed_errors(seed: int = 0):
+    """Two groups of errors with one spread: one uniform (light tails: at its RMS σ, ±2σ holds
+    them all), one Student-t with 3 degrees of freedom (heavy tails)."""
+    rng = np.random.default_rng(seed)
+    light = rng.uniform(-1.0, 1.0, 120) * np.sqrt(3.0) * 0.02
+    heavy = rng.standard_t(3, 150) / np.sqrt(3.0) * 0.02
+    errors = np.concatenate([light, heavy])
+    groups = np.array(["light"] * len(light) + ["heavy"] * len(heavy))
+    return errors, groups
+
+
+def shares_inside(calibration, errors, groups):
+    std = calibration.std(None, {})
+    return {label: coverage_of(errors[groups == label], std[groups == label] if np.ndim(std)
+                               else np.full((groups == label).sum(), std))
+            for label in np.unique(groups)}
+
+
+def test_likelihood_alone_lets_a_light_tailed_group_sit_wholly_inside():
+    """The case the constraint exists for: without groups the fit is plain likelihood, whose
+    σ (of the RMS) holds every light-tailed error within ±2σ."""
+    errors, groups = light_and_heavy_tailed_errors()
+    calibration = Calibration.fit(errors, None, {"d": np.zeros_like(errors)}, use_spread=False)
+    assert shares_inside(calibration, errors, groups)["light"] == 1.0
+
+
+def test_each_group_is_held_within_the_band():
+    errors, groups = light_and_heavy_tailed_errors()
+    # a distance that only the light group has lets σ differ between the groups
+    distance = np.where(groups == "light", 1.0, 0.0)
+    calibration = Calibration.fit(errors, None, {"d": distance}, use_spread=False,
+                                  groups=groups)
+    std = calibration.std(None, {"d": distance})
+    for label in ("light", "heavy"):
+        at = groups == label
+        share = coverage_of(errors[at], std[at])
+        assert COVERAGE_BAND[0] <= share <= COVERAGE_BAND[1], (label, share)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_fit_already_inside_the_band_is_the_likelihood_fit(seed):
+    """Gaussian errors whose ±2σ already holds 90-98 %: the constraint changes nothing."""
+    rng = np.random.default_rng(seed)
+    errors = rng.normal(0.0, 0.03, 400)
+    groups = np.repeat(["a", "b"], 200)
+    plain = Calibration.fit(errors, None, {}, use_spread=False)
+    std = plain.std(None, {})
+    if not all(COVERAGE_BAND[0] <= coverage_of(errors[groups == g], np.full(200, std))
+               <= COVERAGE_BAND[1] for g in ("a", "b")):
+        pytest.skip("this draw's likelihood fit is outside the band")
+    grouped = Calibration.fit(errors, None, {}, use_spread=False, groups=groups)
+    assert grouped == plain
+
+
+def test_sixteen_errors_in_a_group_leave_one_outside():
+    """Of 16 errors, 15 inside is the only count in 90-98 %; 16 of 16 is refused."""
+    rng = np.random.default_rng(3)
+    errors = rng.uniform(-1.0, 1.0, 16) * 0.02
+    calibration = Calibration.fit(errors, None, {}, use_spread=False,
+                                  groups=np.zeros(16, int))
+    std = np.full(16, calibration.floor)
+    assert np.sum(np.abs(errors) > 2 * std) == 1
