@@ -232,6 +232,9 @@ def _bridged_net(g: Graph, net: BridgedNet, z: str, width: int) -> str:
                  keepdims=0)
     x2 = g.op("Unsqueeze", g.column(held, a.local_column), g.const([1], np.int64))
     local = g.add(g.add(local, s["local_c"][None]), g.mul(x2, s["local_l"][None]))
+    if a.level_column is not None:  # each opening's slope in the pressure level
+        level = g.op("Unsqueeze", g.column(held, a.level_column), g.const([1], np.int64))
+        local = g.add(local, g.mul(level, s["local_m"][None]))
     if len(knots) == 1:
         bridged = g.column(local, 0)
     else:  # hat weights of linear interpolation between the knots, held beyond the ends

@@ -43,12 +43,14 @@ FLOW_PHYSICS_GROUPS = ((1,), (1, 2))
 FLOW_GROUPS = ((0, 1), (1, 2))
 FLOW_TRANSITION = 0
 FLOW_KNEE_FEATURES = (1,)
-# The flow force: ln(−α) = a(opening, Re) + b(σ), the opening bridged linearly between sampled
-# openings (as the grid maps do) and the cavitation part shared by all openings: the samples
-# collapse on σ across openings and back pressures. Measured by cross-validation on the shipped
-# samples, this structure predicts a left-out opening and the left-out back-pressure set within
-# 5 %, where additive RBF parts or the monotone network over (u, σ) missed by 7-12 %.
-FORCE_BRIDGE = dict(bridge_column=1, local_column=0, shared_column=2)
+# The flow force: ln(−α) = a(opening, Re) + m(opening)·ln(Δp/p_atm) + b(σ), the opening bridged
+# linearly between sampled openings (as the grid maps do) and the cavitation part shared by all
+# openings: the samples collapse on σ across openings and back pressures. Measured by
+# cross-validation on the shipped samples, this structure predicts a left-out opening and the
+# left-out back-pressure set within 5 %, where additive RBF parts or the monotone network over
+# (u, σ) missed by 7-12 %; the level's slope m took the error leaving a temperature out from
+# 3.5 to 2.5 % (surrogate/maps/network.py, BridgedArchitecture).
+FORCE_BRIDGE = dict(bridge_column=1, local_column=0, shared_column=2, level_column=3)
 FORCE_WIDTH = 8
 # Beyond the samples' Reynolds and cavitation numbers (plus this margin, in standard deviations)
 # the force network holds its inputs: the flow-force fraction stays near its value at the edge of
@@ -220,14 +222,15 @@ def _bridged_ensemble(data: Targets, progress) -> NetworkEnsemble:
     from .bridged_nn import train_bridged
 
     target, output = force_target(data)
-    features = data.force_features[:, :len(FEATURE_NAMES)]  # the bridged network reads three
+    features = data.force_features  # Re, u, σ and the pressure level
     mean, std = features.mean(axis=0), features.std(axis=0)
     z = (features - mean) / std
     knots = tuple(float(k) for k in np.unique(np.round(z[:, FORCE_BRIDGE["bridge_column"]], 9)))
     held = {} if FORCE_HOLD_MARGIN is None else {
         column: (float(z[:, column].min()) - FORCE_HOLD_MARGIN,
                  float(z[:, column].max()) + FORCE_HOLD_MARGIN)
-        for column in (FORCE_BRIDGE["local_column"], FORCE_BRIDGE["shared_column"])}
+        for column in (FORCE_BRIDGE["local_column"], FORCE_BRIDGE["shared_column"],
+                       FORCE_BRIDGE["level_column"])}
     architecture = BridgedArchitecture(knots, FORCE_WIDTH, **FORCE_BRIDGE, held=held)
     states = []
     for member in range(NN_MEMBERS):

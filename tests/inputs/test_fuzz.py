@@ -751,6 +751,9 @@ CASES = [
     predict_with("nn", weights="force", arrays=lambda a: a.update(
         {"0/local_W": a["0/local_W"][:6]}), words=("nn/force.npz", "'local_W'", "(7, 8)"),
         id="surrogate: bridged NN array of the wrong shape"),
+    predict_with("nn", weights="force", arrays=lambda a: a.pop("3/local_m"),
+                 words=("nn/force.npz", "member 3", "missing array(s) local_m"),
+                 id="surrogate: bridged NN without its pressure-level slopes"),
     predict_with("nn", arrays=lambda a: a.update({"1/bias.1": a["1/bias.1"] * np.nan}),
                  words=("nn/flow.npz", "'bias.1'", "NaN"), id="surrogate: NaN NN weights"),
     predict_with("gp", arrays=lambda a: a.update(dual=a["dual"] * np.nan),
