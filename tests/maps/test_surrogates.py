@@ -55,28 +55,27 @@ def accuracy(valve):
 
 @pytest.mark.parametrize("kind", LEARNED)
 def test_learned_flow_force_is_right_between_openings_and_at_other_back_pressures(kind, accuracy):
-    """The issue's targets, from the committed maps' cross-validation: a left-out opening no
-    worse than the grid's linear bridge, the left-out back-pressure set within 5 %, the flow
+    """The issues' targets, from the committed maps' cross-validation: the flow force no worse
+    than the grid's in any scheme (a left-out opening: its linear bridge; a left-out
+    temperature: its interpolation in ν), the left-out back-pressure set within 5 %, the flow
     within 1 % everywhere."""
     learned, grid = accuracy[kind], accuracy["grid"]
     assert set(learned) == set(SCHEMES)
-    opening = "leave one opening out"
-    assert learned[opening]["flow_force_rel_rmse"] <= grid[opening]["flow_force_rel_rmse"]
+    for scheme in SCHEMES:
+        assert learned[scheme]["flow_force_rel_rmse"] <= grid[scheme]["flow_force_rel_rmse"], \
+            scheme
     assert learned["back-pressure set out"]["flow_force_rel_rmse"] <= 0.05
     assert all(row["q_rel_rmse"] <= 0.01 for row in learned.values())
     assert all(row["flow_force_rel_rmse"] <= 0.05 for row in learned.values())
 
 
 @pytest.mark.parametrize("kind", ("grid", *LEARNED))
-def test_two_sigma_bands_hold_most_left_out_samples_in_every_scheme(kind, accuracy):
-    """Calibrated bands: ±2σ should hold about 95 % of the cross-validated samples. The bound
-    is loose at the small end because the back-pressure set has 16 samples (one sample is
-    6 %)."""
+def test_two_sigma_bands_hold_90_to_98_percent_in_every_scheme(kind, accuracy):
+    """Calibrated bands: ±2σ holds 90-98 % of the cross-validated samples of every scheme (the
+    calibration's constraint, surrogate/maps/calibration.py; of the back-pressure set's 16, 15)."""
     for scheme, row in accuracy[kind].items():
         for name in ("q_coverage_2sigma", "flow_force_coverage_2sigma"):
-            assert 0.85 <= row[name] <= 1.0, (kind, scheme, name, row[name])
-        if row["samples"] > 50:
-            assert 0.9 <= row["flow_force_coverage_2sigma"], (kind, scheme, row)
+            assert 0.90 <= row[name] <= 0.98, (kind, scheme, name, row[name])
 
 
 @pytest.mark.slow
@@ -421,18 +420,26 @@ def test_a_weight_file_linked_from_outside_the_folder_is_refused(tmp_path):
 #: SHA-256 of the committed manifests before they recorded their weights' hashes
 #: the committed surrogates trained before their weights were sealed (the GP has been retrained
 #: since, and a model file naming the GP before that is refused, as it should be)
-UNSEALED_MANIFESTS = {"nn": "3d9df9f55647d7a7944a394f23691ad66ba578276e9513b9da5b8e99e44f0635"}
-RETRAINED = {"gp": "c192393f8906e6af235a8ecfd247e67973d3b59f390c97555ac26189b1281f5d"}
+#: manifests of committed surrogates since retrained (the NN's from before the seal, too)
+RETRAINED = {"gp": "c192393f8906e6af235a8ecfd247e67973d3b59f390c97555ac26189b1281f5d",
+             "nn": "3d9df9f55647d7a7944a394f23691ad66ba578276e9513b9da5b8e99e44f0635"}
 
 
-@pytest.mark.parametrize("kind", sorted(UNSEALED_MANIFESTS))
+@pytest.mark.parametrize("kind", LEARNED)
 def test_model_files_recording_a_manifest_from_before_the_seal_still_load(kind, valve):
     """A model file records its surrogate's manifest hash; adding the weights' hashes changed the
-    committed manifests' bytes, not what they describe, so the hash of the manifest as it was
-    written before still names it (and the weights are checked against the seal)."""
+    manifests' bytes, not what they describe, so the hash of the manifest as it was written
+    before (no ``sha256`` in the predictors' entries, two-space indent, one newline) still names
+    it (and the weights are checked against the seal)."""
+    import hashlib
+
     from surrogate.maps.registry import MapSource
 
-    old = MapSource.of(kind, folder="shipped", surrogate_sha256=UNSEALED_MANIFESTS[kind])
+    manifest = json.loads((trained_folder(kind) / "surrogate.json").read_text())
+    for name in ("flow", "force"):
+        del manifest[name]["predictor"]["sha256"]
+    before = hashlib.sha256((json.dumps(manifest, indent=2) + "\n").encode()).hexdigest()
+    old = MapSource.of(kind, folder="shipped", surrogate_sha256=before)
     assert build_maps(old, valve)[0].kind == kind
     other = MapSource.of(kind, folder="shipped", surrogate_sha256="0" * 64)
     with pytest.raises(InputError, match="not the one the model was built on"):
