@@ -7,7 +7,7 @@
   error of q (predicted from p_L) and of the flow force, and the share of left-out samples inside
   the calibrated ±2σ bands. The grid's cross-validation runs here (a second); the learned kinds'
   is what ``training/train.py`` ran while training the committed maps and recorded in their
-  ``surrogate.json`` (it retrains each kind once per fold: ten minutes).
+  ``surrogate.json`` (it retrains each kind once per fold: about five minutes).
 * **Monotonicity**: violations on 20,000 random states, half inside the sampled ranges and half
   far outside.
 * **Speed**: map evaluations per second (Δp at a flow, f_sim at a load pressure, and each one's

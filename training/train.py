@@ -11,9 +11,9 @@ into each folder: the summary per scheme in ``surrogate.json`` (with the SHA-256
 file, so a test can tell when the committed surrogates no longer match the shipped samples), the
 errors per left-out sample in ``cross_validation.csv``.
 
-Training the deployed maps takes about a minute and a half on 2 cores; the cross-validation
-retrains each kind once per fold (16 folds on the shipped samples), some ten minutes with two
-worker processes.
+Training the deployed maps takes under a minute on 2 cores (40 s on a quiet machine); the
+cross-validation retrains each kind once per fold (14 folds on the shipped samples), about five
+minutes with two worker processes.
 """
 
 from __future__ import annotations
