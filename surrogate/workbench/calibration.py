@@ -109,7 +109,8 @@ class Calibration:
 def prior_sigma(name: str, replay, ok: np.ndarray, at: np.ndarray) -> np.ndarray:
     """Each knot's prior σ [1] for calibration ``name``: the map's calibrated relative σ and the
     CFD's own error in quadrature, averaged over the solved samples ``ok`` by their hat weights
-    (the log's average where no sample lies near a knot)."""
+    (the log's average where no sample lies near a knot), and no wider than the values' bounds
+    (a grid's σ beyond its smallest opening can reach them)."""
     spread = np.full(int(ok.sum()), 0.0)
     if replay.map_std is not None:
         spread = np.nan_to_num(replay.map_std[MAP_ROW[name], ok])
@@ -117,7 +118,8 @@ def prior_sigma(name: str, replay, ok: np.ndarray, at: np.ndarray) -> np.ndarray
     weights = hat_basis(at, np.nan_to_num(replay.u[ok], nan=at[0]))
     total = weights.sum(axis=0)
     near = weights.T @ variance / np.where(total > 0, total, 1.0)
-    return np.sqrt(np.where(total > 1e-9, near, float(np.mean(variance))))
+    limit = next(cls.value_limit for cls in CALIBRATIONS if cls.name == name)
+    return np.minimum(np.sqrt(np.where(total > 1e-9, near, float(np.mean(variance)))), limit)
 
 
 def calibrate_maps(model: ValveModel, log: BenchLog, played: LogReplay, *,
