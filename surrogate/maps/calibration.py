@@ -97,8 +97,10 @@ class Calibration:
 
         With ``groups`` (a label per error, e.g. its cross-validation scheme) the likelihood is
         maximised subject to ±2σ holding a share within ``band`` of each group's errors (as near
-        as its count allows: of 16 errors, 15). The constraint enters as a penalty on how far the
-        order statistic at the band's edge lies from 2σ."""
+        as its count allows: of 16 errors, 15; a group too small for any count to fit the band,
+        fewer than 10 errors, is left to the likelihood). The constraint enters as a penalty on
+        how far the order statistic at the band's edge lies from 2σ; where it cannot be met the
+        nearest fit is returned, and the coverage per scheme (:func:`coverage_of`) shows it."""
         errors = np.asarray(errors, float)
         spread = None if spread is None or not use_spread else np.asarray(spread, float)
         distances = {name: np.asarray(d, float) for name, d in distances.items()
@@ -145,6 +147,8 @@ def _band_violation(z_descending: np.ndarray, band: tuple[float, float]) -> floa
     n = len(z_descending)
     must_leave = n - int(np.floor(band[1] * n))  # at least this many outside
     may_leave = n - int(np.ceil(band[0] * n))    # at most this many
+    if must_leave > may_leave:  # no count fits the band (fewer than 10 errors): no constraint
+        return 0.0
     violation = 0.0
     if must_leave > 0:
         violation += max(0.0, 2.0 + _EDGE_MARGIN - z_descending[must_leave - 1]) ** 2

@@ -68,3 +68,15 @@ def test_sixteen_errors_in_a_group_leave_one_outside():
                                   groups=np.zeros(16, int))
     std = np.full(16, calibration.floor)
     assert np.sum(np.abs(errors) > 2 * std) == 1
+
+
+def test_a_group_too_small_for_the_band_is_left_to_the_likelihood():
+    """Of 5 errors no count lies in 90-98 % (4 is 80 %, 5 is 100 %): such a group adds no
+    constraint, and a fit whose other groups are inside the band is the likelihood's."""
+    rng = np.random.default_rng(5)
+    errors = np.concatenate([rng.normal(0.0, 0.03, 300), rng.uniform(-0.01, 0.01, 5)])
+    groups = np.array(["many"] * 300 + ["few"] * 5)
+    plain = Calibration.fit(errors, None, {}, use_spread=False)
+    share = coverage_of(errors[:300], np.full(300, plain.floor))
+    assert COVERAGE_BAND[0] <= share <= COVERAGE_BAND[1]
+    assert Calibration.fit(errors, None, {}, use_spread=False, groups=groups) == plain
