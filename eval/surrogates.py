@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
@@ -138,6 +139,11 @@ def calibration_figure(errors: dict) -> Figure:
                         color=colours[scheme], label=scheme)
             ax.axhspan(-2, 2, color="0.9", zorder=0)
             ax.set_xscale("log")
+            # plain numbers at a few ticks: a narrow log axis otherwise labels its minor ticks
+            # as 2×10⁰, 3×10⁰, ... on top of each other
+            ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+            ax.xaxis.set_minor_formatter(NullFormatter())
             ax.set_ylim(-6, 6)
             ax.set_title(f"{LABELS[kind]}: {name}", fontsize=10)
             ax.set_xlabel("calibrated σ [%]")
