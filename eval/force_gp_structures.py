@@ -1,7 +1,7 @@
 """Force-map GP structures by the four-scheme cross-validation: which kernel parts carry the flow
 force best between openings, across temperatures and at other back pressures.
 
-    python eval/force_gp_structures.py [--restarts 3] [--out results/force_gp_structures]
+    python eval/force_gp_structures.py [--restarts 3] [--flow] [--out results/force_gp_structures]
 
 The shipped GP's force map (``surrogate/learn/training.py``: ``FORCE_GP_PARTS``) predicts
 ln(−α), α = f_ff/(A_L·Δp), from (ln Re, ln u/U, ln σ, ln(Δp/p_atm)) with a Brownian-motion bridge
@@ -12,6 +12,11 @@ is the relative RMS error of the flow force at each left-out sample's pressure d
 (``force_error`` of :func:`~surrogate.maps.crossval.errors_on`, here exp(L̂ − L) − 1 of the latent
 target). The shipped GP's own cross-validation (``training/train.py``) scores the structure it
 ships within 0.01 % of its row here.
+
+``--flow`` asks the same of the flow map's GP instead (``surrogate.features.ADDITIVE_GROUPS``:
+ln C_d from (ln Re_q, ln u/U, ln σ_q) as RBF(Re, u) + RBF(u, σ)), scored by the relative error
+of C_d at each left-out sample (the flow at its pressure drop): whether another structure would
+carry q better between openings without losing elsewhere.
 
 Prints one row per structure and writes ``structures.json``; about a minute on one core.
 """
@@ -46,6 +51,17 @@ STRUCTURES = {
 }
 
 
+#: input columns of the flow map: 0 ln Re_q, 1 ln(u/U), 2 ln σ_q
+FLOW_STRUCTURES = {
+    "shipped: RBF(Re, u) + RBF(u, σ)": (("rbf", (0, 1)), ("rbf", (1, 2))),
+    "+ RBF(σ)": (("rbf", (0, 1)), ("rbf", (1, 2)), ("rbf", (2,))),
+    "+ RBF(Re)": (("rbf", (0, 1)), ("rbf", (1, 2)), ("rbf", (0,))),
+    "+ RBF(Re, u, σ)": (("rbf", (0, 1)), ("rbf", (1, 2)), ("rbf", (0, 1, 2))),
+    "RBF(Re, u, σ) alone": (("rbf", (0, 1, 2)),),
+    "bridge(u; Re) + RBF(u, σ)": (("bridge", (1, 0)), ("rbf", (1, 2))),
+}
+
+
 def scores(parts, inputs: np.ndarray, latent: np.ndarray, frame, restarts: int) -> dict:
     """Relative RMS error [%] of the flow force per scheme, each fold fitted on its training
     samples only (standardisation included)."""
@@ -70,16 +86,22 @@ def scores(parts, inputs: np.ndarray, latent: np.ndarray, frame, restarts: int) 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--restarts", type=int, default=3)
+    parser.add_argument("--flow", action="store_true",
+                        help="the flow map's GP (ln C_d) instead of the force map's")
     parser.add_argument("--out", default="results/force_gp_structures")
     args = parser.parse_args()
     valve = load_valve()
     frame = load_cfd_samples(SHIPPED_CFD_SAMPLES).frame
     data = targets(FeatureSpec.for_valve(valve), frame)
-    latent = np.log(-data.flow_force_fraction)
-    inputs = data.force_features  # all four (surrogate.features.FORCE_FEATURE_NAMES)
+    if args.flow:
+        latent, inputs, structures = data.log_discharge, data.flow_features, FLOW_STRUCTURES
+    else:
+        latent = np.log(-data.flow_force_fraction)
+        inputs = data.force_features  # all four (surrogate.features.FORCE_FEATURE_NAMES)
+        structures = STRUCTURES
     print(f"{'structure':45s} " + " ".join(f"{s[:14]:>14s}" for s in SCHEMES) + "    mean")
     results = {}
-    for name, parts in STRUCTURES.items():
+    for name, parts in structures.items():
         began = time.perf_counter()
         row = scores(parts, inputs, latent, frame, args.restarts)
         results[name] = {**row, "mean": float(np.mean(list(row.values()))),
