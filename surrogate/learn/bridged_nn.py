@@ -61,13 +61,12 @@ class TorchBridgedNet(torch.nn.Module):
         return (weights * per_opening).sum(1) + cavitation
 
     def penalty(self) -> torch.Tensor:
-        """Weight decay on the hidden weights, plus the level slopes' roughness across openings
-        (weighted so that it costs LEVEL_SMOOTHING, not DECAY)."""
-        decay = torch.sum(self.local_W**2) + torch.sum(self.shared_W**2)
+        """Weight decay on the hidden weights, and the level slopes' roughness across openings
+        (none without a level column), each times its own weight."""
+        decay = DECAY * (torch.sum(self.local_W**2) + torch.sum(self.shared_W**2))
         if self.architecture.level_column is None:
             return decay
-        roughness = torch.sum(torch.diff(self.local_m) ** 2)
-        return decay + LEVEL_SMOOTHING / DECAY * roughness
+        return decay + LEVEL_SMOOTHING * torch.sum(torch.diff(self.local_m) ** 2)
 
 
 def train_bridged(architecture: BridgedArchitecture, z: np.ndarray, target: np.ndarray, *,
@@ -84,8 +83,7 @@ def train_bridged(architecture: BridgedArchitecture, z: np.ndarray, target: np.n
     goal = torch.as_tensor(target)
 
     def objective():
-        return (torch.mean((network(weights, local, shared, level) - goal) ** 2)
-                + DECAY * network.penalty())
+        return torch.mean((network(weights, local, shared, level) - goal) ** 2) + network.penalty()
 
     minimise(network, objective, epochs=epochs, learning_rate=learning_rate, polish=polish)
     return {key: value.detach().numpy().copy() for key, value in network.state_dict().items()}

@@ -52,10 +52,13 @@ FLOW_KNEE_FEATURES = (1,)
 # 3.5 to 2.5 % (surrogate/maps/network.py, BridgedArchitecture).
 FORCE_BRIDGE = dict(bridge_column=1, local_column=0, shared_column=2, level_column=3)
 FORCE_WIDTH = 8
-# Beyond the samples' Reynolds and cavitation numbers (plus this margin, in standard deviations)
-# the force network holds its inputs: the flow-force fraction stays near its value at the edge of
-# the data instead of following the networks' linear terms off (which made f_sim fall with p_L
-# far outside the data).
+# Beyond the samples' Reynolds number, cavitation number and pressure level (columns 0, 2, 3,
+# plus the margin, in standard deviations) both force maps hold their inputs: the flow-force
+# fraction stays near its value at the edge of the data instead of following the networks'
+# linear terms off (which made f_sim fall with p_L far outside the data), or the GP's parts
+# reverting to the mean (which made α < −1 far below the sampled pressure drops, where f_sim fell
+# as p_L rose; the GP's cross-validated errors are the same to 0.01 % with and without).
+FORCE_HELD = (0, 2, 3)
 FORCE_HOLD_MARGIN = 0.5
 # The GP's flow force: ln(−α) from (ln Re, ln(u/U), ln σ, ln(Δp/p_atm)) (columns 0-3): the
 # opening bridged linearly between sampled openings, its factor an RBF of Re and the pressure
@@ -64,11 +67,6 @@ FORCE_HOLD_MARGIN = 0.5
 # / left-out temperature / back-pressure set, where the three-feature structure had
 # 3.6/4.0/3.5/4.6 %.
 FORCE_GP_PARTS = (("bridge", (1, 0, 3)), ("rbf", (0, 1)), ("rbf", (2,)))
-# Beyond the samples' Re, σ and pressure level (plus FORCE_HOLD_MARGIN standard deviations) the
-# force GP holds those inputs, as the force network does (surrogate/maps/gp.py): its parts
-# reverting to the mean far below the sampled pressure drops made α < −1 there, and f_sim fell
-# as p_L rose. The cross-validated errors are the same to 0.01 % with and without.
-FORCE_GP_HELD = (0, 2, 3)
 GP_RESTARTS = 10
 
 
@@ -229,8 +227,7 @@ def _bridged_ensemble(data: Targets, progress) -> NetworkEnsemble:
     held = {} if FORCE_HOLD_MARGIN is None else {
         column: (float(z[:, column].min()) - FORCE_HOLD_MARGIN,
                  float(z[:, column].max()) + FORCE_HOLD_MARGIN)
-        for column in (FORCE_BRIDGE["local_column"], FORCE_BRIDGE["shared_column"],
-                       FORCE_BRIDGE["level_column"])}
+        for column in FORCE_HELD}
     architecture = BridgedArchitecture(knots, FORCE_WIDTH, **FORCE_BRIDGE, held=held)
     states = []
     for member in range(NN_MEMBERS):
@@ -249,7 +246,7 @@ def train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, 
     target, name = force_target(data)
     force = GaussianProcessPredictor(
         fit_gp(data.force_features, target, FORCE_GP_PARTS, linear_mean=name == "plain_fraction",
-               restarts=GP_RESTARTS, held=FORCE_GP_HELD, held_margin=FORCE_HOLD_MARGIN),
+               restarts=GP_RESTARTS, held=FORCE_HELD, held_margin=FORCE_HOLD_MARGIN),
         "fraction" if name == "plain_fraction" else name)
     progress(f"GP force ({force.target}): fitted, condition number "
              f"{force.arrays.condition_number:.1e}")
