@@ -206,15 +206,17 @@ def main() -> None:
     log = load_bench_log(SHIPPED_BENCH_LOG)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    gaps = MapMismatch() if args.gap is None else replace(MapMismatch(), gap_force=args.gap[0],
-                                                          gap_dp=args.gap[1])
+    # how far the virtual valve strays from its CFD: the defaults, or as the options set
+    strays = MapMismatch()
+    if args.gap is not None:
+        strays = replace(strays, gap_force=args.gap[0], gap_dp=args.gap[1])
     if args.per_opening is not None:
-        gaps = replace(gaps, dp_per_opening=args.per_opening[0],
-                       force_per_opening=args.per_opening[1])
+        strays = replace(strays, dp_per_opening=args.per_opening[0],
+                         force_per_opening=args.per_opening[1])
     mismatch = mismatch_record(log, args.mismatch_cases,
                                0 if args.only_weak_leakages else args.controls,
                                args.mismatch_maps, args.mismatch_every,
-                               tuple(args.mismatch_settings), gaps, args.only_weak_leakages)
+                               tuple(args.mismatch_settings), strays, args.only_weak_leakages)
     if args.only_mismatch or args.only_weak_leakages:
         path = out / f"mismatch_{args.mismatch_maps}.json"
         path.write_text(json.dumps(mismatch, indent=2) + "\n")
