@@ -188,7 +188,8 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
                        library: EffectLibrary = LIBRARY,
                        noise: SensorNoise | None = None, mismatch: MapMismatch | None = None,
                        samples: CfdSamples | None = None,
-                       maps_under_test: MapsSpec | None = None) -> HiddenEffectCase:
+                       maps_under_test: MapsSpec | None = None,
+                       valve_maps: MapsSpec | None = None) -> HiddenEffectCase:
     """Make a synthetic log with effect ``hidden`` (from ``library``) at ``values`` (display
     units; default its :data:`REALISTIC_MAGNITUDES`), or with nothing hidden when ``hidden`` is
     None.
@@ -201,7 +202,9 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
     reference's valve and effects on maps of ``samples`` (default: the shipped CFD samples)
     perturbed with the case's ``seed``. ``maps_under_test`` puts the starting model on other maps
     (default: the reference's); with ``mismatch`` the virtual valve is then those maps wrapped
-    with the case's draws (``own_maps`` of :func:`.mismatch.mismatched_truth`).
+    with the case's draws (``own_maps`` of :func:`.mismatch.mismatched_truth`). ``valve_maps``
+    puts that virtual valve on maps other than the model's: the same kind trained on every
+    sample, say, where the model's left an opening out (:mod:`.left_out`).
     """
     reference = reference or reference_spec()
     truth = reference.named(f"reference + {hidden}" if hidden else "reference")
@@ -215,8 +218,9 @@ def hidden_effect_case(hidden: str | None, values: dict[str, float] | None = Non
                                     EffectSpec.of(effect)])
         start_effects = [e for e in start_effects if e.name != hidden]
     # a model under test on other maps meets a valve built around those maps (mismatch.py)
-    own_maps = mismatch is not None and maps_under_test not in (None, reference.maps)
-    truth_model = (truth.with_maps(maps_under_test) if own_maps else truth).build(library)
+    valve_maps = valve_maps or maps_under_test
+    own_maps = mismatch is not None and valve_maps not in (None, reference.maps)
+    truth_model = (truth.with_maps(valve_maps) if own_maps else truth).build(library)
     if mismatch is not None:
         samples = samples if samples is not None else load_cfd_samples(SHIPPED_CFD_SAMPLES)
         truth_model = mismatched_truth(truth_model, samples, seed, mismatch, own_maps=own_maps)
@@ -336,14 +340,15 @@ def unexplained_additions(workflow, hidden: str | None,
                           library: EffectLibrary = LIBRARY) -> list[str]:
     """The physics and sensor effects a workflow added beyond the paper's steps that are neither
     the hidden effect nor one the data cannot tell from it (map corrections may patch the maps
-    anywhere: they are labelled as such, not counted)."""
+    anywhere: they are labelled as such, not counted; a shape-free term's category is its own,
+    :mod:`surrogate.effects.shapes`)."""
     extra = []
     for step in workflow.steps[1:]:
         if step.diagnosis is None:  # a paper step
             continue
         group = step.diagnosis.best.group if step.diagnosis.best else step.added
         for name in step.added:
-            if name in library and library[name].category == "map correction":
+            if _category(name, step.model, library) == "map correction":
                 continue
             if hidden and hidden in group:
                 continue
@@ -364,6 +369,14 @@ def cleanly_identified(workflow, hidden: str | None, library: EffectLibrary = LI
         return identified(workflow.final_diagnosis, hidden, library)
     return any(step.diagnosis is not None and step.diagnosis.best is not None
                and hidden in step.diagnosis.best.group for step in workflow.steps[1:])
+
+
+def _category(name: str, model: ValveModel, library: EffectLibrary) -> str:
+    """The category of the effect ``name`` a step added: the model's own (a shape-free term is
+    in no library), else the library's."""
+    if model.has_effect(name):
+        return model.effect(name).category
+    return library[name].category if name in library else "physics"
 
 
 def _per_run(name: str, library: EffectLibrary) -> bool:

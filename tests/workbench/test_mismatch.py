@@ -12,6 +12,8 @@ other physics or sensor effect; corrections of the maps are allowed and labelled
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -19,10 +21,12 @@ from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.diagnosis.diagnose import diagnose
 from surrogate.diagnosis.rule import BIC_THRESHOLD, INCLUSION_MIN
+from surrogate.effects.shapes import FlowForceFactor, OpeningForce
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fluid import FluidState
 from surrogate.paths import SHIPPED_CFD_SAMPLES
-from surrogate.presets import maps
+from surrogate.model import ValveModel
+from surrogate.presets import cfda, maps
 from surrogate.reporting.prose import sensor_check_text, summarise
 from surrogate.synthetic.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
                                           PerturbedForceMap, mismatched_samples)
@@ -107,6 +111,24 @@ def test_a_learned_map_under_test_meets_its_own_maps_wrapped_with_the_draws(benc
 
 def test_the_cavitation_term_keeps_the_effect_contract():
     check_effect(CavitationFlowForce)
+
+
+def test_a_shape_free_map_correction_is_not_counted_as_invented_physics():
+    # a shape-free term is in no library: its category is the model's effect's own (a flow
+    # force scaled by a factor of the opening patches the maps; a force of the opening is physics)
+    model = cfda().build()
+    shaped = ValveModel(model.valve, model.flow_map, model.force_map,
+                        [*model.effects, FlowForceFactor(), OpeningForce()], "shaped")
+
+    def step(name):
+        return SimpleNamespace(diagnosis=SimpleNamespace(best=SimpleNamespace(group=[name])),
+                               added=[name], model=shaped)
+
+    paper = SimpleNamespace(diagnosis=None, added=[], model=model)
+    workflow = SimpleNamespace(steps=[paper, step("shape_flow_force_of_opening"),
+                                      step("shape_force_of_opening"), step("laminar_leakage")])
+    assert unexplained_additions(workflow, "laminar_leakage") == ["shape_force_of_opening"]
+    assert unexplained_additions(workflow, None) == ["shape_force_of_opening", "laminar_leakage"]
 
 
 @pytest.mark.slow
