@@ -21,7 +21,7 @@ Measures, in one run on this machine:
 Writes results/workbench/benchmark.json and prints a summary. Run:
 ``python eval/workbench.py [--cases 20] [--every 4] [--mismatch-cases 20] [--controls 5]
 [--maps gp] [--mismatch-maps grid] [--mismatch-settings 2026 2027] [--only-mismatch]
-[--gap FORCE DP] [--per-opening DP FORCE] [--only-weak-leakages]``
+[--gap FORCE DP] [--per-opening DP FORCE] [--only-weak-leakages] [--mismatch-folder DIR]``
 (about 20 minutes on 2 cores).
 """
 
@@ -100,19 +100,23 @@ def replay_noise_control(log, seed: int = 1) -> dict:
 
 def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
                     settings: tuple[int, ...] = STRESS_SETTINGS,
-                    mismatch: MapMismatch = MapMismatch(), only_weak: bool = False) -> dict:
+                    mismatch: MapMismatch = MapMismatch(), only_weak: bool = False,
+                    folder: str | None = None) -> dict:
     """The workflow on virtual-valve logs (the same settings and seeds as
     tests/workbench/test_mismatch.py with its defaults): clean identifications over randomised
     cases, and the physics or sensor effects added where nothing is hidden. ``only_weak``: the
-    weak leakages' cases alone."""
+    weak leakages' cases alone; ``folder``: a learned kind's trained surrogate other than the
+    committed one (an earlier version's, say)."""
     sequence = noise_free_sequence(log, every=every)
-    record = {"maps": kind, "every": every, "settings": list(settings), "cases": [],
+    under = maps(kind) if folder is None else maps(kind, folder=folder)
+    record = {"maps": kind, "folder": folder, "every": every, "settings": list(settings),
+              "cases": [],
               "controls": [], "mismatch": {name: getattr(mismatch, name)
                                            for name in mismatch.__dataclass_fields__}}
 
     def workflow_of(hidden, values, seed):
         case = hidden_effect_case(hidden, values, sequence=sequence, seed=seed,
-                                  mismatch=mismatch, maps_under_test=maps(kind))
+                                  mismatch=mismatch, maps_under_test=under)
         return timed(run_workflow, case.log, start=case.start, max_additions=3)
 
     for case in stress_suite(cases, controls, settings):
@@ -202,6 +206,9 @@ def main() -> None:
                              "asks what the CFD's own error hides)")
     parser.add_argument("--only-weak-leakages", action="store_true",
                         help="of the mismatch suite, only the weak leakages' cases (no controls)")
+    parser.add_argument("--mismatch-folder",
+                        help="a trained surrogate's folder for --mismatch-maps nn|gp instead of "
+                             "the committed one (an earlier version's, to compare)")
     args = parser.parse_args()
     log = load_bench_log(SHIPPED_BENCH_LOG)
     out = Path(args.out)
@@ -216,7 +223,8 @@ def main() -> None:
     mismatch = mismatch_record(log, args.mismatch_cases,
                                0 if args.only_weak_leakages else args.controls,
                                args.mismatch_maps, args.mismatch_every,
-                               tuple(args.mismatch_settings), strays, args.only_weak_leakages)
+                               tuple(args.mismatch_settings), strays, args.only_weak_leakages,
+                               args.mismatch_folder)
     if args.only_mismatch or args.only_weak_leakages:
         path = out / f"mismatch_{args.mismatch_maps}.json"
         path.write_text(json.dumps(mismatch, indent=2) + "\n")

@@ -1,0 +1,69 @@
+"""Maps that never saw one of the CFD's openings: where a map kind's own error shows in a log.
+
+The virtual valve of :mod:`.mismatch` wraps the model under test's own maps with the CFD's error
+(``own_maps``), so the model errs by the same draws whatever its maps' kind: how well a kind
+carries the flow and the force between openings never reaches the diagnosis. Here the model under
+test gets maps of its kind trained **without one sampled opening**, while the virtual valve keeps
+that kind's maps trained on every sample. Near that opening the model then errs as its kind does
+between openings (the grid with its power-law bridge, the NN and the GP with theirs; their
+cross-validation leaving an opening out measures the same error on the CFD samples), on top of
+the CFD's own error that :mod:`.mismatch` draws. A better map is one that leaves less of the
+valve unexplained there, which a diagnosis looking for a weak effect should feel.
+
+A learned kind is retrained on the samples left (the kind's trainer, seconds to a minute) and
+keeps the calibration of the σ its committed maps carry; the grid is built from the samples left
+and calibrates itself on them as any grid does.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..data.loaders import load_cfd_samples
+from ..errors import InputError
+from ..maps.learned import load_learned_maps, trained_folder
+from ..maps.registry import map_kind
+from ..paths import SHIPPED_CFD_SAMPLES
+from ..presets import maps
+from ..maps.registry import MapsSpec
+from ..units import from_si
+from ..valve import load_valve
+
+#: the CFD file's column of the opening [mm]
+OPENING_COLUMN = "u_mm"
+
+
+def maps_without_opening(kind: str, opening: float, folder: str | Path,
+                         cfd: str | Path = SHIPPED_CFD_SAMPLES,
+                         progress=lambda message: None) -> MapsSpec:
+    """Maps of ``kind`` built from the samples of ``cfd`` without those at ``opening`` [m],
+    written to ``folder`` (a CFD file for the grid, a trained surrogate's folder for a learned
+    kind, which keeps the committed maps' calibration of σ)."""
+    cfd, folder = Path(cfd), Path(folder)
+    table = pd.read_csv(cfd)
+    at = np.isclose(table[OPENING_COLUMN], from_si(opening, "mm"), rtol=1e-6)
+    sampled = sorted(table[OPENING_COLUMN].unique())
+    if not at.any():
+        raise InputError(f"{cfd}: no sample at u = {from_si(opening, 'mm'):g} mm to leave out; "
+                         f"its openings are {', '.join(f'{u:g}' for u in sampled)} mm")
+    if np.isclose(from_si(opening, "mm"), [sampled[0], sampled[-1]]).any():
+        raise InputError(f"leave out an inner opening, not {from_si(opening, 'mm'):g} mm: without "
+                         "an end opening the maps extrapolate, which is not the error between "
+                         "openings this asks about")
+    folder.mkdir(parents=True, exist_ok=True)
+    left = folder / f"{cfd.stem}_without_{from_si(opening, 'mm'):g}mm.csv"
+    table[~at].to_csv(left, index=False)
+    if kind == "grid":
+        return maps("grid", cfd=left)
+    from ..learn.training import train_surrogate
+
+    trained = train_surrogate(kind, load_cfd_samples(left), load_valve(), progress=progress)
+    committed_flow, committed_force = load_learned_maps(trained_folder(map_kind(kind).name))
+    trained.calibrate(committed_flow.calibration, committed_force.calibration)
+    surrogate = folder / f"{map_kind(kind).name}_without_{from_si(opening, 'mm'):g}mm"
+    trained.save(surrogate, training={"left_out_opening_mm": from_si(opening, "mm")},
+                 metrics={})
+    return maps(kind, folder=surrogate)
