@@ -43,6 +43,10 @@ def maps_without_opening(kind: str, opening: float, folder: str | Path,
     written to ``folder`` (a CFD file for the grid, a trained surrogate's folder for a learned
     kind, which keeps the committed maps' calibration of σ)."""
     cfd, folder = Path(cfd), Path(folder)
+    source = map_kind(kind)
+    if not source.learned and source.data is None:
+        raise InputError(f"{source.name} maps are not built from CFD samples: they have no "
+                         "opening to leave out")
     table = pd.read_csv(cfd)
     at = np.isclose(table[OPENING_COLUMN], from_si(opening, "mm"), rtol=1e-6)
     sampled = sorted(table[OPENING_COLUMN].unique())
@@ -56,14 +60,15 @@ def maps_without_opening(kind: str, opening: float, folder: str | Path,
     folder.mkdir(parents=True, exist_ok=True)
     left = folder / f"{cfd.stem}_without_{from_si(opening, 'mm'):g}mm.csv"
     table[~at].to_csv(left, index=False)
-    if kind == "grid":
-        return maps("grid", cfd=left)
+    if not source.learned:  # built from the samples themselves (the grid)
+        return maps(source.name, cfd=left)
     from ..learn.training import train_surrogate
 
-    trained = train_surrogate(kind, load_cfd_samples(left), load_valve(), progress=progress)
-    committed_flow, committed_force = load_learned_maps(trained_folder(map_kind(kind).name))
+    trained = train_surrogate(source.name, load_cfd_samples(left), load_valve(),
+                              progress=progress)
+    committed_flow, committed_force = load_learned_maps(trained_folder(source.name))
     trained.calibrate(committed_flow.calibration, committed_force.calibration)
-    surrogate = folder / f"{map_kind(kind).name}_without_{from_si(opening, 'mm'):g}mm"
+    surrogate = folder / f"{source.name}_without_{from_si(opening, 'mm'):g}mm"
     trained.save(surrogate, training={"left_out_opening_mm": from_si(opening, "mm")},
                  metrics={})
-    return maps(kind, folder=surrogate)
+    return maps(source.name, folder=surrogate)

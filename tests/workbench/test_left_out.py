@@ -50,6 +50,11 @@ def test_an_opening_that_cannot_be_left_out_is_refused(tmp_path, opening_mm, say
         maps_without_opening("grid", to_si(opening_mm, "mm"), tmp_path)
 
 
+def test_maps_without_samples_have_no_opening_to_leave_out(tmp_path):
+    with pytest.raises(InputError, match="not built from CFD samples"):
+        maps_without_opening("orifice", LEFT_OUT, tmp_path)
+
+
 def test_learned_maps_without_an_opening_err_most_there_and_keep_the_committed_calibration(
         gp_without, cfd_samples, valve):
     flow, force = build_maps(gp_without, valve)
