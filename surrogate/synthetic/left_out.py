@@ -20,20 +20,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ..data.loaders import load_cfd_samples
+from ..data.writer import write_cfd_samples
 from ..errors import InputError
 from ..maps.learned import load_learned_maps, trained_folder
-from ..maps.registry import map_kind
+from ..maps.registry import MapsSpec, map_kind
 from ..paths import SHIPPED_CFD_SAMPLES
 from ..presets import maps
-from ..maps.registry import MapsSpec
 from ..units import from_si
 from ..valve import load_valve
-
-#: the CFD file's column of the opening [mm]
-OPENING_COLUMN = "u_mm"
 
 
 def maps_without_opening(kind: str, opening: float, folder: str | Path,
@@ -47,19 +43,21 @@ def maps_without_opening(kind: str, opening: float, folder: str | Path,
     if not source.learned and source.data is None:
         raise InputError(f"{source.name} maps are not built from CFD samples: they have no "
                          "opening to leave out")
-    table = pd.read_csv(cfd)
-    at = np.isclose(table[OPENING_COLUMN], from_si(opening, "mm"), rtol=1e-6)
-    sampled = sorted(table[OPENING_COLUMN].unique())
+    samples = load_cfd_samples(cfd)  # checked: a broken file is refused with its row and column
+    u = samples.frame["u"].to_numpy()
+    at = np.isclose(u, opening, rtol=1e-6)
+    sampled = np.unique(u)
     if not at.any():
         raise InputError(f"{cfd}: no sample at u = {from_si(opening, 'mm'):g} mm to leave out; "
-                         f"its openings are {', '.join(f'{u:g}' for u in sampled)} mm")
-    if np.isclose(from_si(opening, "mm"), [sampled[0], sampled[-1]]).any():
+                         f"its openings are {', '.join(f'{v:g}' for v in from_si(sampled, 'mm'))}"
+                         " mm")
+    if np.isclose(opening, [sampled[0], sampled[-1]], rtol=1e-6).any():
         raise InputError(f"leave out an inner opening, not {from_si(opening, 'mm'):g} mm: without "
                          "an end opening the maps extrapolate, which is not the error between "
                          "openings this asks about")
     folder.mkdir(parents=True, exist_ok=True)
-    left = folder / f"{cfd.stem}_without_{from_si(opening, 'mm'):g}mm.csv"
-    table[~at].to_csv(left, index=False)
+    left = write_cfd_samples(samples.subset(~at),
+                             folder / f"{cfd.stem}_without_{from_si(opening, 'mm'):g}mm.csv")
     if not source.learned:  # built from the samples themselves (the grid)
         return maps(source.name, cfd=left)
     from ..learn.training import train_surrogate

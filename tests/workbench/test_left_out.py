@@ -80,3 +80,12 @@ def test_the_virtual_valve_can_stand_on_other_maps_than_the_model_under_test(gp_
     assert isinstance(case.truth.force_map, PerturbedForceMap)
     assert np.isclose(case.truth.force_map.base.coverage.openings, LEFT_OUT).any()
     assert not np.isclose(case.start.force_map.coverage.openings, LEFT_OUT).any()
+
+
+def test_written_cfd_samples_read_back_as_they_were(tmp_path, cfd_samples):
+    from surrogate.data.writer import write_cfd_samples
+
+    again = load_cfd_samples(write_cfd_samples(cfd_samples, tmp_path / "again.csv"))
+    for column in ("u", "q", "p_B", "p_L", "f_sim", "nu", "rho", "temperature"):
+        assert np.allclose(again.frame[column], cfd_samples.frame[column], rtol=1e-5), column
+    assert list(again.frame["case"]) == list(cfd_samples.frame["case"])
