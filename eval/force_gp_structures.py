@@ -13,8 +13,9 @@ is the relative RMS error of the flow force at each left-out sample's pressure d
 target). The shipped GP's own cross-validation (``training/train.py``) scores the structure it
 ships within 0.01 % of its row here.
 
-``--flow`` asks the same of the flow map's GP instead (``surrogate.features.ADDITIVE_GROUPS``:
-ln C_d from (ln Re_q, ln u/U, ln σ_q) as RBF(Re, u) + RBF(u, σ)), scored by the relative error
+``--flow`` asks the same of the flow map's GP instead (``surrogate/learn/training.py``:
+``FLOW_GP_PARTS``, ln C_d from (ln Re_q, ln u/U, ln σ_q) as RBF(Re, u) + RBF(u, σ); or a Matérn 3/2
+in the opening times an RBF of Re in place of the first part), scored by the relative error
 of C_d at each left-out sample (the flow at its pressure drop): whether another structure would
 carry q better between openings without losing elsewhere.
 
@@ -54,6 +55,10 @@ STRUCTURES = {
 #: input columns of the flow map: 0 ln Re_q, 1 ln(u/U), 2 ln σ_q
 FLOW_STRUCTURES = {
     "shipped: RBF(Re, u) + RBF(u, σ)": (("rbf", (0, 1)), ("rbf", (1, 2))),
+    "Matérn(u)·RBF(Re) + RBF(u, σ)": (("matern", (1, 0)), ("rbf", (1, 2))),
+    "Matérn(u)·RBF(Re) + Matérn(u)·RBF(σ)": (("matern", (1, 0)), ("matern", (1, 2))),
+    "Matérn(u)·RBF(Re) + RBF(u, σ) + RBF(σ)": (("matern", (1, 0)), ("rbf", (1, 2)),
+                                              ("rbf", (2,))),
     "+ RBF(σ)": (("rbf", (0, 1)), ("rbf", (1, 2)), ("rbf", (2,))),
     "+ RBF(Re)": (("rbf", (0, 1)), ("rbf", (1, 2)), ("rbf", (0,))),
     "+ RBF(Re, u, σ)": (("rbf", (0, 1)), ("rbf", (1, 2)), ("rbf", (0, 1, 2))),

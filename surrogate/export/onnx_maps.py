@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..maps.gp import BRIDGE, GaussianProcessPredictor
+from ..maps.gp import BRIDGE, MATERN, SQRT3, GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.network import HOLD_SHARPNESS, BridgedNet, NumpyNet
 from ..maps.nn import NetworkEnsemble
@@ -287,24 +287,30 @@ def _process(g: Graph, predictor: GaussianProcessPredictor, features: str
         low, high = predictor.gp.held
         z = g.max(g.min(z, high[None]), low[None])
     total, prior = None, None
-    for kind, dims, rbf, scales, amplitude, scaled, norms, bridge in predictor.gp._parts:
-        if rbf:
-            query = g.div(g.columns(z, rbf), scales[None])
-            factor = g.sub(g.sub(g.mul(g.matmul(query, scaled.T.copy()), 2.0),
+    for part in predictor.gp._parts:
+        if part.rbf:
+            query = g.div(g.columns(z, part.rbf), part.scales[None])
+            factor = g.sub(g.sub(g.mul(g.matmul(query, part.scaled.T.copy()), 2.0),
                                  g.op("Unsqueeze", g.sum_rows(g.square(query)),
-                                      g.const([1], np.int64))), norms[None])
+                                      g.const([1], np.int64))), part.norms[None])
             factor = g.exp(g.mul(g.min(factor, 0.0), 0.5))
         else:
             factor = None
-        if kind == BRIDGE:
-            b = g.sub(g.op("Clip", g.column(z, dims[0]), g.const(float(a.bridge_range[0])),
+        if part.kind == BRIDGE:
+            b = g.sub(g.op("Clip", g.column(z, part.dims[0]), g.const(float(a.bridge_range[0])),
                            g.const(float(a.bridge_range[1]))), float(a.bridge_origin))
-            minimum = g.min(g.op("Unsqueeze", b, g.const([1], np.int64)), bridge[None])
+            minimum = g.min(g.op("Unsqueeze", b, g.const([1], np.int64)), part.bridge[None])
             factor = minimum if factor is None else g.mul(factor, minimum)
-            part_prior = g.mul(b, amplitude)
+            part_prior = g.mul(b, part.amplitude)
         else:
-            part_prior = amplitude
-        factor = g.mul(factor, amplitude) if factor is not None else None
+            part_prior = part.amplitude
+        if part.kind == MATERN:  # (1 + √3·r)·exp(−√3·r), r the opening's distance over ℓ
+            opening = g.div(g.column(z, part.dims[0]), part.opening_scale)
+            r = g.mul(g.abs(g.sub(g.op("Unsqueeze", opening, g.const([1], np.int64)),
+                                  part.opening[None])), SQRT3)
+            matern = g.mul(g.add(r, 1.0), g.exp(g.neg(r)))
+            factor = matern if factor is None else g.mul(factor, matern)
+        factor = g.mul(factor, part.amplitude) if factor is not None else None
         total = factor if total is None else g.add(total, factor)
         prior = part_prior if prior is None else (g.add(prior, part_prior)
                                                   if isinstance(part_prior, str)

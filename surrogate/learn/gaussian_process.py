@@ -14,7 +14,8 @@ to ill-conditioning.
 For export only arrays are kept (training inputs, dual coefficients, Cholesky factor, kernel
 hyperparameters): :class:`surrogate.maps.gp.NumpyGP` predicts from them with no scikit-learn
 object and no pickle. Besides RBF parts a part may *bridge* the opening linearly (a Brownian-motion
-kernel, :class:`BridgeKernel`), as the grid maps do between sampled openings.
+kernel, :class:`BridgeKernel`), as the grid maps do between sampled openings, or be a Matérn 3/2 in
+the opening times an RBF of other columns (:class:`ProjectedMatern`).
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ import warnings
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Hyperparameter, Kernel, WhiteKernel
+from sklearn.gaussian_process.kernels import (RBF, ConstantKernel, Hyperparameter, Kernel, Matern,
+                                              WhiteKernel)
 
 from ..maps.gp import PART_KINDS, GPArrays, bridge_coordinate
 
@@ -56,6 +58,17 @@ class ProjectedRBF(Kernel):
 
     def is_stationary(self):
         return True
+
+
+class ProjectedMatern(ProjectedRBF):
+    """A Matérn 3/2 kernel on a subset ``dims`` of the input columns (:data:`surrogate.maps.gp.
+    MATERN` parts use it on the opening)."""
+
+    def __call__(self, X, Y=None, eval_gradient=False):
+        matern = Matern(np.asarray(self.length_scale, float), nu=1.5)
+        X = np.asarray(X)[:, list(self.dims)]
+        Y = None if Y is None else np.asarray(Y)[:, list(self.dims)]
+        return matern(X, Y, eval_gradient=eval_gradient)
 
 
 class BridgeKernel(Kernel):
@@ -141,11 +154,12 @@ def additive_kernel(parts, z: np.ndarray) -> tuple[Kernel, np.ndarray, float]:
     origin = float(span[0] - 1.0)
     kernel = None
     for kind, dims in parts:
-        rbf = dims[1:] if kind == "bridge" else dims
+        rbf = dims if kind == "rbf" else dims[1:]
         factor = ProjectedRBF(rbf, (1.0,) * len(rbf)) if rbf else None
-        if kind == "bridge":
-            bridge = BridgeKernel(dims[0], tuple(span), origin)
-            factor = bridge if factor is None else bridge * factor
+        if kind != "rbf":  # the opening's own kernel, first in the product
+            opening = (BridgeKernel(dims[0], tuple(span), origin) if kind == "bridge"
+                       else ProjectedMatern((dims[0],), (1.0,)))
+            factor = opening if factor is None else opening * factor
         part = ConstantKernel(1.0, (1e-4, 1e3)) * factor
         kernel = part if kernel is None else kernel + part
     return kernel + WhiteKernel(1e-4, NOISE_BOUNDS), span, origin
@@ -163,10 +177,10 @@ def _fitted_parts(kernel, count: int):
     amplitudes, scales = [], []
     for part in parts:
         amplitudes.append(float(part.k1.constant_value))
-        factor = part.k2
-        if isinstance(factor, BridgeKernel):
-            scales.append(np.zeros(0))
-            continue
-        rbf = factor.k2 if not isinstance(factor, ProjectedRBF) else factor
-        scales.append(np.atleast_1d(np.asarray(rbf.length_scale, float)))
+        # a part's factor: an RBF, the opening's kernel alone, or the opening's times an RBF
+        factors = [part.k2] if isinstance(part.k2, (ProjectedRBF, BridgeKernel)) else [
+            part.k2.k1, part.k2.k2]
+        scales.append(np.concatenate(
+            [np.atleast_1d(np.asarray(f.length_scale, float)) for f in factors
+             if not isinstance(f, BridgeKernel)] or [np.zeros(0)]))
     return amplitudes, scales

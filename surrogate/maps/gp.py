@@ -8,7 +8,11 @@ Each part is one of
 * ``bridge``: amplitude·min(b(x), b(x'))·rbf(other columns), with b the opening feature clamped
   to the training range and shifted to start above zero. The min kernel is Brownian motion: its
   posterior mean interpolates *linearly* between sampled openings, as the grid maps bridge them,
-  and holds beyond the end openings, where an RBF would revert to the mean.
+  and holds beyond the end openings, where an RBF would revert to the mean;
+* ``matern``: amplitude·m(|x_u − x'_u|/ℓ_u)·rbf(other columns), m(r) = (1 + √3·r)·exp(−√3·r)
+  the Matérn 3/2 correlation in the opening feature (its first column): rougher than an RBF
+  between sampled openings, so that a left-out opening is predicted from its neighbours instead
+  of the mean between them, smooth enough to keep its slope.
 
 Some feature columns may be *held*: clamped to (a margin beyond) their training range before the
 kernel sees them, so that the prediction holds its value at the edge of the data in that feature
@@ -24,7 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 from scipy.linalg import solve_triangular
@@ -34,17 +38,19 @@ from . import package
 from .learned import learned_kind
 from .registry import register
 
-RBF, BRIDGE = 0, 1
-PART_KINDS = {"rbf": RBF, "bridge": BRIDGE}
+RBF, BRIDGE, MATERN = 0, 1, 2
+PART_KINDS = {"rbf": RBF, "bridge": BRIDGE, "matern": MATERN}
+SQRT3 = float(np.sqrt(3.0))
 
 
 @dataclass(frozen=True)
 class GPArrays:
     """Everything a fitted GP needs to predict, as plain arrays and numbers.
 
-    ``part_kinds[i]`` is :data:`RBF` or :data:`BRIDGE`; ``part_dims[i]`` lists its feature columns
-    (−1 padded; for a bridge the first is the opening column, the rest enter its RBF factor);
-    ``length_scales[i]`` pairs with the RBF columns; ``bridge_range`` is the training range of the
+    ``part_kinds[i]`` is :data:`RBF`, :data:`BRIDGE` or :data:`MATERN`; ``part_dims[i]`` lists its
+    feature columns (−1 padded; for a bridge or a Matérn part the first is the opening column, the
+    rest enter its RBF factor); ``length_scales[i]`` pairs with the RBF columns, for a Matérn part
+    after the opening's own length scale; ``bridge_range`` is the training range of the
     bridge column (standardised) and ``bridge_origin`` where its min kernel starts;
     ``held_columns`` are clamped to ``held_range`` (one (low, high) row each, standardised)
     before the kernel sees them.
@@ -108,18 +114,35 @@ class GPArrays:
         return low, high
 
     def parts(self):
-        """(kind, columns, amplitude, length scales of the RBF columns) of each part."""
+        """(kind, columns, amplitude, length scales) of each part: the scales of its RBF
+        columns, for a Matérn part after the opening's."""
         for kind, dims, amplitude, scales in zip(self.part_kinds, self.part_dims,
                                                  self.amplitudes, self.length_scales):
             dims = [int(d) for d in dims if d >= 0]
-            rbf = dims[1:] if kind == BRIDGE else dims
-            yield int(kind), dims, float(amplitude), np.asarray(scales[: len(rbf)], float)
+            count = len(dims) - 1 if kind == BRIDGE else len(dims)
+            yield int(kind), dims, float(amplitude), np.asarray(scales[:count], float)
 
 
 def bridge_coordinate(values: np.ndarray, span: np.ndarray, origin: float) -> np.ndarray:
     """The bridge kernel's coordinate: the opening feature clamped to the training ``span``, less
     ``origin`` (held beyond the end openings, positive inside)."""
     return np.clip(values, span[0], span[1]) - origin
+
+
+class _Part(NamedTuple):
+    """A kernel part as the predictor evaluates it, with what it precomputes over the training
+    inputs."""
+
+    kind: int
+    dims: list  # feature columns (for a bridge or Matérn part the opening's first)
+    rbf: list  # the columns of its RBF factor
+    scales: np.ndarray  # their length scales
+    amplitude: float
+    scaled: np.ndarray  # the training inputs' RBF columns over their length scales
+    norms: np.ndarray  # their squared norms
+    bridge: np.ndarray | None  # the training inputs' bridge coordinate (a bridge part)
+    opening_scale: float  # the opening's length scale (a Matérn part)
+    opening: np.ndarray | None  # the training inputs' opening over it (a Matérn part)
 
 
 class NumpyGP:
@@ -134,12 +157,16 @@ class NumpyGP:
             arrays.cholesky, np.eye(len(arrays.cholesky)), lower=True).T)
         self._parts = []
         for kind, dims, amplitude, scales in arrays.parts():
-            rbf = dims[1:] if kind == BRIDGE else dims
+            rbf = dims if kind == RBF else dims[1:]
+            opening_scale = float(scales[0]) if kind == MATERN else 1.0
+            if kind == MATERN:
+                scales = scales[1:]
             scaled = arrays.inputs[:, rbf] / scales if rbf else np.zeros((len(arrays.inputs), 0))
             bridge = (bridge_coordinate(arrays.inputs[:, dims[0]], arrays.bridge_range,
                                         arrays.bridge_origin) if kind == BRIDGE else None)
-            self._parts.append((kind, dims, rbf, scales, amplitude, scaled,
-                                np.sum(scaled**2, axis=1), bridge))
+            opening = arrays.inputs[:, dims[0]] / opening_scale if kind == MATERN else None
+            self._parts.append(_Part(kind, dims, rbf, scales, amplitude, scaled,
+                                     np.sum(scaled**2, axis=1), bridge, opening_scale, opening))
 
     def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """k(z, training inputs) and the prior variance k(z, z), for a block of queries.
@@ -151,25 +178,27 @@ class NumpyGP:
         total = np.zeros((len(z), len(a.inputs)))
         prior = np.zeros(len(z))
         factor = np.empty_like(total)
-        for kind, dims, rbf, scales, amplitude, scaled, norms, bridge in self._parts:
-            if rbf:
-                query = z[:, rbf] / scales
-                np.matmul(query, scaled.T, out=factor)
+        for part in self._parts:
+            if part.rbf:
+                query = z[:, part.rbf] / part.scales
+                np.matmul(query, part.scaled.T, out=factor)
                 factor *= 2.0
                 factor -= np.sum(query**2, axis=1)[:, None]
-                factor -= norms[None, :]
+                factor -= part.norms[None, :]
                 np.minimum(factor, 0.0, out=factor)  # −squared distance, never positive
                 factor *= 0.5
                 np.exp(factor, out=factor)
             else:
                 factor.fill(1.0)
-            if kind == BRIDGE:
-                b = bridge_coordinate(z[:, dims[0]], a.bridge_range, a.bridge_origin)
-                factor *= np.minimum(b[:, None], bridge[None, :])
-                prior += amplitude * b
+            if part.kind == BRIDGE:
+                b = bridge_coordinate(z[:, part.dims[0]], a.bridge_range, a.bridge_origin)
+                factor *= np.minimum(b[:, None], part.bridge[None, :])
+                prior += part.amplitude * b
             else:
-                prior += amplitude
-            factor *= amplitude
+                prior += part.amplitude
+            if part.kind == MATERN:
+                factor *= matern32(z[:, part.dims[0]] / part.opening_scale, part.opening)
+            factor *= part.amplitude
             total += factor
         return total, prior
 
@@ -196,6 +225,14 @@ class NumpyGP:
 
 #: queries per block of a prediction
 _BLOCK = 2048
+
+
+def matern32(query: np.ndarray, training: np.ndarray) -> np.ndarray:
+    """(1 + √3·r)·exp(−√3·r), r = |query − training| (both over the length scale): the Matérn
+    3/2 correlation, (len(query), len(training))."""
+    r = np.abs(query[:, None] - training[None, :])
+    r *= SQRT3
+    return (1.0 + r) * np.exp(-r)
 
 
 #: latent target -> the map's target (ln C_d stays ln C_d; α from ln(−α); α as it is)
@@ -236,7 +273,7 @@ class GaussianProcessPredictor:
     def describe(self) -> dict:
         a = self.arrays
         return {"target": self.target,
-                "parts": [{"kind": "bridge" if kind == BRIDGE else "rbf", "columns": dims,
+                "parts": [{"kind": _KIND_NAMES[kind], "columns": dims,
                            "amplitude": amplitude, "length_scales": scales.tolist()}
                           for kind, dims, amplitude, scales in a.parts()],
                 "noise": a.noise, "condition_number": a.condition_number,
@@ -313,6 +350,9 @@ def check_arrays(a: GPArrays, where: str, d: int) -> None:
     ranges = check(a.held_range, f"{where}, array 'held_range'", (len(held), 2))
     if np.any(ranges[:, 0] > ranges[:, 1]):
         raise InputError(f"{where}, array 'held_range': one (low, high) row per held column")
+
+
+_KIND_NAMES = {value: name for name, value in PART_KINDS.items()}
 
 
 def _named(entry: dict) -> str:

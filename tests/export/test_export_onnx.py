@@ -59,3 +59,27 @@ def test_export_writes_the_onnx_files(tmp_path):
     assert [o.name for o in session.get_outputs()] == ["f_sim", "f_sim_std"]
     summary = json.loads((out / "export.json").read_text())
     assert set(summary["files"]) == {"flow.onnx", "force.onnx", "onnx.json"}
+
+
+def test_a_gp_with_a_matern_part_exports_as_the_package_evaluates_it():
+    """A Matérn 3/2 part in the opening (surrogate.maps.gp.MATERN): the graph's mean and σ of C_d
+    are the package's to 1e-6 relative."""
+    from surrogate.data import load_cfd_samples
+    from surrogate.features import targets
+    from surrogate.learn.gaussian_process import fit_gp
+    from surrogate.maps.gp import MATERN, GaussianProcessPredictor
+    from surrogate.maps.learned import LearnedFlowMap
+    from surrogate.paths import SHIPPED_CFD_SAMPLES
+
+    flow, force = load_learned_maps(trained_folder("gp"))
+    data = targets(flow.spec, load_cfd_samples(SHIPPED_CFD_SAMPLES).frame)
+    arrays = fit_gp(data.flow_features, data.log_discharge, (("matern", (1, 0)), ("rbf", (1, 2))),
+                    linear_mean=False, restarts=0)
+    assert MATERN in arrays.part_kinds
+    matern = LearnedFlowMap(flow.spec, GaussianProcessPredictor(arrays, "log_discharge"),
+                            flow.domain, "gp", flow.calibration, flow.coverage)
+    compared = parity(matern, force, random_states(flow.coverage, count=2_000, seed=2))
+    for name in ("q", "q_std"):
+        found, value = compared[name]
+        assert np.all(np.isfinite(found)), name
+        assert np.max(np.abs(found - value) / np.abs(value)) < 1e-6, name

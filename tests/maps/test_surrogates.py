@@ -21,7 +21,7 @@ from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_
 from surrogate.maps.calibration import Calibration
 from surrogate.maps.crossval import SCHEMES, cross_validate, folds, summary
 from surrogate.maps.domain import FeatureDomain
-from surrogate.maps.gp import BRIDGE, NumpyGP
+from surrogate.maps.gp import BRIDGE, MATERN, NumpyGP
 from surrogate.maps.learned import load_learned_maps, trained_folder
 from surrogate.maps.network import Architecture, NumpyNet
 from surrogate.maps.package import file_hash, read_manifest
@@ -150,24 +150,31 @@ def test_constraints_hold_for_any_weights_not_just_trained_ones(seed, spread):
                                    atol=1e-8)
 
 
-def test_gp_predictor_reproduces_scikit_learn(cfd_samples, valve):
+@pytest.mark.parametrize("parts", [
+    (("bridge", (1, 0)), ("rbf", (0, 1)), ("rbf", (2,))),
+    (("matern", (1, 0)), ("rbf", (1, 2)), ("matern", (1,))),
+])
+def test_gp_predictor_reproduces_scikit_learn(cfd_samples, valve, parts):
     from sklearn.gaussian_process import GaussianProcessRegressor
 
     data = targets(FeatureSpec.for_valve(valve), cfd_samples.frame)
-    parts = (("bridge", (1, 0)), ("rbf", (0, 1)), ("rbf", (2,)))
     arrays = fit_gp(data.flow_features, data.log_discharge, parts, linear_mean=False,
                     restarts=0)
     assert 1 < arrays.condition_number < 1e12
     # refit with the same (fixed) kernel in scikit-learn and compare the predictions
     from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
 
-    from surrogate.learn.gaussian_process import BridgeKernel, ProjectedRBF
+    from surrogate.learn.gaussian_process import BridgeKernel, ProjectedMatern, ProjectedRBF
 
     kernel = WhiteKernel(arrays.noise, "fixed")
     for kind, dims, amplitude, scales in arrays.parts():
         if kind == BRIDGE:
             factor = (BridgeKernel(dims[0], tuple(arrays.bridge_range), arrays.bridge_origin)
                       * ProjectedRBF(tuple(dims[1:]), tuple(scales), "fixed"))
+        elif kind == MATERN:
+            factor = ProjectedMatern((dims[0],), (scales[0],), "fixed")
+            if len(dims) > 1:
+                factor = factor * ProjectedRBF(tuple(dims[1:]), tuple(scales[1:]), "fixed")
         else:
             factor = ProjectedRBF(tuple(dims), tuple(scales), "fixed")
         kernel = ConstantKernel(amplitude, "fixed") * factor + kernel
@@ -176,9 +183,12 @@ def test_gp_predictor_reproduces_scikit_learn(cfd_samples, valve):
         z, data.log_discharge)
     query = data.flow_features[::7] + 0.1
     mean, std = NumpyGP(arrays).predict(query, return_std=True)
-    ref_mean = reference.predict((query - arrays.feature_mean) / arrays.feature_std)
+    ref_mean, ref_std = reference.predict((query - arrays.feature_mean) / arrays.feature_std,
+                                          return_std=True)
     np.testing.assert_allclose(mean, ref_mean, rtol=1e-9, atol=1e-12)
-    assert np.all(std >= 0)
+    # scikit-learn's spread includes the white noise, the latent one does not
+    noise = arrays.noise * arrays.y_std**2
+    np.testing.assert_allclose(std**2 + noise, ref_std**2, rtol=1e-6, atol=1e-14)
 
 
 def test_gp_reports_its_uncertainty_in_map_units(learned_maps, valve):
