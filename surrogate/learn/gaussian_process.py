@@ -34,8 +34,9 @@ LENGTH_SCALE_BOUNDS = (0.3, 100.0)  # standardised units: smooth on the scale of
 NOISE_BOUNDS = (1e-8, 1e-2)
 
 
-class ProjectedRBF(Kernel):
-    """An anisotropic RBF kernel on a subset ``dims`` of the input columns."""
+class _Projected(Kernel):
+    """A stationary anisotropic kernel (:meth:`_kernel`) on a subset ``dims`` of the input
+    columns."""
 
     def __init__(self, dims=(0, 1), length_scale=(1.0, 1.0),
                  length_scale_bounds=LENGTH_SCALE_BOUNDS):
@@ -47,11 +48,14 @@ class ProjectedRBF(Kernel):
     def hyperparameter_length_scale(self):
         return Hyperparameter("length_scale", "numeric", self.length_scale_bounds, len(self.dims))
 
+    def _kernel(self, length_scale: np.ndarray) -> Kernel:
+        raise NotImplementedError
+
     def __call__(self, X, Y=None, eval_gradient=False):
-        rbf = RBF(np.asarray(self.length_scale, float))
+        kernel = self._kernel(np.asarray(self.length_scale, float))
         X = np.asarray(X)[:, list(self.dims)]
         Y = None if Y is None else np.asarray(Y)[:, list(self.dims)]
-        return rbf(X, Y, eval_gradient=eval_gradient)
+        return kernel(X, Y, eval_gradient=eval_gradient)
 
     def diag(self, X):
         return np.ones(len(X))
@@ -60,15 +64,19 @@ class ProjectedRBF(Kernel):
         return True
 
 
-class ProjectedMatern(ProjectedRBF):
+class ProjectedRBF(_Projected):
+    """An anisotropic RBF kernel on a subset ``dims`` of the input columns."""
+
+    def _kernel(self, length_scale):
+        return RBF(length_scale)
+
+
+class ProjectedMatern(_Projected):
     """A Matérn 3/2 kernel on a subset ``dims`` of the input columns (:data:`surrogate.maps.gp.
     MATERN` parts use it on the opening)."""
 
-    def __call__(self, X, Y=None, eval_gradient=False):
-        matern = Matern(np.asarray(self.length_scale, float), nu=1.5)
-        X = np.asarray(X)[:, list(self.dims)]
-        Y = None if Y is None else np.asarray(Y)[:, list(self.dims)]
-        return matern(X, Y, eval_gradient=eval_gradient)
+    def _kernel(self, length_scale):
+        return Matern(length_scale, nu=1.5)
 
 
 class BridgeKernel(Kernel):
@@ -178,7 +186,7 @@ def _fitted_parts(kernel, count: int):
     for part in parts:
         amplitudes.append(float(part.k1.constant_value))
         # a part's factor: an RBF, the opening's kernel alone, or the opening's times an RBF
-        factors = [part.k2] if isinstance(part.k2, (ProjectedRBF, BridgeKernel)) else [
+        factors = [part.k2] if isinstance(part.k2, (_Projected, BridgeKernel)) else [
             part.k2.k1, part.k2.k2]
         scales.append(np.concatenate(
             [np.atleast_1d(np.asarray(f.length_scale, float)) for f in factors
