@@ -11,11 +11,11 @@ through), the virtual valve on the same kind's committed maps, wrapped with the 
 the stress suite. Near that opening the model errs as its kind does between openings, the error
 the cross-validation leaving an opening out measures on the CFD samples.
 
-For each kind: the suite's weak leakages (at most 1.2x their realistic size, :data:`WEAK_LEAKAGE`)
-over the first ``--settings`` settings seeds of :func:`~surrogate.synthetic.simulate.stress_suite`
-(20 seeds hold 16 of them), each found cleanly (the leakage and no other physics or sensor term)
-or not, and ``--controls`` logs with nothing hidden, with the physics or sensor terms added to
-them. Map corrections (the calibration) are allowed everywhere, as in the stress suite.
+For each kind: the suite's weak leakages (at most 1.2x their realistic size, ``WEAK_LEAKAGE`` of
+:mod:`surrogate.synthetic.simulate`) over the first ``--settings`` settings seeds of its
+:func:`~surrogate.synthetic.simulate.stress_suite` (20 seeds hold 16 of them), each found cleanly
+(the leakage and no other physics or sensor term) or not, and ``--controls`` logs with nothing
+hidden, with the physics or sensor terms added to them. Map corrections (the calibration) are allowed everywhere, as in the stress suite.
 
 Writes results/weak_leakages/<kind>.json and prints one line per log. Run (one process per kind,
 side by side on 2 cores):
@@ -42,11 +42,6 @@ from surrogate.synthetic.simulate import (STRESS_SETTINGS, cleanly_identified, h
 from surrogate.units import from_si, to_si
 from surrogate.workbench.workflow import run_workflow
 
-#: a hidden leakage this much of its realistic size or less is *weak* (eval/workbench.py's)
-WEAK_LEAKAGE = 1.2
-CASES_PER_SETTING = 20  # the stress suite's
-
-
 def weak_leakage_record(kind: str, left_out: float, settings: int, controls: int,
                         every: int, folder: Path) -> dict:
     """The workflow on the weak leakages' and the controls' logs, the model under test on
@@ -58,10 +53,8 @@ def weak_leakage_record(kind: str, left_out: float, settings: int, controls: int
     seeds = tuple(STRESS_SETTINGS[0] + i for i in range(settings))
     record = {"maps": kind, "left_out_mm": from_si(left_out, "mm"), "settings": list(seeds),
               "every": every, "cases": [], "controls": []}
-    suite = stress_suite(CASES_PER_SETTING, 0, seeds)
-    suite = [case for case in suite
-             if case.hidden == "laminar_leakage" and case.factor <= WEAK_LEAKAGE]
-    suite += [case for case in stress_suite(0, controls, seeds[:1])]
+    suite = [case for case in stress_suite(controls=0, settings=seeds) if case.weak_leakage]
+    suite += stress_suite(cases=0, controls=controls, settings=seeds[:1])
     for case in suite:
         began = time.perf_counter()
         made = hidden_effect_case(case.hidden, case.values, sequence=sequence, seed=case.seed,
