@@ -559,6 +559,22 @@ def project_errors(kind: str, valve):
     return pd.read_csv(trained_folder(kind) / CROSS_VALIDATION_FILE)
 
 
+def reused_peers(path: Path) -> dict:
+    """An earlier run's peers.json, checked to hold this script's schemes (exit 2 if not)."""
+    try:
+        document = json.loads(path.read_text())
+        if document["schemes"] != list(SCHEMES):
+            raise ValueError(f"its schemes {document['schemes']} are not {list(SCHEMES)}")
+        if not document["peers"]:
+            raise ValueError("it holds no peer")
+        return document
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        detail = f"key {error} missing" if isinstance(error, KeyError) else str(error)
+        print(f"error: --reuse-peers {path}: not a peers.json of this script ({detail})",
+              file=sys.stderr)
+        raise SystemExit(2) from None
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/peers"))
@@ -566,7 +582,15 @@ def main() -> int:
                         help="peers to run (default: all); names: " + "; ".join(PEERS))
     parser.add_argument("--quick", action="store_true",
                         help="the first candidate setting of each peer only (a smoke test)")
+    parser.add_argument("--reuse-peers", type=Path, metavar="PEERS_JSON",
+                        help="the peers' results of an earlier run (its peers.json), for when "
+                             "only the project's maps changed: the peers are fitted to the same "
+                             "samples and folds whatever the project trains, so only the "
+                             "project's rows are read again")
     args = parser.parse_args()
+    if args.reuse_peers is not None and (args.peers or args.quick):
+        parser.error("--reuse-peers takes the earlier run's peers as they are: not with "
+                     "--peers or --quick")
     started = time.perf_counter()
 
     def log(message: str) -> None:
@@ -577,7 +601,11 @@ def main() -> int:
     project = {kind: cross_validation_summary(map_kind(kind).source(), valve) for kind in KINDS}
     project_folds = {kind: per_fold(project_errors(kind, valve)) for kind in KINDS}
     peers, skipped = {}, {}
-    for key in args.peers or list(PEERS):
+    if args.reuse_peers is not None:
+        earlier = reused_peers(args.reuse_peers)
+        peers, skipped, args.quick = earlier["peers"], earlier["skipped"], earlier["quick"]
+        log(f"peers reused from {args.reuse_peers}: {', '.join(peers)}")
+    for key in [] if args.reuse_peers is not None else args.peers or list(PEERS):
         peer, name = PEERS[key], PEERS[key].name
         if missing := peer.missing():
             skipped[name] = (f"not installed: {', '.join(missing)} (the optional extra `peers`: "
@@ -603,7 +631,8 @@ def main() -> int:
              candidates_table(peers)]
     if skipped:
         lines += [""] + [f"Skipped {name}: {reason}" for name, reason in skipped.items()]
-    lines += ["", f"Runtime: {seconds:.0f} s (" + ", ".join(
+    reused = "" if args.reuse_peers is None else f"; peers reused from {args.reuse_peers}"
+    lines += ["", f"Runtime: {seconds:.0f} s{reused} (" + ", ".join(
         f"{name} {result['seconds']:.0f} s" for name, result in peers.items()) + ")."]
     table = "\n".join(lines)
     print(table)
