@@ -126,22 +126,31 @@ def state_arrays(network: SignConstrainedNet) -> dict[str, np.ndarray]:
 
 def train(network: SignConstrainedNet, z: np.ndarray, loss_of_output, *, offset: float,
           seed: int = 0, epochs: int = 2500, polish: int = 500, learning_rate: float = 2e-2,
-          weight_decay: float = 1e-7, output_decay: float = 0.0, initialise: bool = True,
+          weight_decay: float = 1e-7, output_decay: float = 0.0,
+          feature_decay: dict[int, float] | None = None, initialise: bool = True,
           progress=None) -> float:
     """Fit the network: Adam with a cosine schedule, then L-BFGS to polish.
 
     ``loss_of_output(R)`` maps the network's output to a scalar loss. Returns the final loss.
+    ``feature_decay`` {feature: weight} adds a decay on the hidden weights that read that
+    feature, on top of ``weight_decay``: the parts vary more slowly along it.
     ``initialise=False`` continues from the network's current weights.
     """
     if initialise:
         network.initialise(seed, offset)
     inputs = torch.as_tensor(z, dtype=torch.float64)
+    # (part, position of the feature in it, weight) of every decayed column
+    decayed = [(part, group.index(feature), weight)
+               for feature, weight in (feature_decay or {}).items()
+               for part, group in enumerate(network.architecture.groups) if feature in group]
 
     def objective():
         penalty = sum(torch.sum(weight**2) for weight in network.hidden)
         amplitude = sum(torch.sum(softplus(raw)) for raw in network.output)
+        along = sum(weight * torch.sum(network.hidden[part][:, position] ** 2)
+                    for part, position, weight in decayed)
         return (loss_of_output(network(inputs)) + weight_decay * penalty
-                + output_decay * amplitude)
+                + output_decay * amplitude + along)
 
     minimise(network, objective, epochs=epochs, learning_rate=learning_rate, polish=polish,
              progress=progress, tolerance_grad=1e-12, tolerance_change=1e-16)

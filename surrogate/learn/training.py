@@ -43,6 +43,15 @@ FLOW_PHYSICS_GROUPS = ((1,), (1, 2))
 FLOW_GROUPS = ((0, 1), (1, 2))
 FLOW_TRANSITION = 0
 FLOW_KNEE_FEATURES = (1,)
+# A decay on the hidden weights that read the opening (column 1), in both stages, bends the flow
+# network between the sampled openings (0.16 to 0.63 mm the widest gap) no more than the data
+# ask. Measured, not shipped ({}: none): with {1: 1e-6} q by k-fold / left-out opening / left-out
+# temperature / back-pressure set 0.46 / 0.43 / 0.63 / 0.94 % (training/train.py --kinds nn),
+# against 0.49 / 0.59 / 0.72 / 0.93 %, ahead of every peer but on the back-pressure set; but that
+# retrain's force members (unchanged code, run-to-run float differences of 0.4 % in flow force)
+# left the force calibration's ±2σ band at 89 % leaving an opening out and 99 % leaving a
+# temperature out, outside the 90-98 % it must hold: the committed force band sits at its edges.
+FLOW_OPENING_DECAY: dict[int, float] = {}
 # The flow force: ln(−α) = a(opening, Re) + m(opening)·ln(Δp/p_atm) + b(σ), the opening bridged
 # linearly between sampled openings (as the grid maps do) and the cavitation part shared by all
 # openings: the samples collapse on σ across openings and back pressures. Measured by
@@ -180,7 +189,7 @@ def train_networks(data: Targets, progress, constrained: bool = True
     from .monotone_nn import Architecture, SignConstrainedNet, state_arrays, train, widen
 
     def ensemble(features, signs, bounds, loss, offset, output, name, groups=ADDITIVE_GROUPS,
-                 transition=None, knee_features=(), physics_groups=None):
+                 transition=None, knee_features=(), physics_groups=None, feature_decay=None):
         if not constrained:
             signs, bounds = (0,) * len(signs), (None,) * len(bounds)
         mean, std = features.mean(axis=0), features.std(axis=0)
@@ -199,13 +208,16 @@ def train_networks(data: Targets, progress, constrained: bool = True
         for member in range(NN_MEMBERS):
             if physics_groups is None:
                 network = SignConstrainedNet(architecture(groups))
-                final = train(network, z, loss, offset=offset, seed=member, epochs=NN_EPOCHS)
+                final = train(network, z, loss, offset=offset, seed=member, epochs=NN_EPOCHS,
+                              feature_decay=feature_decay)
             else:
                 physics = SignConstrainedNet(architecture(physics_groups))
-                train(physics, z, loss, offset=offset, seed=member, epochs=NN_EPOCHS)
+                train(physics, z, loss, offset=offset, seed=member, epochs=NN_EPOCHS,
+                      feature_decay=feature_decay)
                 network = widen(physics, architecture(groups), seed=member)
                 final = train(network, z, loss, offset=offset, epochs=NN_EPOCHS // 2,
-                              learning_rate=2e-3, initialise=False)
+                              learning_rate=2e-3, initialise=False,
+                              feature_decay=feature_decay)
             progress(f"NN {name}: member {member + 1}/{NN_MEMBERS} trained, loss {final:.3e}")
             states.append(state_arrays(network))
         return NetworkEnsemble(architecture(groups), states, mean, std, output)
@@ -214,7 +226,7 @@ def train_networks(data: Targets, progress, constrained: bool = True
     flow = ensemble(data.flow_features, FLOW_SIGNS, FLOW_BOUNDS,
                     lambda r: torch.mean((r - log_cd) ** 2), float(log_cd.mean()),
                     "log_discharge", "flow (ln C_d)", FLOW_GROUPS, FLOW_TRANSITION,
-                    FLOW_KNEE_FEATURES, FLOW_PHYSICS_GROUPS)
+                    FLOW_KNEE_FEATURES, FLOW_PHYSICS_GROUPS, FLOW_OPENING_DECAY)
     return flow, _bridged_ensemble(data, progress)
 
 

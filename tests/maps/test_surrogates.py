@@ -14,7 +14,7 @@ from surrogate.data.loaders import CfdSamples
 from surrogate.errors import InputError
 from surrogate.features import FeatureSpec, targets
 from surrogate.learn.gaussian_process import fit_gp
-from surrogate.learn.monotone_nn import SignConstrainedNet, state_arrays
+from surrogate.learn.monotone_nn import SignConstrainedNet, state_arrays, train
 from surrogate.learn.monotonicity import random_states, violations
 from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_one_ulp,
                                              prediction_difference)
@@ -148,6 +148,28 @@ def test_constraints_hold_for_any_weights_not_just_trained_ones(seed, spread):
         # the smooth clamp: torch.softplus switches to x above 20, numpy keeps log(1 + e^x)
         np.testing.assert_allclose(numpy_net(z), network(torch.as_tensor(z)).numpy(), rtol=1e-9,
                                    atol=1e-8)
+
+
+def test_a_feature_decay_keeps_the_network_from_bending_along_that_feature():
+    """The flow network's decay on the opening's weights (FLOW_OPENING_DECAY): with it, a network
+    fitted to a few noisy points varies less along the decayed column, and no less along the
+    other one, than the same network fitted without it."""
+    rng = np.random.default_rng(3)
+    z = rng.uniform(-1.5, 1.5, (40, 2))
+    target = torch.as_tensor(0.3 * z[:, 0] + 0.05 * rng.normal(size=40))  # flat in column 1
+
+    def fitted(decay):
+        network = SignConstrainedNet(Architecture(((0, 1),), 8, (0, 0), (None, None), (1.0, 1.0)))
+        train(network, z, lambda r: torch.mean((r - target) ** 2), offset=0.0, seed=0,
+              epochs=600, polish=100, feature_decay=decay)
+        return NumpyNet(network.architecture, state_arrays(network))
+
+    grid = np.stack(np.meshgrid(np.linspace(-1.5, 1.5, 25), np.linspace(-1.5, 1.5, 25)),
+                    -1).reshape(-1, 2)
+    free, decayed = (np.abs(net.gradient(grid)).mean(axis=0) for net in (fitted(None),
+                                                                          fitted({1: 1e-2})))
+    assert decayed[1] < 0.5 * free[1]
+    assert decayed[0] > 0.8 * free[0]
 
 
 @pytest.mark.parametrize("parts", [
