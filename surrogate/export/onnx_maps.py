@@ -256,7 +256,13 @@ def _bridged_net(g: Graph, net: BridgedNet, z: str, width: int) -> str:
     shared = g.sum_rows(g.mul(g.tanh(g.add(g.mul(x3, s["shared_W"][None]),
                                            s["shared_b"][None])), s["shared_v"][None]))
     shared = g.add(shared, g.mul(shared_x, float(s["shared_l"][0])))
-    return g.add(bridged, shared)
+    if not a.trend_width:
+        return g.add(bridged, shared)
+    trend_x = g.columns(_hold(g, z, a.trend_held, width), [a.bridge_column, a.local_column])
+    hidden = g.tanh(g.add(g.matmul(trend_x, s["trend_W"].T.copy()), s["trend_b"]))
+    trend = g.column(g.add(g.matmul(hidden, s["trend_v"][:, None]),
+                           g.matmul(trend_x, s["trend_l"][:, None])), 0)
+    return g.add(g.add(bridged, shared), trend)
 
 
 def _ensemble(g: Graph, ensemble: NetworkEnsemble, features: str) -> tuple[str, str]:

@@ -342,6 +342,15 @@ class BridgedArchitecture:
     3.5 % without). Training keeps neighbouring openings' slopes close (a sweep left out leaves an
     opening with a hole in Δp, where a free slope ran off).
 
+    With a ``trend_width`` R also has a trend t(z_u, z_r) = Σ_j v_j·tanh(W_j·(z_u, z_r) + b_j) +
+    l·(z_u, z_r), one small network of the opening and the Reynolds number shared by all
+    openings, which sees both through holds of its own (``trend_held``: the end knots, the
+    sampled Reynolds numbers), so that beyond them it keeps its edge value. Training keeps
+    the per-opening networks close to one another, so the trend carries how the flow force
+    changes from opening to opening, smoothly, and the per-opening networks only what each
+    opening departs from it by: between two sampled openings the force bends as the trend does
+    instead of following the straight bridge.
+
     Attributes
     ----------
     knots : tuple of float
@@ -357,6 +366,11 @@ class BridgedArchitecture:
     level_column : int or None
         Feature column of the pressure level, whose slope m_k each opening has (None: no slope;
         networks saved before it read three columns).
+    trend_width : int
+        Hidden units of the trend t(z_u, z_r) (0: no trend, as networks saved before it).
+    trend_held : dict
+        {column: (low, high)}: standardised ranges of the bridge and local columns beyond which
+        the trend sees them smoothly held (:func:`hold`, applied to the raw features).
     """
 
     knots: tuple[float, ...]
@@ -366,12 +380,17 @@ class BridgedArchitecture:
     shared_column: int = 2
     held: dict = field(default_factory=dict)
     level_column: int | None = None
+    trend_width: int = 0
+    trend_held: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         level = {} if self.level_column is None else {"level_column": self.level_column}
+        trend = {"trend_width": self.trend_width,
+                 "trend_held": {str(k): list(v) for k, v in self.trend_held.items()}
+                 } if self.trend_width else {}
         return {"type": "bridged", "knots": list(self.knots), "width": self.width,
                 "bridge_column": self.bridge_column, "local_column": self.local_column,
-                "shared_column": self.shared_column, **level,
+                "shared_column": self.shared_column, **level, **trend,
                 "held": {str(k): list(v) for k, v in self.held.items()}}
 
     @classmethod
@@ -381,7 +400,9 @@ class BridgedArchitecture:
                    int(data["bridge_column"]), int(data["local_column"]),
                    int(data["shared_column"]),
                    {int(k): (float(v[0]), float(v[1])) for k, v in data.get("held", {}).items()},
-                   None if level is None else int(level))
+                   None if level is None else int(level), int(data.get("trend_width", 0)),
+                   {int(k): (float(v[0]), float(v[1]))
+                    for k, v in data.get("trend_held", {}).items()})
 
     @property
     def parameter_count(self) -> int:
@@ -391,9 +412,12 @@ class BridgedArchitecture:
         """The raw parameters of a network of this architecture (its saved arrays), by name."""
         knots, width = len(self.knots), self.width
         level = {} if self.level_column is None else {"local_m": (knots,)}
+        trend_width = self.trend_width
+        trend = {"trend_W": (trend_width, 2), "trend_b": (trend_width,),
+                 "trend_v": (trend_width,), "trend_l": (2,)} if trend_width else {}
         return {"local_W": (knots, width), "local_b": (knots, width), "local_v": (knots, width),
                 "local_c": (knots,), "local_l": (knots,), **level, "shared_W": (width,),
-                "shared_b": (width,), "shared_v": (width,), "shared_l": (1,)}
+                "shared_b": (width,), "shared_v": (width,), "shared_l": (1,), **trend}
 
     def problem(self, features: int) -> str | None:
         """What makes this architecture unusable on ``features`` input columns (None: nothing)."""
@@ -402,13 +426,17 @@ class BridgedArchitecture:
             return "knots must be finite and increasing, at least one"
         if self.width < 1:
             return "needs width >= 1"
+        if isinstance(self.trend_width, bool) or self.trend_width < 0:
+            return "trend_width must be 0 (no trend) or more"
         level = () if self.level_column is None else (self.level_column,)
         columns = (self.bridge_column, self.local_column, self.shared_column, *level, *self.held)
         if any(isinstance(c, bool) or c not in range(features) for c in columns):
             return f"a feature index lies outside 0 to {features - 1}"
         if not all(np.isfinite(low) and np.isfinite(high) and low <= high
-                   for low, high in self.held.values()):
+                   for low, high in (*self.held.values(), *self.trend_held.values())):
             return "held ranges must be finite (low, high)"
+        if any(c not in (self.bridge_column, self.local_column) for c in self.trend_held):
+            return "the trend holds only the bridge and local columns"
         return None
 
 
@@ -438,7 +466,8 @@ class BridgedNet:
     """A trained :class:`BridgedArchitecture` network, evaluated with NumPy from its parameters
     (``local_W``, ``local_b``, ``local_v`` (knots × width), ``local_c``, ``local_l`` and, with a
     level column, ``local_m`` (knots), ``shared_W``, ``shared_b``, ``shared_v`` (width),
-    ``shared_l`` (1))."""
+    ``shared_l`` (1) and, with a trend, ``trend_W`` (trend width × 2), ``trend_b``, ``trend_v``
+    (trend width), ``trend_l`` (2))."""
 
     def __init__(self, architecture: BridgedArchitecture, state: dict[str, np.ndarray]):
         self.architecture = architecture
@@ -447,6 +476,7 @@ class BridgedNet:
     def __call__(self, z: np.ndarray) -> np.ndarray:
         a, s = self.architecture, self.state
         lower, weight = hat_bracket(z[:, a.bridge_column], a.knots)
+        trend_x = hold(z, a.trend_held)[:, [a.bridge_column, a.local_column]]
         z = hold(z, a.held)
         x = z[:, a.local_column]
         level = None if a.level_column is None else z[:, a.level_column]
@@ -462,7 +492,11 @@ class BridgedNet:
         shared_x = z[:, a.shared_column]
         shared = (np.tanh(shared_x[:, None] * s["shared_W"][None] + s["shared_b"][None])
                   * s["shared_v"][None]).sum(-1) + s["shared_l"][0] * shared_x
-        return bridged + shared
+        if not a.trend_width:
+            return bridged + shared
+        trend = (np.tanh(trend_x @ s["trend_W"].T + s["trend_b"]) @ s["trend_v"]
+                 + trend_x @ s["trend_l"])
+        return bridged + shared + trend
 
 
 def architecture_from_dict(data: dict):

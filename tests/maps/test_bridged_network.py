@@ -13,12 +13,14 @@ from surrogate.maps.crossval import folds
 from surrogate.maps.network import BridgedArchitecture, BridgedNet, hat_weights, hold
 
 
-@pytest.mark.parametrize("level_column", (None, 3))
-def test_the_numpy_network_is_the_torch_module(level_column):
+@pytest.mark.parametrize("level_column, trend_width", ((None, 0), (3, 0), (3, 4)))
+def test_the_numpy_network_is_the_torch_module(level_column, trend_width):
     """Random parameters, queries inside and beyond the knots and the held ranges."""
-    architecture = BridgedArchitecture((-1.2, -0.3, 0.4, 1.5), 5, held={0: (-2.0, 2.0),
-                                                                         3: (-1.5, 1.5)},
-                                       level_column=level_column)
+    trend_held = {1: (-1.2, 1.5), 0: (-1.0, 1.0)} if trend_width else {}
+    architecture = BridgedArchitecture((-1.2, -0.3, 0.4, 1.5), 5,
+                                       held={0: (-2.0, 2.0), 3: (-1.5, 1.5)},
+                                       level_column=level_column, trend_width=trend_width,
+                                       trend_held=trend_held)
     module = TorchBridgedNet(architecture, seed=3, offset=0.2)
     with torch.no_grad():
         for parameter in module.parameters():
@@ -29,7 +31,8 @@ def test_the_numpy_network_is_the_torch_module(level_column):
     held = hold(z, architecture.held)
     expected = module(torch.as_tensor(hat_weights(z[:, 1], architecture.knots)),
                       torch.as_tensor(held[:, 0]), torch.as_tensor(held[:, 2]),
-                      None if level_column is None else torch.as_tensor(held[:, 3]))
+                      None if level_column is None else torch.as_tensor(held[:, 3]),
+                      torch.as_tensor(hold(z, trend_held)[:, [1, 0]]))
     np.testing.assert_allclose(BridgedNet(architecture, state)(z), expected.detach().numpy(),
                                rtol=1e-12, atol=1e-12)
 
@@ -45,6 +48,18 @@ def test_an_architecture_saved_without_the_level_slope_reads_three_columns():
     with_level = BridgedArchitecture.from_dict({**saved, "level_column": 3})
     assert with_level.problem(3) is not None and with_level.problem(4) is None
     assert with_level.parameter_count == architecture.parameter_count + 2
+
+
+def test_an_architecture_with_a_trend_round_trips_and_one_without_reads_as_before():
+    plain = BridgedArchitecture((-1.0, 1.0), 4, held={0: (-2.0, 2.0)}, level_column=3)
+    trended = BridgedArchitecture((-1.0, 1.0), 4, held={0: (-2.0, 2.0)}, level_column=3,
+                                  trend_width=6, trend_held={1: (-1.0, 1.0), 0: (-1.5, 1.5)})
+    assert "trend_width" not in plain.to_dict()
+    assert BridgedArchitecture.from_dict(trended.to_dict()) == trended
+    assert trended.parameter_count == plain.parameter_count + 6 * 4 + 2
+    assert BridgedArchitecture((-1.0, 1.0), 4, trend_width=-1).problem(3) is not None
+    assert BridgedArchitecture((-1.0, 1.0), 4, trend_width=2,
+                               trend_held={2: (0.0, 1.0)}).problem(3) is not None
 
 
 def test_the_level_slopes_hold_where_a_left_out_sweep_leaves_a_hole(cfd_samples, valve):
