@@ -83,3 +83,36 @@ def test_a_gp_with_a_matern_part_exports_as_the_package_evaluates_it():
         found, value = compared[name]
         assert np.all(np.isfinite(found)), name
         assert np.max(np.abs(found - value) / np.abs(value)) < 1e-6, name
+
+
+def test_a_force_network_with_a_trend_exports_as_the_package_evaluates_it():
+    """The bridged network's trend in (opening, Re) with its own holds
+    (BridgedArchitecture.trend_width): the committed NN force members given a random trend, the
+    graph's flow force and its σ are the package's to 1e-6 relative."""
+    from dataclasses import replace
+
+    from surrogate.maps.learned import LearnedForceMap
+    from surrogate.maps.nn import NetworkEnsemble
+
+    flow, force = load_learned_maps(trained_folder("nn"))
+    ensemble = force.predictor
+    knots = ensemble.architecture.knots
+    architecture = replace(ensemble.architecture, trend_width=3,
+                           trend_held={1: (knots[0], knots[-1]), 0: (-1.0, 1.0)})
+    rng = np.random.default_rng(4)
+    states = [{**state, **{name: 0.2 * rng.normal(size=shape) for name, shape in
+                           architecture.parameter_shapes().items() if name.startswith("trend")}}
+              for state in ensemble.states]
+    trended = NetworkEnsemble(architecture, states, ensemble.feature_mean, ensemble.feature_std,
+                              ensemble.output)
+    trended_map = LearnedForceMap(force.spec, trended, force.domain, "nn", force.calibration,
+                                  force.coverage)
+    states_drawn = random_states(flow.coverage, count=2_000, seed=5)
+    compared = parity(flow, trended_map, states_drawn)
+    untrended = parity(flow, force, states_drawn)
+    for name in ("f_sim", "f_sim_std"):
+        found, value = compared[name]
+        assert np.all(np.isfinite(found)), name
+        assert np.max(np.abs(found - value) / np.abs(value)) < 1e-6, name
+    # the trend is there: without it the flow force differs
+    assert np.max(np.abs(untrended["f_sim"][1] / compared["f_sim"][1] - 1.0)) > 1e-3
