@@ -2,8 +2,8 @@
 
 The network (:class:`surrogate.maps.network.BridgedArchitecture`) is one small network of the
 Reynolds number (plus a slope in the pressure level) per sampled opening, blended linearly
-between openings, plus one network of the cavitation number shared by all openings and a smooth
-trend in the opening and the Reynolds number;
+between openings, plus one network of the cavitation number shared by all openings and,
+optionally, a smooth trend in the opening and the Reynolds number;
 :class:`surrogate.maps.network.BridgedNet` evaluates it with NumPy. This module fits its
 parameters: Adam with a cosine schedule, then L-BFGS.
 """

@@ -476,8 +476,7 @@ class BridgedNet:
     def __call__(self, z: np.ndarray) -> np.ndarray:
         a, s = self.architecture, self.state
         lower, weight = hat_bracket(z[:, a.bridge_column], a.knots)
-        trend_x = hold(z, a.trend_held)[:, [a.bridge_column, a.local_column]]
-        z = hold(z, a.held)
+        raw, z = z, hold(z, a.held)
         x = z[:, a.local_column]
         level = None if a.level_column is None else z[:, a.level_column]
 
@@ -494,6 +493,7 @@ class BridgedNet:
                   * s["shared_v"][None]).sum(-1) + s["shared_l"][0] * shared_x
         if not a.trend_width:
             return bridged + shared
+        trend_x = hold(raw, a.trend_held)[:, [a.bridge_column, a.local_column]]
         trend = (np.tanh(trend_x @ s["trend_W"].T + s["trend_b"]) @ s["trend_v"]
                  + trend_x @ s["trend_l"])
         return bridged + shared + trend
