@@ -28,19 +28,15 @@ from __future__ import annotations
 import argparse
 import json
 import tempfile
-import time
 from pathlib import Path
 
 from surrogate.data import load_bench_log
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.presets import maps
 from surrogate.synthetic.left_out import maps_without_opening
-from surrogate.synthetic.mismatch import MapMismatch
-from surrogate.synthetic.simulate import (STRESS_SETTINGS, cleanly_identified, hidden_effect_case,
-                                          noise_free_sequence, stress_suite,
-                                          unexplained_additions)
+from surrogate.synthetic.simulate import (STRESS_SETTINGS, noise_free_sequence, run_stress_case,
+                                          stress_suite)
 from surrogate.units import from_si, to_si
-from surrogate.workbench.workflow import run_workflow
 
 def weak_leakage_record(kind: str, left_out: float, settings: int, controls: int,
                         every: int, folder: Path) -> dict:
@@ -56,23 +52,18 @@ def weak_leakage_record(kind: str, left_out: float, settings: int, controls: int
     suite = [case for case in stress_suite(controls=0, settings=seeds) if case.weak_leakage]
     suite += stress_suite(cases=0, controls=controls, settings=seeds[:1])
     for case in suite:
-        began = time.perf_counter()
-        made = hidden_effect_case(case.hidden, case.values, sequence=sequence, seed=case.seed,
-                                  mismatch=MapMismatch(), maps_under_test=under,
-                                  valve_maps=valve_maps)
-        workflow = run_workflow(made.log, start=made.start, max_additions=3)
-        added = [name for step in workflow.steps[1:] for name in step.added]
+        outcome = run_stress_case(case, sequence, under, valve_maps=valve_maps)
+        added = outcome.added
         entry = {"seed": case.seed, "added": added,
                  "rms_bar": [round(float(from_si(step.rms, "bar")), 3)
-                             for step in workflow.steps],
-                 "seconds": round(time.perf_counter() - began, 1)}
+                             for step in outcome.workflow.steps],
+                 "seconds": round(outcome.seconds, 1)}
         if case.hidden is None:
-            entry["invented"] = unexplained_additions(workflow, None)
+            entry["invented"] = outcome.invented
             record["controls"].append(entry)
             verdict = f"invented {', '.join(entry['invented']) or 'nothing'}"
         else:
-            entry.update(factor=round(case.factor, 2),
-                         clean=bool(cleanly_identified(workflow, case.hidden)),
+            entry.update(factor=round(case.factor, 2), clean=bool(outcome.clean),
                          found="laminar_leakage" in added)
             record["cases"].append(entry)
             verdict = "clean" if entry["clean"] else ("found, not clean" if entry["found"]

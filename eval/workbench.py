@@ -48,9 +48,9 @@ from surrogate.presets import cfda, maps
 from surrogate.reporting.prose import summarise
 from surrogate.solver import replay
 from surrogate.synthetic.mismatch import MapMismatch
-from surrogate.synthetic.simulate import (STRESS_SETTINGS, WEAK_LEAKAGE, cleanly_identified,
-                                          hidden_effect_case, identified, noise_free_sequence,
-                                          random_settings, stress_suite, unexplained_additions)
+from surrogate.synthetic.simulate import (STRESS_SETTINGS, WEAK_LEAKAGE, hidden_effect_case,
+                                          identified, noise_free_sequence, random_settings,
+                                          run_stress_case, stress_suite)
 from surrogate.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
@@ -114,33 +114,27 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
               "controls": [], "mismatch": {name: getattr(mismatch, name)
                                            for name in mismatch.__dataclass_fields__}}
 
-    def workflow_of(hidden, values, seed):
-        case = hidden_effect_case(hidden, values, sequence=sequence, seed=seed,
-                                  mismatch=mismatch, maps_under_test=under)
-        return timed(run_workflow, case.log, start=case.start, max_additions=3)
-
     for case in stress_suite(cases, controls, settings):
         if only_weak and not case.weak_leakage:
             continue
-        workflow, seconds = workflow_of(case.hidden, case.values, case.seed)
-        added = [name for step in workflow.steps[1:] for name in step.added]
+        outcome = run_stress_case(case, sequence, under, mismatch=mismatch)
+        workflow, added = outcome.workflow, outcome.added
         # the share of resamples over runs that chose each added effect or its look-alikes
         chosen_in = [round(step.diagnosis.group_inclusion(step.diagnosis.best), 2)
                      for step in workflow.steps[1:] if step.diagnosis is not None]
         if case.hidden is None:
-            extra = unexplained_additions(workflow, None)
-            record["controls"].append({"seed": case.seed, "added": added, "invented": extra,
-                                       "chosen_in": chosen_in,
+            record["controls"].append({"seed": case.seed, "added": added,
+                                       "invented": outcome.invented, "chosen_in": chosen_in,
                                        "final_summary": summarise(workflow.final_diagnosis),
-                                       "seconds": round(seconds, 1)})
+                                       "seconds": round(outcome.seconds, 1)})
             print(f"  nothing hidden, seed {case.seed}: added {', '.join(added) or 'nothing'}"
                   f" {chosen_in or ''}")
             continue
-        ok = cleanly_identified(workflow, case.hidden)
+        ok = outcome.clean
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
                                 "seed": case.seed, "added": added, "chosen_in": chosen_in,
                                 "final_summary": summarise(workflow.final_diagnosis),
-                                "clean": ok, "seconds": round(seconds, 1)})
+                                "clean": ok, "seconds": round(outcome.seconds, 1)})
         print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
               f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'} "
               f"{chosen_in or ''}")

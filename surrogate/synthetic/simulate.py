@@ -23,6 +23,7 @@ behaviour where the CFD has no samples and a back-pressure dependence the maps l
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +38,7 @@ from ..paths import SHIPPED_CFD_SAMPLES
 from ..presets import cfda, cfda_effects
 from ..spec import EffectSpec, ModelSpec, ValveSource
 from ..units import to_si
+from ..workbench.workflow import Workflow, run_workflow
 from .mismatch import MapMismatch, mismatched_truth
 
 #: a magnitude an engineer could meet on a real valve, per library effect (display units). The
@@ -332,6 +334,45 @@ def stress_suite(cases: int = 20, controls: int = 5,
         suite += [StressCase(None, 0.0, None, 100 + number + offset)
                   for number in range(controls)]
     return suite
+
+
+@dataclass
+class StressOutcome:
+    """What the workflow made of one stress case's log."""
+
+    case: StressCase
+    workflow: Workflow
+    seconds: float
+
+    @property
+    def added(self) -> list[str]:
+        """The effects added after the starting model, in order."""
+        return [name for step in self.workflow.steps[1:] for name in step.added]
+
+    @property
+    def clean(self) -> bool:
+        """Whether the hidden effect was found and nothing invented (:func:`cleanly_identified`)."""
+        return cleanly_identified(self.workflow, self.case.hidden)
+
+    @property
+    def invented(self) -> list[str]:
+        """The physics or sensor effects added that the hidden one does not account for."""
+        return unexplained_additions(self.workflow, self.case.hidden)
+
+
+def run_stress_case(case: StressCase, sequence: BenchLog, maps_under_test: MapsSpec, *,
+                    valve_maps: MapsSpec | None = None, mismatch: MapMismatch | None = None,
+                    max_additions: int = 3) -> StressOutcome:
+    """The workflow on the log of one stress case: the virtual valve on ``valve_maps`` (default:
+    the model's own) with ``mismatch`` (default: the suite's, :class:`MapMismatch`), the model
+    under test on ``maps_under_test``, at most ``max_additions`` effects added (the stress
+    tests' and the evaluations' one loop)."""
+    began = time.perf_counter()
+    made = hidden_effect_case(case.hidden, case.values, sequence=sequence, seed=case.seed,
+                              mismatch=MapMismatch() if mismatch is None else mismatch,
+                              maps_under_test=maps_under_test, valve_maps=valve_maps)
+    workflow = run_workflow(made.log, start=made.start, max_additions=max_additions)
+    return StressOutcome(case, workflow, time.perf_counter() - began)
 
 
 def identified(diagnosis, hidden: str, library: EffectLibrary = LIBRARY) -> bool:

@@ -30,10 +30,9 @@ from surrogate.presets import cfda, maps
 from surrogate.reporting.prose import sensor_check_text, summarise
 from surrogate.synthetic.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
                                           PerturbedForceMap, mismatched_samples)
-from surrogate.synthetic.simulate import (cleanly_identified, hidden_effect_case,
-                                          noise_free_sequence, stress_suite, unexplained_additions)
+from surrogate.synthetic.simulate import (hidden_effect_case, noise_free_sequence,
+                                          run_stress_case, stress_suite, unexplained_additions)
 from surrogate.testing import check_effect
-from surrogate.workbench.workflow import run_workflow
 
 EVERY = 8
 #: the first settings seed of the stress suite (:func:`.simulate.stress_suite`): 20 randomised
@@ -62,10 +61,8 @@ def sequence(bench_log):
     return noise_free_sequence(bench_log, every=EVERY)
 
 
-def run_case(hidden, values, sequence, seed, kind="grid"):
-    case = hidden_effect_case(hidden, values, sequence=sequence, seed=seed,
-                              mismatch=MapMismatch(), maps_under_test=maps(kind))
-    return run_workflow(case.log, start=case.start, max_additions=ADDITIONS)
+def run_case(case, sequence, kind="grid"):
+    return run_stress_case(case, sequence, maps(kind), max_additions=ADDITIONS)
 
 
 def test_the_virtual_valve_differs_from_its_cfd_like_a_real_one():
@@ -138,12 +135,9 @@ def test_a_slice_of_the_stress_suite_is_found_cleanly(sequence):
     suite = stress_suite(CASES, CONTROLS, settings=SETTINGS)
     cases = ([case for case in suite if case.hidden][:SLICE_CASES]
              + [case for case in suite if case.hidden is None][:1])
-    outcomes = []
-    for case in cases:
-        workflow = run_case(case.hidden, case.values, sequence, seed=case.seed)
-        added = [name for step in workflow.steps[1:] for name in step.added]
-        outcomes.append((case.hidden, added, cleanly_identified(workflow, case.hidden)))
-    assert all(ok for *_, ok in outcomes), outcomes
+    outcomes = [run_case(case, sequence) for case in cases]
+    assert all(outcome.clean for outcome in outcomes), [
+        (outcome.case.hidden, outcome.added) for outcome in outcomes]
 
 
 @pytest.mark.slow
@@ -154,12 +148,11 @@ def test_nothing_hidden_adds_no_physics_or_sensor_effect(sequence, kind):
     controls = [case for case in stress_suite(CASES, CONTROLS, settings=SETTINGS)
                 if case.hidden is None]
     for case in controls:
-        workflow = run_case(None, None, sequence, seed=case.seed, kind=kind)
-        extra = unexplained_additions(workflow, None)
+        outcome = run_case(case, sequence, kind=kind)
         flagged = [sensor_check_text(check)
-                   for check in workflow.final_diagnosis.sensor_checks]
-        if extra or flagged:
-            invented[case.seed] = extra + flagged
+                   for check in outcome.workflow.final_diagnosis.sensor_checks]
+        if outcome.invented or flagged:
+            invented[case.seed] = outcome.invented + flagged
     assert not invented, invented
 
 
@@ -171,9 +164,8 @@ def test_hidden_effects_are_found_cleanly_under_map_mismatch(sequence, kind):
     cases = [case for case in stress_suite(CASES, CONTROLS, settings=SETTINGS)
              if case.hidden is not None]
     for case in cases:
-        workflow = run_case(case.hidden, case.values, sequence, seed=case.seed, kind=kind)
-        added = [name for step in workflow.steps[1:] for name in step.added]
-        outcomes.append((case.hidden, added, cleanly_identified(workflow, case.hidden)))
+        outcome = run_case(case, sequence, kind=kind)
+        outcomes.append((case.hidden, outcome.added, outcome.clean))
     clean = sum(ok for *_, ok in outcomes)
     assert len(cases) >= 20
     assert clean >= CLEAN_SHARE * len(cases), [o for o in outcomes if not o[2]]
