@@ -51,7 +51,8 @@ from surrogate.maps.crossval import SCHEMES, cross_validate, flow_force_score, s
 from surrogate.maps.learned import trained_folder
 from surrogate.maps.peer import fit_peer_maps
 from surrogate.maps.registry import build_maps, cross_validation_summary, map_kind
-from surrogate.outputs import atomic_directory
+from surrogate.errors import InputError
+from surrogate.outputs import Output, atomic_directory, check_outputs
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 
 KINDS = ("grid", "nn", "gp")
@@ -591,6 +592,15 @@ def main() -> int:
     if args.reuse_peers is not None and (args.peers or args.quick):
         parser.error("--reuse-peers takes the earlier run's peers as they are: not with "
                      "--peers or --quick")
+    try:  # the output folder replaces what it holds: never an input
+        check_outputs([Output("--out", args.out, "folder")],
+                      [(args.reuse_peers, "the reused peers"),
+                       (SHIPPED_CFD_SAMPLES, "the CFD samples"),
+                       *((trained_folder(kind), f"the {kind} maps")
+                         for kind in KINDS if map_kind(kind).learned)])
+    except InputError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     started = time.perf_counter()
 
     def log(message: str) -> None:
