@@ -15,7 +15,8 @@ For each kind: the suite's weak leakages (at most 1.2x their realistic size, ``W
 :mod:`surrogate.synthetic.simulate`) over the first ``--settings`` settings seeds of its
 :func:`~surrogate.synthetic.simulate.stress_suite` (20 seeds hold 16 of them), each found cleanly
 (the leakage and no other physics or sensor term) or not, and ``--controls`` logs with nothing
-hidden, with the physics or sensor terms added to them. Map corrections (the calibration) are allowed everywhere, as in the stress suite.
+hidden, with the physics or sensor terms added to them. Map corrections (the calibration) are
+allowed everywhere, as in the stress suite.
 
 Writes results/weak_leakages/<kind>.json and prints one line per log. Run (one process per kind,
 side by side on 2 cores):
@@ -37,6 +38,7 @@ from surrogate.synthetic.left_out import maps_without_opening
 from surrogate.synthetic.simulate import (STRESS_SETTINGS, noise_free_sequence, run_stress_case,
                                           stress_suite)
 from surrogate.units import from_si, to_si
+
 
 def weak_leakage_record(kind: str, left_out: float, settings: int, controls: int,
                         every: int, folder: Path) -> dict:
