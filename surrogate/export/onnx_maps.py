@@ -357,7 +357,7 @@ def _target(g: Graph, predictor, latent: str) -> str:
 
 # --- calibrated σ (surrogate.maps.calibration) ---------------------------------------------------
 
-def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str) -> str:
+def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: str) -> str:
     """σ [ln units] = sqrt(floor² + (scale·spread)² + Σ (slope·d^power)²)."""
     calibration = learned_map.calibration
     variance = g.add(g.square(g.mul(spread, calibration.scale)), calibration.floor ** 2)
@@ -376,6 +376,10 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str) -> 
         pressures = learned_map.coverage.back_pressures + P_ATM
         absolute = g.op("Unsqueeze", g.add(p_B, P_ATM), g.const([1], np.int64))
         distances["back pressure"] = g.min_rows(g.abs(g.log(g.div(absolute, pressures[None]))))
+    if calibration.slopes.get("opening", 0.0) and learned_map.coverage is not None:
+        log_u = g.op("Unsqueeze", g.log(g.max(u, 1e-12)), g.const([1], np.int64))
+        distances["opening"] = g.min_rows(g.abs(g.sub(
+            log_u, np.log(learned_map.coverage.openings)[None])))
     for name, distance in distances.items():
         slope = calibration.slopes[name]
         term = g.mul(g.op("Pow", distance, g.const(calibration.power)), slope)
@@ -394,7 +398,7 @@ def force_graph(force_map: LearnedForceMap):
     uniform = g.add(g.mul("p_L", spec.A_L), g.mul("p_B", spec.back_area))
     dp = g.max(g.sub("p_L", "p_B"), 0.0)
     force = g.add(uniform, g.mul(g.mul(fraction, spec.A_L), dp))
-    relative = _calibrated(g, force_map, features, spread, "p_B")
+    relative = _calibrated(g, force_map, features, spread, "p_B", "u")
     std = g.mul(g.abs(g.sub(force, uniform)), relative)
     return g.model({name: name for name, _, _ in INPUTS}, {"f_sim": force, "f_sim_std": std},
                    "force_map", f"{force_map.kind} force map of cbv-surrogate: f_sim [N] and "
@@ -437,7 +441,7 @@ def flow_graph(flow_map: LearnedFlowMap):
     # σ: the calibrated σ of ln C_d at q, turned into the flow's (FlowMap.flow_std)
     features = flow_features(g, spec, q, "p_B", "u", "nu", "rho")
     _, spread = _latent(g, flow_map.predictor, features)
-    relative = _calibrated(g, flow_map, features, spread, "p_B")
+    relative = _calibrated(g, flow_map, features, spread, "p_B", "u")
     step = 1e-3
     log_q = g.log(g.max(q, 1e-300))
     exponent = g.div(g.sub(_log_pressure_drop(g, flow_map, g.add(log_q, step)),

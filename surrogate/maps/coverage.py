@@ -98,6 +98,14 @@ class Coverage:
         absolute = np.asarray(p_B, float)[..., None] + P_ATM
         return np.min(np.abs(np.log(absolute / (self.back_pressures + P_ATM))), axis=-1)
 
+    def opening_distance(self, u) -> np.ndarray:
+        """How far ``u`` [m] lies from the nearest sampled opening, as |ln| of their ratio [-]: 0
+        at a sampled opening, largest in the middle of a wide gap. Every opening is a mesh of
+        its own, and between openings a map has only its features to go by
+        (:mod:`.calibration`)."""
+        log_u = np.log(np.maximum(np.asarray(u, float), 1e-12))[..., None]
+        return np.min(np.abs(log_u - np.log(self.openings)), axis=-1)
+
     def gaps(self) -> list[tuple[float, float]]:
         """The unsampled gaps between neighbouring openings, (low, high) [m]."""
         if len(self.openings) < 3:

@@ -89,7 +89,7 @@ class LearnedFlowMap(FlowMap):
     def calibration_inputs(self, q, p_B, u, fluid: FluidState):
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         features = self.spec.flow_features(q, p_B, u, fluid)
-        return _inputs(self, features, p_B)[1:]
+        return _inputs(self, features, p_B, u)[1:]
 
 
 class LearnedForceMap(ForceMap):
@@ -137,25 +137,26 @@ class LearnedForceMap(ForceMap):
 
     def calibration_inputs(self, p_L, p_B, u, fluid: FluidState):
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        return _inputs(self, self.features(p_L, p_B, u, fluid), p_B)[1:]
+        return _inputs(self, self.features(p_L, p_B, u, fluid), p_B, u)[1:]
 
     def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Calibrated standard deviation of f_sim [N]: as :meth:`ForceMap.force_std`, with the
         predictor asked once for its mean and spread (the kernel or the networks are the cost)."""
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        latent, spread, distances = _inputs(self, self.features(p_L, p_B, u, fluid), p_B)
+        latent, spread, distances = _inputs(self, self.features(p_L, p_B, u, fluid), p_B, u)
         dp = np.maximum(p_L - p_B, 0.0).ravel()
         flow_force = self.predictor.from_latent(latent) * self.spec.A_L * dp
         relative = self.calibration.std(spread, distances)
         return np.reshape(np.abs(flow_force) * relative, p_L.shape)
 
 
-def _inputs(learned_map, features: np.ndarray, p_B: np.ndarray):
+def _inputs(learned_map, features: np.ndarray, p_B: np.ndarray, u: np.ndarray):
     """(latent mean, spread, distances) of a learned map at its features (:mod:`.calibration`)."""
     latent, spread = learned_map.predictor.latent(features, return_std=True)
     distances = {"features": learned_map.domain.distance(features)}
     if learned_map.coverage is not None:
         distances["back pressure"] = learned_map.coverage.back_pressure_distance(np.ravel(p_B))
+        distances["opening"] = learned_map.coverage.opening_distance(np.ravel(u))
     return latent, spread, distances
 
 
