@@ -31,7 +31,7 @@ import numpy as np
 from ..errors import InputError
 from ..maps.gp import BRIDGE, MATERN, SQRT3, GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap
-from ..maps.network import HOLD_SHARPNESS, BridgedNet, NumpyNet
+from ..maps.network import HOLD_SHARPNESS, BridgedNet, NumpyNet, smoothing_matrix
 from ..maps.nn import NetworkEnsemble
 from ..model import ValveModel
 
@@ -250,6 +250,11 @@ def _bridged_net(g: Graph, net: BridgedNet, z: str, width: int) -> str:
         falling = g.where(g.const(np.r_[np.zeros(len(knots) - 1, bool), True][None], bool),
                           np.full((1, len(knots)), big), falling)
         weights = g.op("Clip", g.min(rising, falling), g.const(0.0), g.const(1.0))
+        if a.smoothing_degree and len(knots) > 2:  # network.bridge_weights
+            half_width = float(np.min(np.diff(knots))) / 2
+            bump = g.max(g.sub(1.0, g.div(g.abs(g.sub(clipped, knots[None])), half_width)), 0.0)
+            smoothing = smoothing_matrix(knots, a.smoothing_degree)
+            weights = g.add(bump, g.matmul(g.sub(weights, bump), smoothing))
         bridged = g.sum_rows(g.mul(weights, local))
     shared_x = g.column(held, a.shared_column)
     x3 = g.op("Unsqueeze", shared_x, g.const([1], np.int64))
@@ -275,9 +280,16 @@ def _ensemble(g: Graph, ensemble: NetworkEnsemble, features: str) -> tuple[str, 
     stacked = g.stack(outputs)
     mean = g.op("ReduceMean", stacked, axes=[1], keepdims=0)
     if len(outputs) < 2:
-        return mean, g.mul(mean, 0.0)
-    deviation = g.sub(stacked, g.op("Unsqueeze", mean, g.const([1], np.int64)))
-    spread = g.sqrt(g.div(g.sum_rows(g.square(deviation)), float(len(outputs) - 1)))
+        spread = g.mul(mean, 0.0)
+    else:
+        deviation = g.sub(stacked, g.op("Unsqueeze", mean, g.const([1], np.int64)))
+        spread = g.sqrt(g.div(g.sum_rows(g.square(deviation)), float(len(outputs) - 1)))
+    offsets = ensemble.opening_offsets
+    if offsets is not None:  # Σ_k b_k·max(0, 1 − |x − x_k|/h) (surrogate.maps.opening_offsets)
+        x = g.op("Unsqueeze", g.column(features, offsets.column), g.const([1], np.int64))
+        bumps = g.max(g.sub(1.0, g.div(g.abs(g.sub(x, offsets.knots[None])),
+                                       offsets.half_width)), 0.0)
+        mean = g.add(mean, g.matmul(bumps, offsets.offsets.copy()))
     return mean, spread
 
 
@@ -377,9 +389,11 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
         absolute = g.op("Unsqueeze", g.add(p_B, P_ATM), g.const([1], np.int64))
         distances["back pressure"] = g.min_rows(g.abs(g.log(g.div(absolute, pressures[None]))))
     if calibration.slopes.get("opening", 0.0) and learned_map.coverage is not None:
+        log_openings = np.log(learned_map.coverage.openings)
         log_u = g.op("Unsqueeze", g.log(g.max(u, 1e-12)), g.const([1], np.int64))
-        distances["opening"] = g.min_rows(g.abs(g.sub(
-            log_u, np.log(learned_map.coverage.openings)[None])))
+        distance = g.min_rows(g.abs(g.sub(log_u, log_openings[None])))
+        reach = float(np.min(np.diff(log_openings))) / 2 if len(log_openings) > 1 else 1.0
+        distances["opening"] = g.min(g.div(distance, reach), 1.0)  # Coverage.opening_distance
     for name, distance in distances.items():
         slope = calibration.slopes[name]
         term = g.mul(g.op("Pow", distance, g.const(calibration.power)), slope)

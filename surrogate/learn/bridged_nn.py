@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..maps.network import BridgedArchitecture, hat_weights
+from ..maps.network import BridgedArchitecture, bridge_weights
 from .monotone_nn import _hold, minimise
 
 #: weight decay on the hidden weights (keeps the small networks smooth)
@@ -109,7 +109,8 @@ def train_bridged(architecture: BridgedArchitecture, z: np.ndarray, target: np.n
     """Fit the network to ``target`` at standardised features ``z`` by least squares; return its
     parameters as NumPy arrays (the state :class:`~surrogate.maps.network.BridgedNet` reads)."""
     network = TorchBridgedNet(architecture, seed, float(np.mean(target)))
-    weights = torch.as_tensor(hat_weights(z[:, architecture.bridge_column], architecture.knots))
+    weights = torch.as_tensor(bridge_weights(z[:, architecture.bridge_column], architecture.knots,
+                                             architecture.smoothing_degree))
     held = _hold(torch.as_tensor(z), architecture.held)  # as the NumPy network holds them
     local = held[:, architecture.local_column]
     shared = held[:, architecture.shared_column]

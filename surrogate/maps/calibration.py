@@ -21,8 +21,9 @@ with
     absolute pressures (:meth:`~.coverage.Coverage.back_pressure_distance`). The CFD runs at few
     back pressures, and cavitation changes the flow and its force between them in ways the
     features do not fully carry;
-  - learned kinds: of the opening from the nearest sampled one, |ln u − ln u_i|
-    (:meth:`~.coverage.Coverage.opening_distance`). Each opening is a mesh of its own, with a
+  - networks (whose members' spread does not grow between openings as a GP's posterior does):
+    of the opening from the nearest sampled one, as a share of half the
+    closest spacing of two openings, at most 1 (:meth:`~.coverage.Coverage.opening_distance`). Each opening is a mesh of its own, with a
     bias of its own (Table 4 of the paper), and between openings a map has its features to go
     by; in feature space a query between two openings can lie close to samples of both. Without
     it the NN force band, leaving an opening out, sat at 90 % and could not be held within the

@@ -351,6 +351,13 @@ class BridgedArchitecture:
     opening departs from it by: between two sampled openings the force bends as the trend does
     instead of following the straight bridge.
 
+    With a ``smoothing_degree`` the bridge treats each opening's network as carrying its mesh's
+    own bias: on (and near) a sampled opening R is that opening's network, but halfway between
+    two openings it interpolates the openings' networks smoothed across all openings by a
+    least-squares polynomial of that degree in z_u (:func:`bridge_weights`), fitted at the
+    query's own inputs, so that one opening's bias does not bend the force across the gap next
+    to it. The weights stay linear in the networks' outputs.
+
     Attributes
     ----------
     knots : tuple of float
@@ -371,6 +378,9 @@ class BridgedArchitecture:
     trend_held : dict
         {column: (low, high)}: standardised ranges of the bridge and local columns beyond which
         the trend sees them smoothly held (:func:`hold`, applied to the raw features).
+    smoothing_degree : int
+        Degree of the polynomial the bridge smooths the openings' networks by between openings
+        (0: the straight bridge, as networks saved before it).
     """
 
     knots: tuple[float, ...]
@@ -382,15 +392,18 @@ class BridgedArchitecture:
     level_column: int | None = None
     trend_width: int = 0
     trend_held: dict = field(default_factory=dict)
+    smoothing_degree: int = 0
 
     def to_dict(self) -> dict:
         level = {} if self.level_column is None else {"level_column": self.level_column}
         trend = {"trend_width": self.trend_width,
                  "trend_held": {str(k): list(v) for k, v in self.trend_held.items()}
                  } if self.trend_width else {}
+        smoothing = ({"smoothing_degree": self.smoothing_degree} if self.smoothing_degree
+                     else {})
         return {"type": "bridged", "knots": list(self.knots), "width": self.width,
                 "bridge_column": self.bridge_column, "local_column": self.local_column,
-                "shared_column": self.shared_column, **level, **trend,
+                "shared_column": self.shared_column, **level, **trend, **smoothing,
                 "held": {str(k): list(v) for k, v in self.held.items()}}
 
     @classmethod
@@ -402,7 +415,8 @@ class BridgedArchitecture:
                    {int(k): (float(v[0]), float(v[1])) for k, v in data.get("held", {}).items()},
                    None if level is None else int(level), int(data.get("trend_width", 0)),
                    {int(k): (float(v[0]), float(v[1]))
-                    for k, v in data.get("trend_held", {}).items()})
+                    for k, v in data.get("trend_held", {}).items()},
+                   int(data.get("smoothing_degree", 0)))
 
     @property
     def parameter_count(self) -> int:
@@ -428,6 +442,8 @@ class BridgedArchitecture:
             return "needs width >= 1"
         if isinstance(self.trend_width, bool) or self.trend_width < 0:
             return "trend_width must be 0 (no trend) or more"
+        if isinstance(self.smoothing_degree, bool) or not 0 <= self.smoothing_degree <= 5:
+            return "smoothing_degree must be 0 (the straight bridge) to 5"
         level = () if self.level_column is None else (self.level_column,)
         columns = (self.bridge_column, self.local_column, self.shared_column, *level, *self.held)
         if any(isinstance(c, bool) or c not in range(features) for c in columns):
@@ -449,6 +465,35 @@ def hat_weights(x: np.ndarray, knots) -> np.ndarray:
     weights[rows, lower] = 1.0 - weight
     weights[rows, np.minimum(lower + 1, len(knots) - 1)] += weight
     return weights
+
+
+def smoothing_matrix(knots, degree: int) -> np.ndarray:
+    """H (knots × knots): the values at ``knots`` of the least-squares polynomial of ``degree``
+    (at most one less than the knots) through values given there, as H @ values."""
+    knots = np.asarray(knots, float)
+    vander = np.vander(knots - knots.mean(), min(degree, len(knots) - 1) + 1)
+    return vander @ np.linalg.pinv(vander)
+
+
+def bump_weights(x: np.ndarray, knots) -> np.ndarray:
+    """max(0, 1 − |x − knot|/h) per knot, h half the closest spacing of two knots: 1 on a knot,
+    0 halfway to the next (n, knots)."""
+    knots = np.asarray(knots, float)
+    half_width = np.min(np.diff(knots)) / 2
+    return np.maximum(0.0, 1.0 - np.abs(np.asarray(x, float)[:, None] - knots[None]) / half_width)
+
+
+def bridge_weights(x: np.ndarray, knots, smoothing_degree: int = 0) -> np.ndarray:
+    """The weights of the openings' networks at ``x`` (n, knots): linear interpolation between
+    neighbouring knots (:func:`hat_weights`) or, with a ``smoothing_degree``, each opening's own
+    network on (and near) its knot and, halfway between knots, linear interpolation of the
+    openings' networks smoothed across all openings by a polynomial of that degree
+    (:class:`BridgedArchitecture`)."""
+    hat = hat_weights(x, knots)
+    if not smoothing_degree or len(knots) < 3:
+        return hat
+    bump = bump_weights(np.clip(x, knots[0], knots[-1]), knots)
+    return bump + (hat - bump) @ smoothing_matrix(knots, smoothing_degree)
 
 
 def hat_bracket(x: np.ndarray, knots) -> tuple[np.ndarray, np.ndarray]:
@@ -480,14 +525,19 @@ class BridgedNet:
         x = z[:, a.local_column]
         level = None if a.level_column is None else z[:, a.level_column]
 
-        def local(k):  # the small network of opening k (one per row)
-            hidden = np.tanh(x[:, None] * s["local_W"][k] + s["local_b"][k])
-            value = (hidden * s["local_v"][k]).sum(-1) + s["local_c"][k] + x * s["local_l"][k]
-            return value if level is None else value + level * s["local_m"][k]
+        def local(k):  # the small network of opening k (one per row, or every opening: k = :)
+            x_, level_ = (x, level) if isinstance(k, np.ndarray) else (
+                x[:, None], None if level is None else level[:, None])
+            hidden = np.tanh(x_[..., None] * s["local_W"][k] + s["local_b"][k])
+            value = (hidden * s["local_v"][k]).sum(-1) + s["local_c"][k] + x_ * s["local_l"][k]
+            return value if level is None else value + level_ * s["local_m"][k]
 
-        # only the two openings around each query carry weight
-        upper = np.minimum(lower + 1, len(a.knots) - 1)
-        bridged = (1.0 - weight) * local(lower) + weight * local(upper)
+        if a.smoothing_degree and len(a.knots) > 2:  # every opening carries weight
+            weights = bridge_weights(raw[:, a.bridge_column], a.knots, a.smoothing_degree)
+            bridged = np.sum(weights * local(slice(None)), axis=1)
+        else:  # only the two openings around each query carry weight
+            upper = np.minimum(lower + 1, len(a.knots) - 1)
+            bridged = (1.0 - weight) * local(lower) + weight * local(upper)
         shared_x = z[:, a.shared_column]
         shared = (np.tanh(shared_x[:, None] * s["shared_W"][None] + s["shared_b"][None])
                   * s["shared_v"][None]).sum(-1) + s["shared_l"][0] * shared_x

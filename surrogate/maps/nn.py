@@ -18,6 +18,7 @@ from ..errors import InputError
 from . import package
 from .learned import learned_kind
 from .network import architecture_from_dict, network
+from .opening_offsets import OpeningOffsets
 from .registry import register
 
 MANIFEST = package.MANIFEST
@@ -33,8 +34,13 @@ OUTPUTS = {"log_discharge": lambda r: r,  # flow: R = ln C_d
 class NetworkEnsemble:
     """Mean correction of several networks, turned into the map's target."""
 
+    #: the members agree between openings about as well as on them, so the calibration also
+    #: reads the opening's distance from the sampled ones (:mod:`.calibration`)
+    spread_knows_openings = False
+
     def __init__(self, architecture, states: list[dict[str, np.ndarray]],
-                 feature_mean: np.ndarray, feature_std: np.ndarray, output: str):
+                 feature_mean: np.ndarray, feature_std: np.ndarray, output: str,
+                 opening_offsets: OpeningOffsets | None = None):
         if output not in OUTPUTS:
             raise ValueError(f"unknown network output {output!r}")
         self.architecture = architecture
@@ -43,6 +49,8 @@ class NetworkEnsemble:
         self.feature_mean = np.asarray(feature_mean, float)
         self.feature_std = np.asarray(feature_std, float)
         self.output = output
+        #: each sampled opening's own bias, added to the members' mean (:mod:`.opening_offsets`)
+        self.opening_offsets = opening_offsets
 
     @property
     def target(self) -> str:
@@ -59,6 +67,8 @@ class NetworkEnsemble:
         z = (features - self.feature_mean) / self.feature_std
         outputs = np.array([member(z) for member in self.members])
         mean = outputs.mean(axis=0)
+        if self.opening_offsets is not None:
+            mean = mean + self.opening_offsets(features)
         if not return_std:
             return mean
         return mean, (outputs.std(axis=0, ddof=1) if len(outputs) > 1
@@ -73,10 +83,12 @@ class NetworkEnsemble:
         return OUTPUTS[self.output](latent)
 
     def describe(self) -> dict:
+        offsets = ({} if self.opening_offsets is None
+                   else {"opening_offsets": self.opening_offsets.to_dict()})
         return {"architecture": self.architecture.to_dict(), "members": len(self.members),
                 "parameters": self.architecture.parameter_count * len(self.members),
                 "output": self.output, "feature_mean": self.feature_mean.tolist(),
-                "feature_std": self.feature_std.tolist()}
+                "feature_std": self.feature_std.tolist(), **offsets}
 
 
 def save_ensemble(folder: Path, name: str, ensemble: NetworkEnsemble) -> dict:
@@ -110,7 +122,10 @@ def load_ensemble(folder: Path, entry: dict, features: int) -> NetworkEnsemble:
     if isinstance(members, bool) or members != len(states):
         raise InputError(f"{path}: holds {len(states)} member(s), the manifest records another "
                          "number (members)")
-    return NetworkEnsemble(architecture, states, mean, std, output)
+    offsets = (OpeningOffsets.from_dict(package.table(entry, "opening_offsets", where),
+                                        package.place(where, "opening_offsets"), features)
+               if "opening_offsets" in entry else None)
+    return NetworkEnsemble(architecture, states, mean, std, output, offsets)
 
 
 def _architecture(data: dict, where: str, features: int):

@@ -80,3 +80,26 @@ def test_the_level_slopes_hold_where_a_left_out_sweep_leaves_a_hole(cfd_samples,
     alpha = ensemble.predict(test.force_features)
     error = np.sqrt(np.mean((alpha / test.flow_force_fraction - 1.0) ** 2))
     assert error < 0.06, error
+
+
+def test_the_smoothed_bridge_is_each_opening_on_it_and_a_polynomial_across_them_between():
+    """BridgedArchitecture.smoothing_degree: on a knot the weights pick that opening's network
+    alone; halfway between knots values lying on a cubic are interpolated as the cubic's
+    straight chord, and one opening's outlier (its mesh's bias) moves the mid-gap value less
+    than the straight bridge lets it."""
+    from surrogate.maps.network import bridge_weights, hat_weights
+
+    knots = np.log([0.05, 0.08, 0.10, 0.13, 0.16, 0.20, 0.63])
+    assert np.allclose(bridge_weights(knots, knots, 3), np.eye(len(knots)))
+    middle = (knots[5] + knots[6]) / 2
+    x = np.array([middle, knots[2] + 0.01, knots[0] - 1.0])
+    weights = bridge_weights(x, knots, 3)
+    assert np.allclose(weights.sum(axis=1), 1.0)
+    cubic = 0.3 * knots**3 - knots**2 + 0.5
+    chord = hat_weights(x[:1], knots) @ cubic  # the straight line between the cubic's values
+    assert weights[0] @ cubic == pytest.approx(chord[0])
+    outlier = cubic + np.eye(len(knots))[5] * 0.05  # 0.20 mm off by 5 %
+    moved_smoothed = weights[0] @ (outlier - cubic)
+    moved_straight = hat_weights(x[:1], knots)[0] @ (outlier - cubic)
+    assert abs(moved_smoothed) < 0.7 * abs(moved_straight)  # 0.65 with these knots
+    assert np.allclose(bridge_weights(x, knots, 0), hat_weights(x, knots))

@@ -87,25 +87,34 @@ def test_the_opening_distance_is_zero_on_a_sampled_opening_and_grows_into_a_gap(
     (every opening is a mesh of its own, and the features alone do not carry that)."""
     from surrogate.maps.coverage import Coverage
 
-    openings = np.array([0.1e-3, 0.2e-3, 0.8e-3])
-    coverage = Coverage(openings, *(np.ones(3),) * 4, np.ones(2), np.ones(2), np.array([0.0]))
+    openings = np.array([0.1e-3, 0.2e-3, 0.4e-3, 1.6e-3])  # spacings ln 2, ln 2, ln 4
+    coverage = Coverage(openings, *(np.ones(4),) * 4, np.ones(2), np.ones(2), np.array([0.0]))
     assert np.allclose(coverage.opening_distance(openings), 0.0)
-    middle = np.sqrt(0.2e-3 * 0.8e-3)  # the gap's geometric middle: ln 2 from either end
-    assert coverage.opening_distance(middle) == pytest.approx(np.log(2.0))
-    assert coverage.opening_distance(0.3e-3) == pytest.approx(np.log(1.5))
-    assert coverage.opening_distance(1.6e-3) == pytest.approx(np.log(2.0))  # beyond the last
+    # as a share of half the closest spacing (ln 2 / 2)
+    assert coverage.opening_distance(0.22e-3) == pytest.approx(np.log(1.1) / (np.log(2) / 2))
+    # 1 from halfway to the closest neighbour on: what a left-out opening calibrates
+    for far in (np.sqrt(0.1e-3 * 0.2e-3), 0.8e-3, 3.2e-3):
+        assert coverage.opening_distance(far) == pytest.approx(1.0)
+    # a left-out opening is at 1 in its fold: 0.2 mm left out of these
+    fold = Coverage(openings[[0, 2, 3]], *(np.ones(3),) * 4, np.ones(2), np.ones(2),
+                    np.array([0.0]))
+    assert fold.opening_distance(0.2e-3) == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize("kind", ["nn", "gp"])
-def test_a_learned_map_reads_the_opening_distance_of_its_own_samples(kind):
+def test_a_network_map_reads_the_opening_distance_of_its_own_samples_and_a_gp_its_posterior():
     from surrogate.fluid import FluidState
     from surrogate.maps.learned import load_learned_maps, trained_folder
 
-    flow_map, force_map = load_learned_maps(trained_folder(kind))
     u = np.array([0.16e-3, 0.3e-3, 0.63e-3])
     fluid = FluidState(np.full(3, 32e-6), np.full(3, 870.0))
-    for inputs in (flow_map.calibration_inputs(np.full(3, 1e-4), np.full(3, 20e5), u, fluid),
-                   force_map.calibration_inputs(np.full(3, 150e5), np.full(3, 20e5), u, fluid)):
-        _, distances = inputs
-        assert np.allclose(distances["opening"], force_map.coverage.opening_distance(u))
-    assert distances["opening"][1] > 0.3 and distances["opening"][0] < 0.01
+    for kind in ("nn", "gp"):
+        flow_map, force_map = load_learned_maps(trained_folder(kind))
+        for inputs in (flow_map.calibration_inputs(np.full(3, 1e-4), np.full(3, 20e5), u, fluid),
+                       force_map.calibration_inputs(np.full(3, 150e5), np.full(3, 20e5), u,
+                                                    fluid)):
+            _, distances = inputs
+            if kind == "gp":
+                assert "opening" not in distances
+                continue
+            assert np.allclose(distances["opening"], force_map.coverage.opening_distance(u))
+            assert distances["opening"][1] == 1.0 and distances["opening"][0] < 0.01
