@@ -156,7 +156,8 @@ def _inputs(learned_map, features: np.ndarray, p_B: np.ndarray, u: np.ndarray):
     distances = {"features": learned_map.domain.distance(features)}
     if learned_map.coverage is not None:
         distances["back pressure"] = learned_map.coverage.back_pressure_distance(np.ravel(p_B))
-        if not learned_map.predictor.spread_knows_openings:
+        # a predictor that does not say is taken not to (a plug-in kind's, say)
+        if not getattr(learned_map.predictor, "spread_knows_openings", False):
             distances["opening"] = learned_map.coverage.opening_distance(np.ravel(u))
     return latent, spread, distances
 
