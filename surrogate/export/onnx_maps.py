@@ -252,7 +252,7 @@ def _bridged_net(g: Graph, net: BridgedNet, z: str, width: int) -> str:
         weights = g.op("Clip", g.min(rising, falling), g.const(0.0), g.const(1.0))
         if a.smoothing_degree and len(knots) > 2:  # network.bridge_weights
             half_width = float(np.min(np.diff(knots))) / 2
-            bump = g.max(g.sub(1.0, g.div(g.abs(g.sub(clipped, knots[None])), half_width)), 0.0)
+            bump = _bumps(g, clipped, knots, half_width)
             smoothing = smoothing_matrix(knots, a.smoothing_degree)
             weights = g.add(bump, g.matmul(g.sub(weights, bump), smoothing))
         bridged = g.sum_rows(g.mul(weights, local))
@@ -268,6 +268,13 @@ def _bridged_net(g: Graph, net: BridgedNet, z: str, width: int) -> str:
     trend = g.column(g.add(g.matmul(hidden, s["trend_v"][:, None]),
                            g.matmul(trend_x, s["trend_l"][:, None])), 0)
     return g.add(g.add(bridged, shared), trend)
+
+
+def _bumps(g: Graph, x: str, knots: np.ndarray, half_width: float) -> str:
+    """max(0, 1 − |x − knot|/h) per knot from an [N, 1] column, as [N, knots]
+    (:func:`surrogate.maps.network.bump_weights`)."""
+    return g.max(g.sub(1.0, g.div(g.abs(g.sub(x, np.asarray(knots, float)[None])), half_width)),
+                 0.0)
 
 
 def _ensemble(g: Graph, ensemble: NetworkEnsemble, features: str) -> tuple[str, str]:
@@ -287,8 +294,7 @@ def _ensemble(g: Graph, ensemble: NetworkEnsemble, features: str) -> tuple[str, 
     offsets = ensemble.opening_offsets
     if offsets is not None:  # Σ_k b_k·max(0, 1 − |x − x_k|/h) (surrogate.maps.opening_offsets)
         x = g.op("Unsqueeze", g.column(features, offsets.column), g.const([1], np.int64))
-        bumps = g.max(g.sub(1.0, g.div(g.abs(g.sub(x, offsets.knots[None])),
-                                       offsets.half_width)), 0.0)
+        bumps = _bumps(g, x, offsets.knots, offsets.half_width)
         mean = g.add(mean, g.matmul(bumps, offsets.offsets.copy()))
     return mean, spread
 

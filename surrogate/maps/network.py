@@ -475,11 +475,12 @@ def smoothing_matrix(knots, degree: int) -> np.ndarray:
     return vander @ np.linalg.pinv(vander)
 
 
-def bump_weights(x: np.ndarray, knots) -> np.ndarray:
-    """max(0, 1 − |x − knot|/h) per knot, h half the closest spacing of two knots: 1 on a knot,
-    0 halfway to the next (n, knots)."""
+def bump_weights(x: np.ndarray, knots, half_width: float | None = None) -> np.ndarray:
+    """max(0, 1 − |x − knot|/h) per knot (n, knots), h by default half the closest spacing of two
+    knots: 1 on a knot, 0 halfway to the closest neighbour."""
     knots = np.asarray(knots, float)
-    half_width = np.min(np.diff(knots)) / 2
+    if half_width is None:
+        half_width = np.min(np.diff(knots)) / 2
     return np.maximum(0.0, 1.0 - np.abs(np.asarray(x, float)[:, None] - knots[None]) / half_width)
 
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import InputError
 from . import package
+from .network import bump_weights
 
 
 @dataclass(frozen=True)
@@ -53,8 +54,7 @@ class OpeningOffsets:
     def __call__(self, features: np.ndarray) -> np.ndarray:
         """b at each row of ``features`` (n, columns) [latent units]."""
         x = np.asarray(features, float)[:, self.column]
-        bumps = np.maximum(0.0, 1.0 - np.abs(x[:, None] - self.knots[None]) / self.half_width)
-        return bumps @ self.offsets
+        return bump_weights(x, self.knots, self.half_width) @ self.offsets
 
     def to_dict(self) -> dict:
         return {"column": self.column, "knots": self.knots.tolist(),
