@@ -10,8 +10,11 @@ table by a formula of their own (a spring with a kink, a detent) and watch the e
 
 from __future__ import annotations
 
+import ast
+import keyword
 import re
 import textwrap
+import unicodedata
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +52,8 @@ def effect_source(effect: ShapeFreeEffect, *, name: str | None = None, origin: s
         What else to say about it (its gain, its look-alikes, a library term close to it).
     """
     name = name or effect_name(effect)
+    if not name.isidentifier() or keyword.iskeyword(name):
+        raise ValueError(f"{name!r} is not a Python name an effects file can define")
     variable = effect.variable
     x, values = effect.table(TABLE_POINTS)
     x_unit, value_unit = variable.unit, effect.value_unit
@@ -66,6 +71,9 @@ def effect_source(effect: ShapeFreeEffect, *, name: str | None = None, origin: s
         doc.append(f"Found by cbv-surrogate's diagnosis on {origin}.")
     if note:
         doc.append(note)
+    # the origin (a file name) and the note (names of runs and effects) come from the user's
+    # inputs: as docstring text they are escaped, so that no name can end the string
+    doc = [_docstring_text(paragraph) for paragraph in doc]
     doc.append(f"The table is the fitted shape: {variable.label} [{x_unit}] against the "
                f"{effect.quantity} [{value_unit}], linear between rows and held beyond them. "
                "scale = 1 reproduces it; a fit of scale says how much of it the data want. "
@@ -78,7 +86,7 @@ def effect_source(effect: ShapeFreeEffect, *, name: str | None = None, origin: s
                    "data alone set scale.")
     docstring = "\n\n".join(textwrap.fill(paragraph, 95, initial_indent="    ",
                                           subsequent_indent="    ") for paragraph in doc)
-    return f'''"""{textwrap.fill(doc[0], 95)}
+    return checked_source(f'''"""{textwrap.fill(doc[0], 95)}
 
 Use it:
 
@@ -106,7 +114,65 @@ def {name}({_SIGNATURES[effect.kind]}, scale=0.0):
     """{docstring.strip()}
     """
     return {effect.formula.format(shape=f"({shape})")}
-'''
+''')
+
+
+def _docstring_text(text: str) -> str:
+    """``text`` as it may stand in a triple-quoted docstring: backslashes and quotes escaped
+    (no quote can close the string, no escape can start), control and format characters
+    (newlines, ANSI escapes, bidirectional overrides) written as their escapes."""
+    text = text.replace("\\", "\\\\").replace('"', '\\"')
+    return "".join(character if unicodedata.category(character)[0] != "C"
+                   else character.encode("unicode_escape").decode("ascii").replace(
+                       "\\", "\\\\")
+                   for character in text)
+
+
+#: what an effects file the package writes may hold: literals, arithmetic, the names below,
+#: attributes of them and calls; no other statement than its imports, assignments, the decorated
+#: function and its return
+_NODES = (ast.Module, ast.Expr, ast.Import, ast.ImportFrom, ast.alias, ast.Assign,
+          ast.FunctionDef, ast.arguments, ast.arg, ast.Return, ast.Constant, ast.Name,
+          ast.Load, ast.Store, ast.Attribute, ast.Call, ast.keyword, ast.List, ast.Tuple,
+          ast.Dict, ast.BinOp, ast.UnaryOp, ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow,
+          ast.USub, ast.UAdd)
+_MODULES = {"numpy", "surrogate.effects"}
+
+
+def checked_source(source: str) -> str:
+    """``source`` when it is an effects file of the expected form, else ValueError.
+
+    Every file the package writes as Python passes here: a module docstring, the imports of
+    numpy and ``custom_effect``, constants, and one decorated function whose body is a docstring
+    and a return of arithmetic on its arguments and those constants. Nothing an input carried
+    (a file name, a run id) can add a statement, a call to another function or an import.
+    """
+    tree = ast.parse(source)
+    assigned = {target.id for node in tree.body if isinstance(node, ast.Assign)
+                for target in node.targets if isinstance(target, ast.Name)}
+    functions = [node for node in tree.body if isinstance(node, ast.FunctionDef)]
+    allowed = {"np", "custom_effect", *assigned,
+               *(arg.arg for function in functions for arg in function.args.args)}
+    for node in ast.walk(tree):
+        if not isinstance(node, _NODES):
+            raise ValueError(f"an effects file may not hold {type(node).__name__} "
+                             f"(line {getattr(node, 'lineno', '?')})")
+        if isinstance(node, ast.Name) and node.id not in allowed | {f.name for f in functions}:
+            raise ValueError(f"an effects file may not name {node.id!r}")
+        if isinstance(node, ast.Attribute) and node.attr.startswith("_"):
+            raise ValueError(f"an effects file may not reach {node.attr!r}")
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            names = [node.module] if isinstance(node, ast.ImportFrom) else \
+                [alias.name for alias in node.names]
+            if not set(names) <= _MODULES:
+                raise ValueError(f"an effects file may not import {', '.join(names)}")
+    statements = [type(node) for node in tree.body]
+    if statements.count(ast.FunctionDef) != 1 or statements.count(ast.Expr) != 1:
+        raise ValueError("an effects file holds a docstring and one function")
+    (function,) = functions
+    if [type(node) for node in function.body] != [ast.Expr, ast.Return]:
+        raise ValueError("an effects file's function holds a docstring and a return")
+    return source
 
 
 def roughness_pull(effect: ShapeFreeEffect) -> float:
@@ -125,7 +191,8 @@ def roughness_pull(effect: ShapeFreeEffect) -> float:
 def write_effect_file(effect: ShapeFreeEffect, path: str | Path, **options) -> Path:
     """Write :func:`effect_source` to ``path`` (all at once); return the path."""
     path = Path(path)
-    options.setdefault("name", path.stem if path.stem.isidentifier() else None)
+    options.setdefault("name", path.stem if path.stem.isidentifier()
+                       and not keyword.iskeyword(path.stem) else None)
     with atomic_file(path) as stream:
         stream.write(effect_source(effect, **options))
     return path
@@ -155,4 +222,4 @@ def _numbers(values: np.ndarray) -> str:
     return "[" + ",\n    ".join(lines) + "]"
 
 
-__all__ = ["effect_name", "effect_source", "hand_over", "roughness_pull", "write_effect_file"]
+__all__ = ["checked_source", "effect_name", "effect_source", "hand_over", "roughness_pull", "write_effect_file"]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 
+import pandas as pd
 import pytest
 
 from surrogate.cli import main
@@ -41,12 +42,21 @@ def detent_case(bench_log):
 
 @pytest.mark.slow
 def test_a_shape_found_by_diagnose_is_handed_over_as_a_file_that_does_its_work(
-        detent_case, tmp_path, capsys):
+        detent_case, tmp_path, capsys, monkeypatch):
     """diagnose --out writes the shape-free find as found_*.py; fit --effects-file --add takes
-    it (its scale from 0) and predicts held-out runs as well as the shape-free term did."""
-    model_file, log_file = tmp_path / "start.toml", tmp_path / "log.csv"
+    it (its scale from 0) and predicts held-out runs as well as the shape-free term did.
+
+    The log's file name, its run ids and an extra column's name each try to end the handed-over
+    file's docstring and open a file: loading the file must run nothing of theirs."""
+    monkeypatch.chdir(tmp_path)
+    model_file = tmp_path / "start.toml"
+    log_file = tmp_path / 'x"""+str(open("PWNED_path","w"))+""".csv'
     save_model(detent_case.start, model_file)
     write_bench_log(detent_case.log, log_file)
+    table = pd.read_csv(log_file, dtype={"run": str})
+    table["run"] = table["run"] + '"""+str(open("PWNED_run","w"))+"""'
+    table['x"""+str(open("PWNED_column","w"))+"""'] = 1.0
+    table.to_csv(log_file, index=False)
     common = ["--model", str(model_file), "--data", str(log_file)]
     assert main(["diagnose", *common, "--out", str(tmp_path / "diag"), "--json"]) == 0
     document = json.loads(capsys.readouterr().out)
@@ -59,6 +69,8 @@ def test_a_shape_found_by_diagnose_is_handed_over_as_a_file_that_does_its_work(
     name = found.stem
     assert main(["fit", *common, "--effects-file", str(found), "--add", name,
                  "--out", str(tmp_path / "fitted.toml")]) == 0
+    assert main(["effects", "--effects-file", str(found)]) == 0
+    assert not list(tmp_path.rglob("PWNED*")), "loading the handed-over file ran an input's code"
 
     fitted = fit_to_log(load_model(str(tmp_path / "fitted.toml"), library=KNOWN + load_effects_file(found)),
                         detent_case.log)
