@@ -30,6 +30,7 @@ from .commands import COMMANDS
 from .commands.common import EXIT_CODES, CommandParser, HelpFormatter, UsageError
 from .data.errors import DataFileError
 from .errors import InputError
+from .input_files import LIMIT_VARIABLE
 from .interrupts import exit_code, handling_interrupts
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
@@ -69,6 +70,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args, argv: list[str], as_json: bool) -> int:
+    bound = getattr(args, "max_input_mb", None)
+    before = os.environ.get(LIMIT_VARIABLE)
+    if bound is not None:
+        # through the environment, so that a fleet's worker processes read with the same bound
+        os.environ[LIMIT_VARIABLE] = repr(bound)
     try:
         return args.func(args) or EXIT_OK
     except InputError as error:
@@ -87,6 +93,12 @@ def _run(args, argv: list[str], as_json: bool) -> int:
     except Exception as error:  # a bug: say so in one line, keep the traceback in a file
         details = _write_details(argv)
         return _report(error, EXIT_FAILURE, as_json, kind="internal error", details=details)
+    finally:
+        if bound is not None:  # a run in-process (a test, a notebook) leaves the bound as it was
+            if before is None:
+                os.environ.pop(LIMIT_VARIABLE, None)
+            else:
+                os.environ[LIMIT_VARIABLE] = before
 
 
 def _report(error: BaseException, code: int, as_json: bool, kind: str = "bad input",

@@ -51,6 +51,16 @@ class Range:
         """Whether ``value`` is finite and within the range (NaN and ±inf never are)."""
         return math.isfinite(value) and self.low <= value <= self.high
 
+    def check_option(self, option: str, value: float) -> float:
+        """``value`` of a command-line ``option`` when plausible, else InputError saying the
+        range (and the unit it may have been given in)."""
+        if not self.contains(value):
+            from .errors import InputError
+
+            raise InputError(f"{option} {value:g}: expected {self.describe()}"
+                             f"{self.unit_hint(value)}")
+        return value
+
     def describe(self) -> str:
         """``"0 to 1000 bar"``."""
         return f"{self.low:g} to {self.high:g} {label(self.unit)}"
@@ -79,6 +89,7 @@ PRESSURE_DIFFERENCE = Range(0.0, PRESSURE_MAX_BAR, "bar")
 TEMPERATURE = Range(-40.0, 200.0, "degC")  # mineral oils: pour point to well above any bench
 VISCOSITY = Range(0.1, 1e5, "cSt")  # hot water 0.3 cSt; cold gear oil 1e4 cSt
 DENSITY = Range(600.0, 1200.0, "kg/m^3")
+TIME = Range(-1e6, 1e7, "s")  # a run's clock: minutes to hours, a year at most, may start < 0
 OPENING = Range(0.0, 100.0, "mm")  # a piston position; valve strokes are millimetres
 FLOW = Range(0.0, 5000.0, "L/min")  # the largest cartridge valves pass ~1000 L/min
 FORCE = Range(-1e6, 1e6, "N")

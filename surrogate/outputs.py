@@ -28,6 +28,9 @@ class Output:
     option: str
     path: str | Path
     kind: str = "file"
+    #: for a folder, what the command will write in it (relative paths; a trailing "/" marks a
+    #: folder), checked before any work: none may be a link, a special file or of the other kind
+    entries: tuple[str, ...] = ()
 
 
 def check_outputs(outputs: Iterable[Output],
@@ -71,6 +74,40 @@ def check_outputs(outputs: Iterable[Output],
                                  f"{source}{role}, which this run reads; refusing to write into "
                                  "an input, choose another path")
         _check_writable(output.option, target, output.kind)
+        for entry in output.entries:
+            problem = _conflict(target / entry.rstrip("/"), folder=entry.endswith("/"))
+            if problem:
+                raise InputError(f"{output.option} {target}: {problem}")
+
+
+def _conflict(destination: Path, *, folder: bool) -> str | None:
+    """Why a run may not write a file (or a folder) at ``destination``, or None: a symbolic
+    link would take the write elsewhere, a special file would hang or swallow it, and replacing
+    a folder by a file (or the reverse) would remove what the user keeps there."""
+    if destination.is_symlink():
+        return (f"{destination} is a symbolic link, which this run would write through; "
+                "remove the link or choose another folder")
+    if not destination.exists():
+        return None
+    if destination.is_dir() and not folder:
+        return (f"{destination} is a folder where this run writes a file; move it or choose "
+                "another folder")
+    if folder and not destination.is_dir():
+        return (f"{destination} is a file where this run writes a folder; move it or choose "
+                "another folder")
+    if not folder and not destination.is_file():
+        return (f"{destination} is a special file (a pipe, a socket or a device), not a "
+                "regular file; remove it or choose another folder")
+    return None
+
+
+def _merge_conflicts(staging: Path, target: Path) -> str | None:
+    """The first reason the staged tree may not be merged into ``target``, or None."""
+    for path in sorted(staging.rglob("*")):
+        problem = _conflict(target / path.relative_to(staging), folder=path.is_dir())
+        if problem:
+            return problem
+    return None
 
 
 def _same(a: Path, b: Path) -> bool:
@@ -126,7 +163,10 @@ def atomic_directory(target: str | Path):
 
     If the body raises (an interruption included), ``target`` is left exactly as it was and the
     temporary directory is removed: no half-written results, nothing hidden left behind. Files of
-    the same name already in ``target`` are replaced; others are kept. Moving the files in and
+    the same name already in ``target`` are replaced; others are kept, in subfolders too. An
+    entry of ``target`` that the results would write through (a link) or replace by another
+    kind (a folder where a file goes) stops the command (InputError) before anything is moved.
+    Moving the files in and
     removing the temporary directory are not cut short by Ctrl-C or SIGTERM
     (:func:`surrogate.interrupts.deferred`): a signal then stops the command once they are done.
     """
@@ -140,14 +180,24 @@ def atomic_directory(target: str | Path):
                 os.chmod(staging, 0o777 & ~_umask())
                 staging.replace(target)
                 return
-            for path in staging.iterdir():
-                destination = target / path.name
-                if destination.is_dir() and not destination.is_symlink():
-                    shutil.rmtree(destination)
-                path.replace(destination)
+            problem = _merge_conflicts(staging, target)
+            if problem:
+                raise InputError(f"{target}: {problem}; nothing was written")
+            _merge(staging, target)
     finally:
         with deferred():
             shutil.rmtree(staging, ignore_errors=True)
+
+
+def _merge(source: Path, target: Path) -> None:
+    """Move ``source``'s entries into the folder ``target``: files replace files of the same name,
+    folders merge into folders (checked beforehand by :func:`_merge_conflicts`)."""
+    for path in source.iterdir():
+        destination = target / path.name
+        if path.is_dir() and destination.is_dir():
+            _merge(path, destination)
+        else:
+            path.replace(destination)
 
 
 @contextlib.contextmanager

@@ -47,6 +47,7 @@ from pathlib import Path
 
 from .effects import KNOWN, Effect, EffectLibrary
 from .errors import InputError
+from .input_files import read_input_text
 from .maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
 from .model import ValveModel
 from .outputs import atomic_file
@@ -149,12 +150,16 @@ class EffectSpec:
             hint = f" (it came from {self.source})" if self.source else ""
             raise InputError(f"{where}: {error}{hint}") from None
         where = f"{where} ({cls.name})"
-        effect = cls.for_parameters([name for name, _ in self.parameters])
+        try:
+            effect = cls.for_parameters([name for name, _ in self.parameters])
+        except InputError as error:
+            raise InputError(f"{where}: {error}") from None
         for name, record in self.parameters:
             if name not in effect.params:
                 raise InputError(f"{where}: unknown parameter {name!r}; it has "
                                  f"{', '.join(effect.params) or 'none'}")
             effect.params[name].update_from_record(dict(record), f"{where}, parameter {name!r}")
+        effect.check_parameters(where)
         return effect
 
     def to_dict(self) -> dict:
@@ -366,12 +371,7 @@ class ModelSpec:
     def read(cls, path: str | Path) -> "ModelSpec":
         """A model file."""
         path = Path(path)
-        try:
-            text = path.read_text("utf-8")
-        except UnicodeDecodeError as error:
-            raise InputError(f"{path}: not a valid TOML model file ({error})") from None
-        except OSError as error:
-            raise InputError(f"{path}: cannot read model file ({error.strerror})") from None
+        text = read_input_text(path, "a TOML model file")
         return cls.from_toml(text, str(path), path.resolve().parent)
 
 

@@ -113,11 +113,15 @@ def _effect_states(seed: int, count: int, valve: ValveParameters):
 
 
 def _trial_values(effect: Effect) -> list[dict[str, float]]:
-    """Parameter values (display units) to try: the defaults, and points inside the bounds."""
+    """Parameter values (display units) to try: the defaults, and points inside the bounds of
+    the parameters a fit varies (the others are the effect's structure, such as a shape's knots,
+    which must rise: all at one fraction of their bounds they would coincide)."""
     settings = [{}]
     for fraction in (0.25, 0.75):
         values = {}
         for name, parameter in effect.params.items():
+            if not parameter.vary:
+                continue
             low, high = parameter.display_bounds
             if np.isfinite(low) and np.isfinite(high):
                 values[name] = low + fraction * (high - low)

@@ -50,7 +50,12 @@ def nesting_depth(document) -> int:
 
 
 def require_keys(table: dict, keys: set[str], source: str) -> None:
-    """Raise :class:`InputError` unless ``table`` has exactly ``keys``; names what is off."""
+    """Raise :class:`InputError` unless ``table`` is a table with exactly ``keys``; names what
+    is off (an array of tables, ``[[valve]]``, where one table ``[valve]`` belongs included)."""
+    if not isinstance(table, Mapping):
+        what = "an array of tables ([[...]])" if isinstance(table, list) else type(table).__name__
+        raise InputError(f"{source}: must be one table [...] with the keys "
+                         f"{', '.join(sorted(keys))}; got {what}")
     missing = sorted(keys - set(table))
     extra = sorted(set(table) - keys)
     problems = []

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from .errors import InputError
 from .fluid import Oil
+from .input_files import read_input_text
 from .limits import PRESSURE_MAX_BAR, Range
 from .tomlio import loads, require_keys
 from .units import from_si, label, to_si
@@ -186,10 +187,7 @@ def load_valve(path: str | Path | None = None) -> ValveParameters:
         source = f"shipped valve {SHIPPED_VALVE}"
     else:
         path = Path(path)
-        try:
-            text = path.read_text("utf-8")
-        except OSError as error:
-            raise InputError(f"{path}: cannot read valve file ({error.strerror})") from None
+        text = read_input_text(path, "a TOML valve file")
         source = str(path)
     try:
         document = loads(text, source)

@@ -11,6 +11,7 @@ from pathlib import Path
 from ..data import load_bench_log
 from ..effects import KNOWN, EffectLibrary, load_effects_file
 from ..errors import InputError
+from ..input_files import DEFAULT_LIMIT_MB, LIMIT_VARIABLE
 from ..maps.registry import (MAP_KINDS, MapsSpec, MapSource, is_surrogate_folder, kind_named,
                              refuse_ambiguous_kind)
 from ..model import ValveModel
@@ -79,7 +80,22 @@ def add_command(subparsers, name: str, help: str, description: str, *,
                         help="no progress lines on stderr (errors are still reported)")
     if json_help:
         parser.add_argument("--json", action="store_true", help=json_help)
+    parser.add_argument("--max-input-mb", type=positive_megabytes, metavar="MB",
+                        help="the largest bench log or CFD table read [MB] (default "
+                             f"${LIMIT_VARIABLE} or {DEFAULT_LIMIT_MB:g}); weight archives may "
+                             "unpack to a sixteenth of it, TOML and JSON files a sixty-fourth")
     return parser
+
+
+def positive_megabytes(text: str) -> float:
+    """argparse type: a size in MB > 0, finite."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a size in MB, got {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a size in MB > 0, got {text}")
+    return value
 
 
 def required(parser: argparse.ArgumentParser):

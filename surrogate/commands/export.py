@@ -59,9 +59,15 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+#: what each format writes into --out under a fixed name (the FMU's name is the model's)
+FORMAT_FILES = {"onnx": ("flow.onnx", "force.onnx", "onnx.json"),
+                "tables": ("valve_tables.mat", "manifest.json"), "fmu": ()}
+
+
 def run(args) -> int:
-    guard_outputs(args, Output("--out", args.out, "folder"))
     formats = list(dict.fromkeys(args.format))
+    entries = ("export.json", *(name for form in formats for name in FORMAT_FILES.get(form, ())))
+    guard_outputs(args, Output("--out", args.out, "folder", entries))
     if not (np.isfinite(args.grid_scale) and 0.25 <= args.grid_scale <= 8):
         raise InputError(f"--grid-scale {args.grid_scale:g}: expected a number in [0.25, 8]")
     if not (np.isfinite(args.tolerance) and args.tolerance > 0):

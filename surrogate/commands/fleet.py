@@ -26,6 +26,7 @@ from ..fleet.results import (
     failed_table,
     parameter_column,
     read_result,
+    result_path,
     stderr_column,
     still_stands,
     valves_table,
@@ -111,11 +112,19 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+#: what a fleet writes into --out beside the records (and valves.parquet with pyarrow)
+FLEET_FILES = ("valves.csv", "failed.csv", "outliers.csv", "population.json", "report.html")
+
+
 def run(args) -> int:
     progress = progress_for(args)
     logs = find_logs(args.data)
     executor = _executor(args)
-    check_outputs([Output("--out", args.out, "folder")],
+    # the per-valve records are written into OUT/valves as they come, not staged: every place
+    # of them is checked now, with the tables the fleet writes at the end
+    entries = (f"{VALVES_FOLDER}/", *(f"{VALVES_FOLDER}/{serial}.json" for serial, _ in logs),
+               *FLEET_FILES, "valves.parquet")
+    check_outputs([Output("--out", args.out, "folder", entries)],
                   run_inputs(args) + [(path, f"{serial}'s bench log, given by --data")
                                       for serial, path in logs])
     library = effect_library(args, progress)
@@ -133,6 +142,9 @@ def run(args) -> int:
     pending = []
     for task in tasks:
         earlier = read_result(args.out, task.serial)
+        if earlier is None and result_path(args.out, task.serial).exists():
+            progress(f"{result_path(args.out, task.serial)}: not a record as this version writes "
+                     f"them (edited or damaged); {task.serial} is done again")
         if still_stands(earlier, task):
             records[task.serial] = earlier
         else:
@@ -164,7 +176,9 @@ def _executor(args):
                          + ("or the other" if source == "--scheduler" else
                             f"(unset {SCHEDULER_VARIABLE} to run locally)"))
     if scheduler:
-        return DaskCluster(scheduler, source)
+        cluster = DaskCluster(scheduler, source)
+        cluster.reachable()  # a wrong address is told now, within seconds
+        return cluster
     return LocalPool(args.workers or available_cores())
 
 
@@ -253,7 +267,7 @@ def _write_population(args, records: list[dict], model, progress) -> dict:
     if args.diagnose and "finding" in table:
         document["population"]["findings"] = {
             str(name): int(count) for name, count in table["finding"].value_counts().items()}
-    files = ["valves.csv", "failed.csv", "outliers.csv", "population.json", "report.html"]
+    files = list(FLEET_FILES)
     with atomic_directory(args.out) as staging:
         table.to_csv(staging / "valves.csv", index=False)
         if write_parquet(table, staging / "valves.parquet"):

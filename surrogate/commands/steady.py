@@ -9,6 +9,7 @@ import numpy as np
 from ..errors import InputError
 from ..export.characteristic import steady_characteristic
 from ..export.valve_only import valve_physics
+from ..limits import FLOW, PRESSURE, PRESSURE_DIFFERENCE, TEMPERATURE
 from ..outputs import Output, atomic_directory
 from ..reporting.report import figure_png
 from ..units import from_si, to_si
@@ -52,10 +53,11 @@ def run(args) -> int:
         raise InputError(f"--q-lpm {low:g} {high:g}: expected 0 < LOW < HIGH [L/min]")
     if not 2 <= args.points <= 10_000:
         raise InputError(f"--points {args.points}: expected 2 to 10000 flows per branch")
-    for option, value in (("--p-P-bar", args.p_P_bar), ("--p-B-bar", args.p_B_bar),
-                          ("--temperature-C", args.temperature_C)):
-        if not np.isfinite(value):
-            raise InputError(f"{option} {value}: expected a finite number")
+    for option, value, plausible in (("--p-P-bar", args.p_P_bar, PRESSURE),
+                                     ("--p-B-bar", args.p_B_bar, PRESSURE),
+                                     ("--temperature-C", args.temperature_C, TEMPERATURE),
+                                     ("--q-lpm", high, FLOW)):
+        plausible.check_option(option, value)
     progress = progress_for(args)
     from ..modelfile import PRESETS, load_spec
 
@@ -69,6 +71,7 @@ def run(args) -> int:
     progress(f"solving {physics.model.name}'s steady branches at {args.points} flows")
     curve = steady_characteristic(physics.model, q, to_si(args.p_P_bar, "bar"),
                                   to_si(args.p_B_bar, "bar"), to_si(args.temperature_C, "degC"))
+    check_result(curve, where)
     document = curve.to_json() | {"left_out": physics.left_out, "failures": curve.failures}
     with atomic_directory(args.out) as staging:
         curve.to_frame().to_csv(staging / "steady.csv", index=False, float_format="%.6g")
@@ -87,3 +90,15 @@ def run(args) -> int:
             print(f"{branch:>4}: dp {rows.dp_bar.min():.1f} to {rows.dp_bar.max():.1f} bar over "
                   f"{from_si(q[0], 'L/min'):.2f} to {from_si(q[-1], 'L/min'):.2f} L/min")
     return 0
+
+
+def check_result(curve, where: str) -> None:
+    """Refuse a characteristic whose pressure drop no valve has (beyond its plausible range):
+    the model's maps or parameters are damaged, and the numbers must not be written as a
+    result."""
+    dp = curve.to_frame().dp_bar.to_numpy()
+    bad = [value for value in dp if np.isfinite(value) and not PRESSURE_DIFFERENCE.contains(value)]
+    if len(bad):
+        raise InputError(f"{where}: the model gives a pressure drop of {bad[0]:.4g} bar, "
+                         f"outside {PRESSURE_DIFFERENCE.describe()}; its maps or parameters are "
+                         "damaged (check its surrogate folder or refit it)")

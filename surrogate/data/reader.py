@@ -32,9 +32,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..input_files import read_input, regular_file
 from ..units import from_si, label, to_si
 from .errors import DataFileError, Problem
-from .schema import SCHEMAS, Column, FileSchema
+from .schema import SCHEMAS, TEXT_MAX, Column, FileSchema
 
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 _NON_FINITE = {"nan", "+nan", "-nan", "inf", "+inf", "-inf", "infinity", "+infinity", "-infinity"}
@@ -98,14 +99,10 @@ def read_raw_table(path: str | Path, progress: Callable[[str], None] | None = No
         neither comma- nor semicolon-separated, or mixes decimal commas and points.
     """
     name = str(path)
+    size = regular_file(path, "a CSV file").st_size  # before a byte: /dev/zero, a FIFO
     if progress is not None:
-        size = Path(path).stat().st_size if Path(path).is_file() else 0
         progress(f"reading {name} ({size / 1e6:.1f} MB)")
-    try:
-        data = Path(path).read_bytes()
-    except OSError as error:
-        raise DataFileError(name, [Problem(name, None, None, None,
-                                           f"a readable file ({error.strerror})")]) from None
+    data = read_input(path, "a CSV file", "table")
     if not data.strip():
         raise DataFileError(name, [Problem(name, None, None, None,
                                            "a header line and at least one data row; "
@@ -567,6 +564,9 @@ def _parse_cell(text: str, column: Column) -> tuple[object, str | None]:
     if not column.is_number:
         if not text:
             return None, f"{column.describe_expected()}; the cell is empty"
+        if len(text) > TEXT_MAX or not text.isprintable():
+            return None, (f"{column.describe_expected()}; the cell holds control characters "
+                          "or is too long")
         if text in column.aliases:
             return column.aliases[text], None
         if column.choices and text not in column.choices:

@@ -25,6 +25,11 @@ DIRECTION_SIGNS = {"1": "up", "+1": "up", "-1": "down", "1.0": "up", "+1.0": "up
                    "-1.0": "down"}
 
 
+#: the longest text cell (a run id, an oil's name): an id reaches the terminal, the reports and
+#: file names, so it is printable (no escape sequence, line break or direction override) and short
+TEXT_MAX = 100
+
+
 @dataclass(frozen=True)
 class Column:
     """One column of a file schema.
@@ -67,7 +72,7 @@ class Column:
         """The allowed values in short: ``"0 to 100 mm"``, ``"'up', 'down'"``."""
         if not self.is_number:
             if not self.choices:
-                return "non-empty text"
+                return f"printable text, 1 to {TEXT_MAX} characters"
             words = ", ".join(repr(c) for c in self.choices)
             signs = [f"{text} ({choice})" for text, choice in self.aliases.items()
                      if text in ("+1", "-1")]
@@ -162,7 +167,7 @@ BENCH_SCHEMA = FileSchema(
     allow_extra=True,
     columns=(
         Column("run", "run", "ramp-test id"),
-        Column("time_s", "time", "time within the run", "s"),
+        Column("time_s", "time", "time within the run", "s", limits.TIME),
         _TEMPERATURE.with_suffixes(),
         Column("p_Pe_nominal_bar", "p_Pe_nominal", "set point of p_Pe = p_P - p_B", "bar",
                limits.PRESSURE_DIFFERENCE).with_suffixes(),

@@ -162,6 +162,10 @@ class Effect:
         """The effect, off, with parameters of these names (as a model file lists them)."""
         return cls()
 
+    def check_parameters(self, where: str) -> None:
+        """Refuse (InputError, naming ``where``) parameter values a model file may hold one by
+        one but not together; the parameters are set. None here."""
+
     # hooks: return None to contribute nothing
     def correct_inputs(self, points):
         """True operating points from measured ones (an ``OperatingPoints``), or None."""

@@ -41,6 +41,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.interpolate import BSpline
 
+from ..errors import InputError
 from ..parameters import Parameter
 from .. import limits
 from ..units import BAR, CST, LPM, from_si, to_si
@@ -48,6 +49,8 @@ from .base import BalanceState, Effect, FlowState
 
 #: knots of a shape (the basis then has KNOTS + 2 cubic B-splines)
 KNOTS = 6
+#: the most knots a model file may give a shape (a calibration has one per sampled opening)
+MAX_KNOTS = 64
 DEGREE = 3
 #: knots sit this far toward the data's quantiles from an even spread over their range
 QUANTILE_SHARE = 0.8
@@ -174,9 +177,9 @@ class ShapeFreeEffect(Effect):
     smoothed: ClassVar[bool] = True
 
     def __init__(self, knots=None, **values: float):
-        """The effect off on ``knots`` [SI] (default: evenly on [0, 1], to be replaced by
-        :meth:`on_knots`); ``values`` in display units by parameter name."""
-        knots = np.linspace(0.0, 1.0, KNOTS) if knots is None else np.asarray(knots, float)
+        """The effect off on ``knots`` [SI] (default: evenly over the variable's plausible range,
+        to be replaced by :meth:`on_knots`); ``values`` in display units by parameter name."""
+        knots = self._even_knots(KNOTS) if knots is None else np.asarray(knots, float)
         self.params = {}
         unit = self.variable.unit
         for index, knot in enumerate(knots, start=1):
@@ -218,7 +221,25 @@ class ShapeFreeEffect(Effect):
     @classmethod
     def for_parameters(cls, names: list[str]) -> "ShapeFreeEffect":
         count = sum(1 for name in names if name.startswith("knot_"))
-        return cls(np.linspace(0.0, 1.0, count or KNOTS))
+        if count and not 2 <= count <= MAX_KNOTS:
+            raise InputError(f"{cls.name}: {count} knots; a shape has 2 to {MAX_KNOTS}")
+        return cls(cls._even_knots(count or KNOTS))
+
+    @classmethod
+    def _even_knots(cls, count: int) -> np.ndarray:
+        """``count`` knots [SI] evenly over the variable's plausible range: rising, and each
+        within its parameter's bounds, so that the effect reads back from a model file."""
+        return np.linspace(*cls.variable.limits, count)
+
+    def check_parameters(self, where: str) -> None:
+        """The knots a model file gives must rise strictly: the shape is a spline between them."""
+        knots = [(name, p.value) for name, p in self.params.items() if name.startswith("knot_")]
+        for (before, low), (name, high) in zip(knots, knots[1:]):
+            if not high > low:
+                raise InputError(f"{where}: {name} = {from_si(high, self.variable.unit):g} "
+                                 f"{self.variable.unit} does not lie above {before} = "
+                                 f"{from_si(low, self.variable.unit):g}; a shape's knots rise "
+                                 "strictly")
 
     @property
     def knots(self) -> np.ndarray:

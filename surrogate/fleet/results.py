@@ -21,6 +21,8 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
+from ..errors import InputError
+from ..input_files import read_input_text
 from ..outputs import atomic_file
 from .tasks import ValveTask
 
@@ -62,11 +64,43 @@ def read_result(out: str | Path, serial: str) -> dict | None:
     """The valve's record if its file exists and reads as one; None otherwise (then it is
     redone)."""
     path = result_path(out, serial)
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    if not path.is_file() or path.is_symlink():
         return None
-    return record if isinstance(record, dict) and record.get("serial") == serial else None
+    try:
+        record = json.loads(read_input_text(path, "a fleet record (JSON)"))
+    except (InputError, ValueError, RecursionError):
+        return None
+    return record if well_formed(record, serial) else None
+
+
+def well_formed(record, serial: str) -> bool:
+    """Whether ``record`` has the layout this version writes (a hand-edited one may not: then
+    the valve is done again, not read into the fleet's tables)."""
+    if not isinstance(record, dict) or record.get("serial") != serial:
+        return False
+    if record.get("status") == "failed":
+        error = record.get("error")
+        return isinstance(error, dict) and all(isinstance(error.get(key), str)
+                                               for key in ("kind", "message"))
+    if record.get("status") != "ok":
+        return False
+    numbers = [record.get(key) for key in QUALITY_COLUMNS]
+    parameters = record.get("parameters")
+    if not all(value is None or _number(value) for value in numbers) \
+            or not isinstance(parameters, dict):
+        return False
+    for parameter in parameters.values():
+        if not (isinstance(parameter, dict) and isinstance(parameter.get("unit"), str)
+                and _number(parameter.get("value"))
+                and (parameter.get("stderr") is None or _number(parameter["stderr"]))):
+            return False
+    diagnosis = record.get("diagnosis")
+    return diagnosis is None or (isinstance(diagnosis, dict) and all(
+        isinstance(diagnosis.get(key) or {}, dict) for key in ("top_candidate", "finding")))
+
+
+def _number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def still_stands(record: dict | None, task: ValveTask) -> bool:

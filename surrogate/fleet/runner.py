@@ -39,6 +39,14 @@ from .valve import valve_result
 
 #: [s] to wait for a Dask scheduler to answer before calling its address wrong
 CONNECT_TIMEOUT = 30
+#: [s] the probe of the address before Dask connects: a refused port, a host that does not
+#: answer, or a server that does not speak Dask's protocol is told within this
+PROBE_TIMEOUT = 3.0
+#: the schemes of a Dask scheduler's address (none: tcp)
+SCHEMES = ("tcp", "tls")
+#: the largest first message a scheduler sends [bytes]: its handshake is a small dict; a length
+#: beyond this is another protocol's bytes read as one (an HTTP reply read as 3 EiB)
+HANDSHAKE_MAX = 1 << 20
 #: what installs Dask, for the message when it is missing
 DASK_EXTRA = "pip install -c constraints.txt -e '.[fleet]'"
 #: [s] a stopped local worker gets to exit before it is killed
@@ -173,6 +181,59 @@ def _stop(pool: ProcessPoolExecutor) -> None:
             process.kill()
 
 
+def scheduler_endpoint(address: str, source: str = "--scheduler") -> tuple[str, str, int]:
+    """(scheme, host, port) of a Dask scheduler's address (``tcp://host:8786``, or
+    ``host:8786``), or InputError saying what a scheduler's address looks like."""
+    scheme, _, rest = address.rpartition("://")
+    scheme = scheme or "tcp"
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")  # an IPv6 address in brackets
+    hint = ("give the address `dask scheduler` prints, such as tcp://host:8786 (8786 is the "
+            "scheduler's port; the dashboard's, 8787, speaks HTTP)")
+    if scheme not in SCHEMES or not host or not port.isdigit() or not 0 < int(port) < 65536 \
+            or any(not character.isprintable() or character.isspace() for character in host):
+        raise InputError(f"{source} {address!r}: not a scheduler's address; {hint}")
+    return scheme, host, int(port)
+
+
+def probe_scheduler(address: str, source: str = "--scheduler",
+                    timeout: float = PROBE_TIMEOUT) -> None:
+    """Refuse, within seconds, an address where no Dask scheduler listens: a malformed one,
+    a refused port, a host that does not answer, or a server that speaks another protocol
+    (Dask's reads a length from the first bytes and would try to allocate exabytes for an HTTP
+    reply). A scheduler greets a new connection with its handshake, a frame whose first 8 bytes
+    are its (small) length; the probe reads them and closes."""
+    scheme, host, port = scheduler_endpoint(address, source)
+    where = f"{source} {address}"
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as connection:
+            if scheme != "tcp":  # TLS: the greeting is encrypted; reaching the port is the check
+                return
+            connection.settimeout(timeout)
+            greeting = b""
+            while len(greeting) < 8:
+                chunk = connection.recv(8 - len(greeting))
+                if not chunk:
+                    break
+                greeting += chunk
+    except socket.gaierror as error:
+        raise InputError(f"{where}: no such host ({error.strerror or error})") from None
+    except TimeoutError:
+        raise InputError(f"{where}: nothing answered within {timeout:g} s as a Dask scheduler "
+                         "does (it greets a new connection at once); check the host and the "
+                         "port (8786 by default)") from None
+    except OSError as error:
+        raise InputError(f"{where}: cannot connect ({error.strerror or error}); is a Dask "
+                         "scheduler running there? Start one with `dask scheduler`") from None
+    length = int.from_bytes(greeting.ljust(8, b"\0"), "little")
+    if len(greeting) < 8 or not 0 < length <= HANDSHAKE_MAX:
+        what = ("an HTTP server (a Dask dashboard's port?)" if greeting.startswith(b"HTTP")
+                else "a server that closed the connection" if not greeting
+                else "a server that does not speak Dask's protocol")
+        raise InputError(f"{where}: {what} answers there, not a Dask scheduler; give the "
+                         "scheduler's port (8786 by default, as `dask scheduler` prints it)")
+
+
 class DaskCluster:
     """The Dask distributed scheduler at ``address``; its workers must have this package
     installed and see the logs at the same paths (a shared file system)."""
@@ -184,16 +245,24 @@ class DaskCluster:
     def describe(self) -> str:
         return f"the Dask scheduler at {self.address}"
 
-    def check(self) -> None:
-        """Connect, before any work: a missing Dask or a scheduler that does not answer is the
-        command line's mistake (exit 2)."""
+    def reachable(self) -> None:
+        """Within seconds, before any work: Dask is installed and a scheduler answers at the
+        address (:func:`probe_scheduler`); else InputError, the command line's mistake."""
         try:
-            from distributed import Client
+            import distributed  # noqa: F401  (the fleet extra's)
         except ImportError:
             raise InputError(f"{self.source} {self.address}: running on a Dask cluster needs "
                              f"Dask, which is not installed; install the fleet extra "
                              f"({DASK_EXTRA}), or leave out {self.source} to run on this "
                              "machine") from None
+        probe_scheduler(self.address, self.source)
+
+    def check(self) -> None:
+        """Connect, before any work: a missing Dask or a scheduler that does not answer is the
+        command line's mistake (exit 2)."""
+        self.reachable()
+        from distributed import Client
+
         try:
             self.client = Client(self.address, timeout=CONNECT_TIMEOUT, set_as_default=False)
         except (OSError, TimeoutError, ValueError, TypeError) as error:

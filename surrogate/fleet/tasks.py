@@ -10,14 +10,18 @@ from __future__ import annotations
 
 import glob
 import hashlib
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
+from ..input_files import regular_file
 
 #: what a bench log's file name ends in when ``--data`` names a folder (the documented schema is
 #: CSV; a glob picks any other files)
 LOG_SUFFIX = ".csv"
+#: a serial: it names the valve's record file and appears in reports and on the terminal
+SERIAL = re.compile(r"[\w.\-]{1,100}")
 #: bytes read at a time while hashing a log: a log of millions of rows is never held whole
 HASH_CHUNK = 1 << 20
 
@@ -57,7 +61,8 @@ class ValveTask:
 
 
 def file_sha256(path: str | Path) -> str:
-    """SHA-256 of a file's bytes, read in chunks."""
+    """SHA-256 of a file's bytes, read in chunks (a regular file: a FIFO would block)."""
+    regular_file(path, "a bench log")
     digest = hashlib.sha256()
     with open(path, "rb") as stream:
         for chunk in iter(lambda: stream.read(HASH_CHUNK), b""):
@@ -74,6 +79,20 @@ def model_sha256(model_toml: str, effects_files: tuple[str, ...] = ()) -> str:
     return digest.hexdigest()
 
 
+def _check_log_entry(data: str, path: Path) -> None:
+    """Refuse a log that is a symbolic link (the fleet would read, and its errors quote, a file
+    nobody named: ``SN1.csv -> /etc/passwd``), not a regular file (a folder named ``x.csv``, a
+    FIFO, a device), or whose serial could not name its record file."""
+    if path.is_symlink():
+        raise InputError(f"--data {data}: {path} is a symbolic link; a fleet reads bench logs "
+                         "that are files of their own: copy the log in, or give --data the "
+                         "folder that holds it")
+    regular_file(path, f"a bench log (--data {data})")
+    if not SERIAL.fullmatch(path.stem):
+        raise InputError(f"--data {data}: {path}: a serial (the log's file name) is letters, "
+                         "digits, '.', '_' and '-', at most 100 of them; rename the file")
+
+
 def find_logs(data: str) -> list[tuple[str, Path]]:
     """The bench logs ``--data`` names, as (serial, path), sorted by serial.
 
@@ -87,17 +106,19 @@ def find_logs(data: str) -> list[tuple[str, Path]]:
     """
     folder = Path(data)
     if folder.is_dir():
-        paths = [path for path in folder.iterdir()
-                 if path.is_file() and path.suffix.lower() == LOG_SUFFIX]
+        paths = [path for path in folder.iterdir() if path.suffix.lower() == LOG_SUFFIX]
         if not paths:
             raise InputError(f"--data {data}: this folder holds no bench log (*{LOG_SUFFIX} "
                              "files, one per valve, named by its serial)")
     else:
-        paths = [Path(path) for path in glob.glob(data, recursive=True) if Path(path).is_file()]
+        paths = [Path(path) for path in glob.glob(data, recursive=True)
+                 if Path(path).suffix.lower() == LOG_SUFFIX or Path(path).is_file()]
         if not paths:
             what = "matches no file" if glob.has_magic(data) else "no such file or folder"
             raise InputError(f"--data {data}: {what}; give a folder of bench logs or a glob "
                              "such as 'logs/*.csv' (quoted, so that the shell leaves it alone)")
+    for path in sorted(paths):
+        _check_log_entry(data, path)
     by_serial: dict[str, list[Path]] = {}
     for path in paths:
         by_serial.setdefault(path.stem, []).append(path)

@@ -32,18 +32,22 @@ import numpy as np
 
 from ..errors import InputError
 from ..features import FEATURE_NAMES, FORCE_FEATURE_NAMES
+from ..input_files import check_size, read_input, read_input_text, regular_file
 from ..tomlio import nesting_depth
 
 MANIFEST = "surrogate.json"
 FORMAT_VERSION = 2  # 2: network weights as .npz (1: PyTorch state_dicts, still read)
 _READABLE = (1, 2)
+#: the largest calibration scale or slope a manifest may give (ln units per unit of spread or
+#: distance)
+CALIBRATION_MAX = 1e3
 #: how deeply a manifest may nest its objects and arrays; the format needs 5 (a domain's points)
 MAX_DEPTH = 32
 
 
 def file_hash(path: str | Path) -> str:
-    """SHA-256 of a file's bytes."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    """SHA-256 of a weight file's bytes (a regular file within the weights' bound)."""
+    return hashlib.sha256(read_input(path, "a weight file", "weights")).hexdigest()
 
 
 # --- the manifest --------------------------------------------------------------------------------
@@ -62,12 +66,7 @@ def read_manifest(folder: str | Path, kinds: list[str]) -> dict:
     if not path.is_file():
         raise InputError(f"{folder}: not a surrogate folder (no {MANIFEST}); train one with "
                          "`python training/train.py`")
-    try:
-        text = path.read_text("utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"{path}: cannot read the manifest "
-                         f"({getattr(error, 'strerror', None) or 'not UTF-8 text'})") from None
-    manifest = parse_json(text, str(path))
+    manifest = parse_json(read_input_text(path, "a surrogate manifest (JSON)"), str(path))
     if not isinstance(manifest, dict):
         raise InputError(f"{path}: must be a JSON object {{...}}, got "
                          f"{json_type(manifest)}; not a surrogate manifest")
@@ -252,14 +251,16 @@ def check_manifest(manifest: Mapping, path: str) -> dict:
         if entry.get("calibration") is not None:
             calibration = table(entry, "calibration", here)
             at = place(here, "calibration")
-            for key in ("scale", "floor"):
-                number(calibration, key, at, low=0.0, default=0.0)
-            number(calibration, "power", at, low=0.0, above=True, default=1.0)
+            # σ is in ln units: a floor of 1 is a factor e, and no constant need be astronomic
+            # (a scale of 1e308 squared overflows to an infinite σ)
+            for key, high in (("scale", CALIBRATION_MAX), ("floor", 1.0)):
+                number(calibration, key, at, low=0.0, high=high, default=0.0)
+            number(calibration, "power", at, low=0.0, high=10.0, above=True, default=1.0)
             slopes = calibration.get("slopes", {})
             if not isinstance(slopes, Mapping):
                 raise InputError(f"{place(at, 'slopes')}: must be an object {{name: slope}}")
             for key in slopes:
-                number(slopes, key, place(at, "slopes"), low=0.0)
+                number(slopes, key, place(at, "slopes"), low=0.0, high=CALIBRATION_MAX)
     return dict(manifest)
 
 
@@ -314,7 +315,10 @@ def read_npz(path: Path, what: str) -> dict[str, np.ndarray]:
     """Every array of a ``.npz`` file, read as plain numbers (``allow_pickle=False``: loading
     never runs code); refused, naming the file, when it is missing, truncated, not an ``.npz``
     archive, or holds anything but numbers."""
+    # before opening it: a FIFO would block the read, a device never end it
+    check_size(path, regular_file(path, what).st_size, what, "weights")
     try:
+        _check_unpacked_size(path, what)
         data = np.load(path, allow_pickle=False)
         if not isinstance(data, np.lib.npyio.NpzFile):
             raise ValueError("a single .npy array, not an .npz archive")
@@ -327,6 +331,26 @@ def read_npz(path: Path, what: str) -> dict[str, np.ndarray]:
         if value.dtype.kind not in "iuf":
             raise InputError(f"{path}: array {key!r} holds {value.dtype}, not numbers")
     return arrays
+
+
+def _check_unpacked_size(path: Path, what: str) -> None:
+    """Refuse an archive whose arrays would unpack beyond the weights' bound, from the zip's
+    directory and each array's header, before an array is read: a few hundred kB of zeros can
+    claim gigabytes. A file that is no zip archive is left to :func:`numpy.load` to refuse."""
+    if not zipfile.is_zipfile(path):
+        return
+    with zipfile.ZipFile(path) as archive:
+        members = archive.infolist()
+        check_size(path, sum(info.file_size for info in members), f"{what} (unpacked)",
+                   "weights")
+        for info in members:
+            with archive.open(info) as stream:
+                version = np.lib.format.read_magic(stream)
+                header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                          else np.lib.format.read_array_header_2_0)
+                shape, _, dtype = header(stream)
+                size = math.prod(shape) * dtype.itemsize
+                check_size(path, size, f"{what} (array {info.filename!r} unpacked)", "weights")
 
 
 def seal(folder: Path, entry: dict) -> dict:
@@ -368,7 +392,7 @@ def sealed_hashes(path: Path) -> set[str]:
     """The SHA-256 a model file may record for the manifest at ``path``: that of its bytes, and
     that of the same manifest as written before the weights' hashes were added (so model files
     recording a manifest from then still load; the weights are checked against the hashes now)."""
-    data = Path(path).read_bytes()
+    data = read_input(path, "a surrogate manifest (JSON)")
     hashes = {hashlib.sha256(data).hexdigest()}
     try:
         manifest = json.loads(data)
@@ -397,7 +421,8 @@ def package_files(folder: str | Path) -> list[Path]:
     folder = Path(folder)
     files = [folder, folder / MANIFEST]
     try:
-        manifest = parse_json((folder / MANIFEST).read_text("utf-8"), str(folder / MANIFEST))
+        manifest = parse_json(read_input_text(folder / MANIFEST, "a surrogate manifest (JSON)"),
+                              str(folder / MANIFEST))
     except (OSError, InputError, UnicodeDecodeError):
         return files
     for name in ("flow", "force"):

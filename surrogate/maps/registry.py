@@ -20,8 +20,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError, did_you_mean, named
+from ..limits import FLOW, FORCE
 from ..paths import shipped
+from ..units import from_si, to_si
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
 from .package import MANIFEST, package_files, read_manifest
@@ -336,8 +340,45 @@ def build_maps(source: MapSource | MapsSpec | str, valve: ValveParameters,
     if key not in _CACHE:
         if len(_CACHE) >= _CACHE_SIZE:
             _CACHE.pop(next(iter(_CACHE)))
-        _CACHE[key] = kind.build(source.settings, valve, base)
+        with np.errstate(all="ignore"):  # damaged weights overflow: the check below says so
+            maps = kind.build(source.settings, valve, base)
+        check_plausible(*maps, valve, f"{source.kind} maps")
+        _CACHE[key] = maps
     return _CACHE[key]
+
+
+#: where :func:`check_plausible` asks the maps: openings [share of the stroke], load pressures
+#: [bar], one back pressure [bar] and one temperature [°C], all inside any CBV's range
+PROBE_OPENINGS = (0.1, 0.5, 0.9)
+PROBE_LOADS_BAR = (30.0, 100.0, 250.0)
+PROBE_BACK_BAR, PROBE_TEMPERATURE_C = 5.0, 40.0
+
+
+def check_plausible(flow: FlowMap, force: ForceMap, valve: ValveParameters, what: str) -> None:
+    """Refuse maps whose flow or force, asked at a few ordinary states of ``valve``, no valve
+    has: not finite, no flow, a negative or astronomic one, a force beyond the plausible. Sealed weights
+    can still be nonsense (scaled by 1e300 and sealed again); a fit or a replay on them would
+    flow on with absurd numbers instead of stopping here, naming the maps."""
+    u, p_L = np.meshgrid(np.asarray(PROBE_OPENINGS) * valve.U_max,
+                         to_si(np.asarray(PROBE_LOADS_BAR), "bar"))
+    u, p_L = u.ravel(), p_L.ravel()
+    p_B = np.full_like(p_L, to_si(PROBE_BACK_BAR, "bar"))
+    fluid = valve.oil.state(np.full_like(p_L, to_si(PROBE_TEMPERATURE_C, "degC")))
+    with np.errstate(all="ignore"):
+        q = from_si(np.asarray(flow.flow(p_L, p_B, u, fluid), float), "L/min")
+        f = from_si(np.asarray(force.force(p_L, p_B, u, fluid), float), "N")
+    where = (f"at openings of {', '.join(f'{share:g}' for share in PROBE_OPENINGS)} of the "
+             f"stroke, p_L {', '.join(f'{p:g}' for p in PROBE_LOADS_BAR)} bar, p_B "
+             f"{PROBE_BACK_BAR:g} bar, {PROBE_TEMPERATURE_C:g} °C")
+    for name, values, limits in (("flow", q, FLOW), ("force", f, FORCE)):
+        # an open valve under tens of bar passes some flow: none at all is as wrong as too much
+        bad = [value for value in values if not limits.contains(float(value))
+               or (name == "flow" and not value > 0.0)]
+        if bad:
+            raise InputError(f"{what}: the {name} map gives {float(bad[0]):.4g} "
+                             f"{limits.unit} {where}; no valve has that (expected "
+                             f"{limits.describe()}): its weights or samples are damaged or "
+                             "scaled; retrain or restore them")
 
 
 _CACHE: dict = {}

@@ -179,6 +179,14 @@ def test_a_rerun_skips_finished_valves_and_redoes_a_missing_or_changed_one(local
     assert now["V3.json"] != times["V3.json"] and "V2.json" in now
     assert results(out)["V2"]["parameters"] == results(finished)["V2"]["parameters"]
     assert document["fitted"] == 3
+    # a record edited by hand is not read into the tables: the valve is done again, and said so
+    edited = json.loads((out / "valves" / "V1.json").read_text())
+    (out / "valves" / "V1.json").write_text(json.dumps(edited | {"parameters": [1, 2]}))
+    code, document, err = run_fleet(capsys, "--data", str(data), "--model", "cfda", "--out",
+                                    str(out), "--workers", "2")
+    assert code == 3 and "V1.json: not a record as this version writes them" in err
+    assert "3 done before with this log and model (skipped), 1 to fit" in err
+    assert results(out)["V1"]["parameters"] == results(finished)["V1"]["parameters"]
 
 
 @pytest.mark.slow  # a whole fleet command: seconds
