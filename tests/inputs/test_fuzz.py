@@ -1075,6 +1075,8 @@ CASES += [
     Case("reads: a model file that is a FIFO", ("compare", "--model", "m.toml", "--data",
                                                  "log.csv"), ("m.toml", "FIFO"),
          {"m.toml": Fifo()}),
+    Case("reads: an effects file that is a FIFO",
+         (*FIT, "--effects-file", "fx.py", "--add", "x"), ("fx.py", "FIFO"), {"fx.py": Fifo()}),
     predict_with("nn", raw=npz_claiming((10**8,)), words=("nn/flow.npz", "larger than"),
                  id="reads: a weight array claiming 800 MB"),
     Case("reads: zeros unpacking beyond the weights' bound",
