@@ -376,9 +376,11 @@ def _target(g: Graph, predictor, latent: str) -> str:
 # --- calibrated σ (surrogate.maps.calibration) ---------------------------------------------------
 
 def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: str) -> str:
-    """σ [ln units] = sqrt(floor² + (scale·spread)² + Σ (slope·d^power)²)."""
+    """σ [ln units] against the valve = sqrt(floor² + cfd_error² + (scale·spread)²
+    + Σ (slope·d^power)²): the calibrated σ and the CFD's own error (:mod:`..maps.cfd_error`)."""
     calibration = learned_map.calibration
-    variance = g.add(g.square(g.mul(spread, calibration.scale)), calibration.floor ** 2)
+    variance = g.add(g.square(g.mul(spread, calibration.scale)),
+                     calibration.floor ** 2 + learned_map.cfd_error ** 2)
     distances = {}
     if calibration.slopes.get("features", 0.0):
         domain = learned_map.domain

@@ -9,10 +9,10 @@ form):
     δΔp(x) = Σ_m Σ_b φ_b(u)·(a_mb + a'_mb·z_ν(x))·e_m(x) / √2,     a, a' ~ N(0, 1),
 
 where e_m(x) is how far the computed Δp moves for a one-σ error of map m (the flow map, the force
-map: :func:`surrogate.solver.uncertainty.map_error_gains`). That σ is the maps' calibrated one,
-combined with the CFD's own error (:data:`CFD_ERROR`): cross-validation measures how well a map
-reproduces its samples, and cannot see an error that every sample of an opening shares, as a
-mesh's does. A real valve differs from its CFD by both.
+map: :func:`surrogate.solver.uncertainty.map_error_gains`). That σ is the maps' σ against the
+valve, the calibrated one combined with the CFD's own error (:mod:`surrogate.maps.cfd_error`):
+cross-validation measures how well a map reproduces its samples, and cannot see an error that
+every sample of an opening shares, as a mesh's does. A real valve differs from its CFD by both.
 φ_b are hat functions in ln u normalised so that Σ_b φ_b² = 1 (knots at the sampled openings, in
 the unsampled gaps and below the smallest opening: a map's error is shared by nearby openings and
 is not shared far away), and z_ν ∈ [−1, 1] the viscosity's place in the log's range (a map's
@@ -32,10 +32,6 @@ from ..model import ValveModel
 from ..solver.replay import Replay
 from .residuals import LogReplay
 
-#: the CFD's own relative error, one standard deviation, in the flow map's Δp and in the flow
-#: force: the paper's mesh study (Table 4) moved Δp by up to 1.9 % and its choice of cavitation
-#: model moved f_sim by about 1 %, which is a few per cent of the flow-force part of f_sim
-CFD_ERROR = {"dp": 0.015, "flow force": 0.025}
 
 #: knots added inside every unsampled gap (fractions of the gap in ln u) and below the smallest
 #: opening (fraction of it)
@@ -89,14 +85,10 @@ def hat_weights(u: np.ndarray, at: np.ndarray) -> np.ndarray:
 
 def map_error_with_cfd(replay: Replay) -> np.ndarray | None:
     """(2, n) [Pa]: how far each sample's Δp moves for a one-σ error of the flow map (row 0)
-    and the force map (row 1), σ being the calibrated one and :data:`CFD_ERROR` in quadrature,
-    signed as the replay's own :attr:`~surrogate.solver.replay.Replay.map_error`; None for maps
-    without an uncertainty."""
-    if replay.map_gain is None:
-        return None
-    own = np.array([[CFD_ERROR["dp"] / 2.0], [CFD_ERROR["flow force"]]])  # ln C_d = −ln Δp / 2
-    gain = replay.map_gain
-    return np.sign(gain) * np.hypot(gain * replay.map_std, gain * own)
+    and the force map (row 1) against the valve (the replay's
+    :attr:`~surrogate.solver.replay.Replay.map_error`, whose σ carries the CFD's own error);
+    None for maps without an uncertainty."""
+    return replay.map_error
 
 
 def map_discrepancy(model: ValveModel, base: LogReplay, ok: np.ndarray) -> Discrepancy | None:

@@ -14,8 +14,10 @@ A subclass implements one direction of the flow map, :meth:`FlowMap.flow` or
 Every map built from data says where, and why, a query lies outside that data
 (``extrapolation_reasons``, bit flags of :mod:`.coverage`; ``extrapolating`` where any is set),
 and how uncertain it is (``log_discharge_std`` and ``flow_std``; ``force_std``): a subclass gives
-``calibration_inputs`` and a ``calibration`` fitted on cross-validation (:mod:`.calibration`).
-Maps without data (the orifice equation) have neither.
+``calibration_inputs`` and a ``calibration`` fitted on cross-validation (:mod:`.calibration`),
+which measures how well it reproduces the CFD; the CFD's own error against the valve
+(``cfd_error``, :mod:`.cfd_error`) is added in quadrature. Maps without data (the orifice
+equation) have neither.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import numpy as np
 from ..fluid import FluidState, broadcast_query
 from ..roots import invert_increasing
 from ..units import BAR, LPM
+from .cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,8 @@ class FlowMap(ABC):
     coverage = None
     #: turns :meth:`calibration_inputs` into a standard deviation (:mod:`.calibration`)
     calibration = None
+    #: σ of ln C_d that the CFD itself adds, each opening's mesh biased its own way [1]
+    cfd_error = FLOW_CFD_ERROR
 
     def flow(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """Flow [m^3/s] at load pressure ``p_L`` [Pa], back pressure ``p_B`` [Pa], opening ``u`` [m].
@@ -123,14 +128,14 @@ class FlowMap(ABC):
         return None
 
     def log_discharge_std(self, q, p_B, u, fluid: FluidState) -> np.ndarray | None:
-        """Calibrated standard deviation of ln C_d at flow ``q`` [m^3/s]: the relative
-        uncertainty of the flow the restriction passes at a given pressure drop [-]; None if the
-        map has none."""
+        """Standard deviation of ln C_d at flow ``q`` [m^3/s] against the valve: the relative
+        uncertainty of the flow the restriction passes at a given pressure drop [-], the
+        calibrated one and :attr:`cfd_error` in quadrature; None if the map has none."""
         if self.calibration is None:
             return None
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
-        return np.reshape(self.calibration.std(*self.calibration_inputs(q, p_B, u, fluid)),
-                          q.shape)
+        calibrated = self.calibration.std(*self.calibration_inputs(q, p_B, u, fluid))
+        return np.reshape(np.hypot(calibrated, self.cfd_error), q.shape)
 
     def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of the flow [m^3/s] at load pressure ``p_L``, or None.
@@ -163,6 +168,8 @@ class ForceMap(ABC):
     kind = "force map"
     coverage = None
     calibration = None
+    #: relative σ of the flow force that the CFD itself adds (:mod:`.cfd_error`) [1]
+    cfd_error = FORCE_CFD_ERROR
 
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """f_sim [N], positive in the opening direction."""
@@ -189,14 +196,23 @@ class ForceMap(ABC):
         :meth:`FlowMap.calibration_inputs`); None for maps without data."""
         return None
 
-    def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
-        """Calibrated standard deviation of f_sim [N] (that of its flow force), or None if the
-        map has none."""
+    def relative_force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
+        """Standard deviation of the flow force against the valve, relative to it [-]: the
+        calibrated one and :attr:`cfd_error` in quadrature; None if the map has none."""
         if self.calibration is None:
             return None
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        relative = self.calibration.std(*self.calibration_inputs(p_L, p_B, u, fluid))
-        return np.abs(self.flow_force(p_L, p_B, u, fluid)) * np.reshape(relative, p_L.shape)
+        calibrated = self.calibration.std(*self.calibration_inputs(p_L, p_B, u, fluid))
+        return np.reshape(np.hypot(calibrated, self.cfd_error), p_L.shape)
+
+    def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
+        """Standard deviation of f_sim [N] against the valve (that of its flow force), or None if
+        the map has none."""
+        relative = self.relative_force_std(p_L, p_B, u, fluid)
+        if relative is None:
+            return None
+        p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
+        return np.abs(self.flow_force(p_L, p_B, u, fluid)) * relative
 
     def query(self, p_L, p_B, u, fluid: FluidState) -> MapResult:
         """Force, extrapolation flags and (if any) standard deviation at the query points."""

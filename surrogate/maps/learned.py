@@ -140,13 +140,14 @@ class LearnedForceMap(ForceMap):
         return _inputs(self, self.features(p_L, p_B, u, fluid), p_B, u)[1:]
 
     def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
-        """Calibrated standard deviation of f_sim [N]: as :meth:`ForceMap.force_std`, with the
-        predictor asked once for its mean and spread (the kernel or the networks are the cost)."""
+        """Standard deviation of f_sim [N] against the valve: as :meth:`ForceMap.force_std`, with
+        the predictor asked once for its mean and spread (the kernel or the networks are the
+        cost)."""
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
         latent, spread, distances = _inputs(self, self.features(p_L, p_B, u, fluid), p_B, u)
         dp = np.maximum(p_L - p_B, 0.0).ravel()
         flow_force = self.predictor.from_latent(latent) * self.spec.A_L * dp
-        relative = self.calibration.std(spread, distances)
+        relative = np.hypot(self.calibration.std(spread, distances), self.cfd_error)
         return np.reshape(np.abs(flow_force) * relative, p_L.shape)
 
 

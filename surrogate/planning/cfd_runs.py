@@ -162,11 +162,11 @@ class _MapTerms:
 def _map_terms(model: ValveModel, spec: FeatureSpec, flow_query, force_query
                ) -> tuple[_MapTerms, _MapTerms]:
     flow_map, force_map = model.flow_map, model.force_map
-    flow_std = flow_map.log_discharge_std(*flow_query)
-    force_std = (np.zeros(len(force_query[0])) if force_map.calibration is None else
-                 np.reshape(force_map.calibration.std(*force_map.calibration_inputs(
-                     *force_query)), -1))
-    flow_std = np.zeros(len(flow_query[0])) if flow_std is None else np.ravel(flow_std)
+    # the interpolation's σ alone (the calibration's): a new run reduces it, not the CFD's own
+    # error, which the new run's mesh has too
+    flow_std, force_std = (np.zeros(len(query[0])) if map_.calibration is None else
+                           np.reshape(map_.calibration.std(*map_.calibration_inputs(*query)), -1)
+                           for map_, query in ((flow_map, flow_query), (force_map, force_query)))
     return (_MapTerms(spec.flow_features(*flow_query), _reducible(flow_std, flow_map),
                       _scatter(flow_map)),
             _MapTerms(spec.force_features(*force_query), _reducible(force_std, force_map),

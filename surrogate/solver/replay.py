@@ -74,9 +74,9 @@ class Replay:
         (:func:`.uncertainty.map_error_gains`); None for maps without an uncertainty, or when
         not asked for.
     map_std : numpy.ndarray or None
-        (2, n): the maps' calibrated standard deviations of those two errors [1], so that
-        ``map_gain * map_std`` is the one-σ effect (:attr:`map_error`) and an error of another
-        size (the CFD's own, say) can be carried too.
+        (2, n): the maps' standard deviations of those two errors against the valve (the
+        calibrated one and the CFD's own in quadrature, :mod:`surrogate.maps.cfd_error`) [1], so
+        that ``map_gain * map_std`` is the one-σ effect (:attr:`map_error`).
     """
 
     points: OperatingPoints

@@ -35,8 +35,8 @@ class Sensitivity:
     """How the computed Δp of flowing points answers each map's error.
 
     δΔp = flow_gain·δln C_d + force_gain·δ(relative flow-force error), so that
-    Var Δp = (flow_gain·σ_C)² + (force_gain·σ_f)² with σ_C and σ_f the maps' calibrated
-    standard deviations in ln units.
+    Var Δp = (flow_gain·σ_C)² + (force_gain·σ_f)² with σ_C and σ_f the maps' standard deviations
+    against the valve in ln units (calibrated, with the CFD's own error).
 
     Attributes
     ----------
@@ -139,7 +139,7 @@ def map_error_gains(model: ValveModel, points: OperatingPoints, u: np.ndarray,
                     ) -> tuple[np.ndarray, np.ndarray] | None:
     """The two factors of :func:`map_error_effects` (same arguments): the gains, (2, n) [Pa]
     per unit ln C_d error of the flow map and per unit relative flow-force error of the force
-    map, and the maps' calibrated standard deviations (2, n) [1] of those errors; None when
+    map, and the maps' standard deviations against the valve (2, n) [1] of those errors; None when
     neither map has an uncertainty."""
     flow_map, force_map = model.flow_map, model.force_map
     if flow_map.calibration is None and force_map.calibration is None:
@@ -152,12 +152,6 @@ def map_error_gains(model: ValveModel, points: OperatingPoints, u: np.ndarray,
         log_cd_std = flow_map.log_discharge_std(*gains.flow_query)
         gain[0, gains.index], gain[1, gains.index] = gains.flow_gain, gains.force_gain
         std[0, gains.index] = 0.0 if log_cd_std is None else log_cd_std
-        std[1, gains.index] = _relative_force_std(force_map, gains.force_query)
+        relative = force_map.relative_force_std(*gains.force_query)
+        std[1, gains.index] = 0.0 if relative is None else np.ravel(relative)
     return gain, std
-
-
-def _relative_force_std(force_map, query) -> np.ndarray:
-    """The force map's calibrated relative standard deviation of the flow force (0 without)."""
-    if force_map.calibration is None:
-        return np.zeros(len(query[0]))
-    return np.reshape(force_map.calibration.std(*force_map.calibration_inputs(*query)), -1)

@@ -275,6 +275,19 @@ class PerturbedForceMap(ForceMap):
                 + (self.factor(u) - 1.0) * self.base.flow_force(p_L, p_B, u, fluid))
 
 
+def perturbed_maps(flow: FlowMap, force: ForceMap, samples: CfdSamples, seed: int,
+                   mismatch: MapMismatch = MapMismatch()
+                   ) -> tuple["PerturbedFlowMap", "PerturbedForceMap", MismatchDraw]:
+    """``flow`` and ``force`` wrong by the draws of case ``seed`` (each sampled opening's own
+    error, the gaps' bumps, the seat's exponent), and the draws (their ``cavitation`` is for
+    :class:`CavitationFlowForce`)."""
+    draw, gaps = _draw(samples, mismatch, seed)
+    return (PerturbedFlowMap(flow, MismatchFactor(draw.dp_error, gaps, draw.gap_dp,
+                                                  draw.seat_dp)),
+            PerturbedForceMap(force, MismatchFactor(draw.force_error, gaps, draw.gap_force,
+                                                    draw.seat_force)), draw)
+
+
 def mismatched_truth(model: ValveModel, samples: CfdSamples, seed: int,
                      mismatch: MapMismatch = MapMismatch(), *,
                      own_maps: bool = False) -> ValveModel:
@@ -283,11 +296,8 @@ def mismatched_truth(model: ValveModel, samples: CfdSamples, seed: int,
     ``model``'s maps instead, wrapped with the same draws (:class:`PerturbedFlowMap`,
     :class:`PerturbedForceMap`)."""
     if own_maps:  # the draws alone: no perturbed samples to build grids from
-        draw, gaps = _draw(samples, mismatch, seed)
-        flow = PerturbedFlowMap(model.flow_map, MismatchFactor(
-            draw.dp_error, gaps, draw.gap_dp, draw.seat_dp))
-        force = PerturbedForceMap(model.force_map, MismatchFactor(
-            draw.force_error, gaps, draw.gap_force, draw.seat_force))
+        flow, force, draw = perturbed_maps(model.flow_map, model.force_map, samples, seed,
+                                           mismatch)
         reference = GridFlowMap.from_samples(samples).fixed_back_pressure
     else:
         perturbed, draw = mismatched_samples(samples, model.valve, seed, mismatch)

@@ -30,7 +30,7 @@ from ..data.loaders import BenchLog
 from ..diagnosis.refit import DiagnosisProblem
 from ..diagnosis.shapes import (probe_of, sensitivity, shape_columns, state_at_samples)
 from ..effects.calibration import CALIBRATIONS, hat_basis
-from ..fitting.discrepancy import CFD_ERROR, knots
+from ..fitting.discrepancy import knots
 from ..fitting.heldout import HEADLINE, Prior, replayed_heldout_rms
 from ..fitting.residuals import LogReplay
 from ..leastsquares import FitResult, Minimizer
@@ -39,9 +39,6 @@ from ..parallel import map_threads
 
 #: Gauss–Newton steps (one replay each) after the linear solution
 STEPS = 3
-#: the maps' relative error the CFD itself adds, for each calibration, one σ: ln C_d = −ln Δp/2
-CFD_RELATIVE = {"calibrated_flow_force": CFD_ERROR["flow force"],
-                "calibrated_discharge": CFD_ERROR["dp"] / 2.0}
 #: the row of :attr:`~surrogate.solver.replay.Replay.map_std` of each calibration's map
 MAP_ROW = {"calibrated_flow_force": 1, "calibrated_discharge": 0}
 
@@ -107,14 +104,14 @@ class Calibration:
 
 
 def prior_sigma(name: str, replay, ok: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """Each knot's prior σ [1] for calibration ``name``: the map's calibrated relative σ and the
-    CFD's own error in quadrature, averaged over the solved samples ``ok`` by their hat weights
-    (the log's average where no sample lies near a knot), and no wider than the values' bounds
-    (a grid's σ beyond its smallest opening can reach them)."""
+    """Each knot's prior σ [1] for calibration ``name``: the map's relative σ against the valve
+    (the calibrated one and the CFD's own error in quadrature), averaged over the solved samples
+    ``ok`` by their hat weights (the log's average where no sample lies near a knot), and no
+    wider than the values' bounds (a grid's σ beyond its smallest opening can reach them)."""
     spread = np.full(int(ok.sum()), 0.0)
     if replay.map_std is not None:
         spread = np.nan_to_num(replay.map_std[MAP_ROW[name], ok])
-    variance = spread**2 + CFD_RELATIVE[name] ** 2
+    variance = spread**2
     weights = hat_basis(at, np.nan_to_num(replay.u[ok], nan=at[0]))
     total = weights.sum(axis=0)
     near = weights.T @ variance / np.where(total > 0, total, 1.0)
