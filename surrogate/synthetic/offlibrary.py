@@ -16,6 +16,12 @@ library, and nothing else.
 * :class:`FlowFriction`: friction rising with the flow (a jet on a seal lip): a friction of q;
 * :class:`ThresholdLeakage`: a leak that opens above a pressure drop (a clearance that deforms,
   a check ball lifting): a leakage of Δp.
+
+Leaks follow other laws than the library's laminar one (:data:`LEAK_LAWS`, drawn by
+:func:`off_library_suite` with ``leaks``): through an orifice (√Δp, :class:`TurbulentLeakage`),
+opening above thresholds from low to high (:class:`ThresholdLeakage`, its threshold drawn over a
+wider range there), growing with the opening (:class:`OpeningLeakage`) or with the temperature
+beyond what the viscosity gives (:class:`WarmLeakage`), at sizes from barely visible to dominant.
 """
 
 from __future__ import annotations
@@ -138,8 +144,75 @@ class ThresholdLeakage(OffLibraryEffect):
         return {"G": rng.uniform(0.3, 0.6), "p0": rng.uniform(40.0, 90.0)}
 
 
+class TurbulentLeakage(OffLibraryEffect):
+    """A leak through an orifice, G·√(Δp/100 bar): turbulent, so the viscosity does not enter."""
+
+    name = "turbulent_leakage"
+    kind = "leakage"
+    title = "a leak through an orifice, rising with the square root of the pressure drop"
+    variable = "dp"
+    parameter_specs = (Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM),)
+
+    def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
+        return self["G"] * np.sqrt(np.maximum(dp, 0.0) / (100.0 * BAR))
+
+    @classmethod
+    def draw(cls, rng):
+        return {"G": leak_size(rng)}
+
+
+class OpeningLeakage(OffLibraryEffect):
+    """A laminar leak that grows with the opening, G·(u/0.63 mm)·(Δp/100 bar)·ν_ref/ν (a seal
+    lifted off its land as the piston moves)."""
+
+    name = "opening_leakage"
+    kind = "leakage"
+    title = "a leak growing with the opening"
+    variable = "dp"
+    parameter_specs = (Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM),)
+
+    def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
+        return (self["G"] * np.maximum(state.u, 0.0) / 0.63e-3
+                * np.maximum(dp, 0.0) / (100.0 * BAR) * (46.0 * CST / state.fluid.nu))
+
+    @classmethod
+    def draw(cls, rng):
+        return {"G": 2.0 * leak_size(rng)}  # twice: half the stroke is the typical opening
+
+
+class WarmLeakage(OffLibraryEffect):
+    """A leak whose clearance opens as the valve warms: G·(Δp/100 bar)·exp(b·(T − 40 °C)/20 K),
+    with no viscosity in it (a gap between parts of unlike expansion)."""
+
+    name = "warm_leakage"
+    kind = "leakage"
+    title = "a leak growing with the temperature"
+    variable = "dp"
+    parameter_specs = (Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM),
+                       Parameter("b", 1.0, "1", min=0.0, max=3.0, vary=False))
+
+    def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
+        warmer = (np.asarray(state.temperature, float) - 313.15) / 20.0
+        return (self["G"] * np.maximum(dp, 0.0) / (100.0 * BAR)
+                * np.exp(self["b"] * warmer))
+
+    @classmethod
+    def draw(cls, rng):
+        return {"G": leak_size(rng), "b": rng.uniform(0.5, 1.5)}
+
+
+def leak_size(rng: np.random.Generator) -> float:
+    """A leak's flow at 100 bar [L/min], log-uniform from barely visible (0.05 L/min, about the
+    flow meter's noise) to dominant (1.5 L/min, a fifth of the bench's typical flow)."""
+    return float(np.exp(rng.uniform(np.log(0.05), np.log(1.5))))
+
+
 OFF_LIBRARY = EffectLibrary([DetentForce, KinkedSpring, ExtrusionFriction, FlowFriction,
-                             ThresholdLeakage])
+                             ThresholdLeakage, TurbulentLeakage, OpeningLeakage, WarmLeakage])
+#: the leaks of other laws than the laminar one, drawn in turn by ``off_library_suite(leaks=...)``
+LEAK_LAWS = ("turbulent_leakage", "threshold_leakage", "opening_leakage", "warm_leakage")
+#: the range of a threshold leak's threshold among the leak laws [bar]: low to high
+LEAK_THRESHOLDS_BAR = (20.0, 150.0)
 
 #: the kind and variable of every library effect that a diagnosis may add for an off-library
 #: one (a term of the right kind on the right variable counts as found)
@@ -162,14 +235,28 @@ class OffLibraryCase:
     seed: int
 
 
-def off_library_suite(cases: int = 20, controls: int = 10, seed: int = 4242
+#: the effects ``cases`` cycle through (the leak laws are drawn by ``leaks``)
+SHAPES = ("detent_force", "kinked_spring", "extrusion_friction", "flow_friction",
+          "threshold_leakage")
+
+
+def off_library_suite(cases: int = 20, controls: int = 10, seed: int = 4242, leaks: int = 0
                       ) -> list[OffLibraryCase]:
-    """``cases`` logs with one off-library effect each (the kinds in turn, sizes, shapes and
-    positions drawn), and ``controls`` with nothing hidden; every log has its own seed."""
+    """``cases`` logs with one off-library effect each (:data:`SHAPES` in turn, sizes, shapes
+    and positions drawn), ``leaks`` with a leak of another law than the laminar one
+    (:data:`LEAK_LAWS` in turn, sizes log-uniform from barely visible to dominant), and
+    ``controls`` with nothing hidden; every log has its own seed."""
     rng = np.random.default_rng(seed)
-    names = list(OFF_LIBRARY)
-    suite = [OffLibraryCase(names[i % len(names)], OFF_LIBRARY[names[i % len(names)]].draw(rng),
+    suite = [OffLibraryCase(SHAPES[i % len(SHAPES)], OFF_LIBRARY[SHAPES[i % len(SHAPES)]].draw(rng),
                             seed + 1 + i) for i in range(cases)]
+    leak_rng = np.random.default_rng([seed, 1])  # its own stream: the cases above keep theirs
+    for i in range(leaks):
+        name = LEAK_LAWS[i % len(LEAK_LAWS)]
+        values = OFF_LIBRARY[name].draw(leak_rng)
+        if name == "threshold_leakage":  # thresholds from low to high, sizes as every leak's
+            values = {"G": leak_size(leak_rng),
+                      "p0": float(leak_rng.uniform(*LEAK_THRESHOLDS_BAR))}
+        suite.append(OffLibraryCase(name, values, seed + 301 + i))
     return suite + [OffLibraryCase(None, None, seed + 501 + i) for i in range(controls)]
 
 

@@ -102,3 +102,30 @@ def test_a_step_predicts_held_out_runs_as_its_diagnosis_judged_it(bench_log):
     assert step.heldout_rms < workflow.steps[0].heldout_rms
     assert abs(step.heldout_check / step.heldout_rms - 1.0) < 0.1, (step.heldout_check,
                                                                    step.heldout_rms)
+
+
+@pytest.mark.parametrize("name", list(OFF_LIBRARY))
+def test_every_off_library_effect_keeps_the_effect_contract(name):
+    from surrogate.testing import check_effect
+
+    check_effect(OFF_LIBRARY[name])
+
+
+def test_leaks_of_other_laws_join_the_suite_without_moving_its_cases():
+    """The leak laws come after the shape cases, from a stream of their own: a suite with them
+    holds the same shape cases and controls as one without (their seeds and values), each law in
+    turn, sizes from barely visible to dominant, thresholds from low to high."""
+    from surrogate.synthetic.offlibrary import LEAK_LAWS, LEAK_THRESHOLDS_BAR
+
+    plain = off_library_suite(20, 10)
+    with_leaks = off_library_suite(20, 10, leaks=40)
+    assert with_leaks[:20] == plain[:20] and with_leaks[-10:] == plain[-10:]
+    leaks = with_leaks[20:-10]
+    assert [case.hidden for case in leaks] == [LEAK_LAWS[i % 4] for i in range(40)]
+    assert len({case.seed for case in with_leaks}) == len(with_leaks)
+    sizes = [case.values["G"] / (2.0 if case.hidden == "opening_leakage" else 1.0)
+             for case in leaks]
+    assert 0.05 <= min(sizes) < 0.1 and 0.8 < max(sizes) <= 1.5
+    thresholds = [case.values["p0"] for case in leaks if case.hidden == "threshold_leakage"]
+    assert min(thresholds) < 50 and max(thresholds) > 110
+    assert all(LEAK_THRESHOLDS_BAR[0] <= p0 <= LEAK_THRESHOLDS_BAR[1] for p0 in thresholds)
