@@ -16,7 +16,9 @@ A case is judged three ways (:func:`surrogate.synthetic.offlibrary.off_library_o
 * *found*: the right term, and the final RMS within 1.3x the noise floor (issue 26's criterion);
 * *as twin*: the right term, and the final RMS within 1.1x what the same virtual valve with
   nothing hidden ends at (its *twin*, the same map mismatch and noise, run too): under map
-  mismatch a log with nothing hidden itself ends above 1.3x the floor on some seeds.
+  mismatch a log with nothing hidden itself ends above 1.3x the floor on some seeds;
+* *invisible*: nothing added, and the log ends within 1.3x the floor and as its twin: the effect
+  (a barely visible leak) left nothing to find; *clean* is found or invisible, nothing invented.
 
 A control passes when nothing physical or sensor is added, and so does a twin (counted as
 *twins clean*); a case with a physics or sensor term beyond the hidden effect's kind and
@@ -111,7 +113,8 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
                         "handed_over_kept": {k: round(v, 3) for k, v in kept.items()},
                         "final_summary": summarise(workflow.final_diagnosis)})
         verdict = ("found" if outcome.found else "as twin" if outcome.right_term
-                   and outcome.as_twin else "right term" if outcome.right_term else "MISSED")
+                   and outcome.as_twin else "right term" if outcome.right_term
+                   else "invisible" if outcome.invisible else "MISSED")
         print(f"  {kind} {case.seed}: {case.hidden or 'nothing hidden':<20} -> "
               f"{', '.join(outcome.added) or 'nothing':<55} {outcome.rms_over_floor:5.2f}x "
               f"floor (twin {outcome.twin_over_floor:4.2f}x)  {verdict}  ({seconds:.0f} s)"
@@ -126,6 +129,7 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
 
     summary = {"maps": kind, "cases": len(hidden), "controls": len(clean),
                "found_share": share("found"), "right_term_share": share("right_term"),
+               "clean_share": share("clean"), "invisible": sum(r["invisible"] for r in hidden),
                "as_twin_share": float(np.mean([r["right_term"] and r["as_twin"]
                                                 for r in hidden])) if hidden else None,
                "controls_clean": sum(r["found"] for r in clean),
@@ -140,7 +144,9 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
                          f"{sum(r['hidden'] == name for r in hidden)}"
                    for name in OFF_LIBRARY},
                "records": records}
-    print(f"{kind} maps, {len(hidden)} off-library cases: right term "
+    print(f"{kind} maps, {len(hidden)} off-library cases: clean (found, or nothing added where "
+          f"the effect left nothing to find) {summary['clean_share']:.0%} "
+          f"({summary['invisible']} invisible), right term "
           f"{summary['right_term_share']:.0%}, found (and within {RMS_RATIO}x the floor) "
           f"{summary['found_share']:.0%}, right term "
           f"and as its twin {summary['as_twin_share']:.0%} (found by effect: "

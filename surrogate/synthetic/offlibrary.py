@@ -309,6 +309,20 @@ class OffLibraryOutcome:
         return self.rms_over_floor <= max(RMS_RATIO, TWIN_RATIO * twin)
 
     @property
+    def invisible(self) -> bool:
+        """Nothing added and nothing left to find: the log ends within the floor's
+        :data:`RMS_RATIO` and within :data:`TWIN_RATIO` of its nothing-hidden twin, so the
+        hidden effect (a leak of 0.05 L/min, say) moved nothing the bench can see."""
+        return (self.hidden is not None and not self.added and self.within_floor
+                and np.isfinite(self.twin_over_floor)
+                and self.rms_over_floor <= TWIN_RATIO * self.twin_over_floor)
+
+    @property
+    def clean(self) -> bool:
+        """Nothing invented, and the hidden effect found or invisible on this log."""
+        return self.found or (self.invisible and not self.invented)
+
+    @property
     def found(self) -> bool:
         """The right term, nothing invented, and the final RMS within 1.3x the noise floor (the
         issue's criterion; with nothing hidden: nothing invented)."""
@@ -320,7 +334,8 @@ class OffLibraryOutcome:
                 "twin_over_floor": (round(self.twin_over_floor, 3)
                                     if np.isfinite(self.twin_over_floor) else None),
                 "right_term": self.right_term, "within_floor": self.within_floor,
-                "as_twin": self.as_twin, "found": self.found}
+                "as_twin": self.as_twin, "found": self.found, "invisible": self.invisible,
+                "clean": self.clean}
 
 
 #: the final RMS over the noise floor within which an off-library case counts as explained

@@ -129,3 +129,18 @@ def test_leaks_of_other_laws_join_the_suite_without_moving_its_cases():
     thresholds = [case.values["p0"] for case in leaks if case.hidden == "threshold_leakage"]
     assert min(thresholds) < 50 and max(thresholds) > 110
     assert all(LEAK_THRESHOLDS_BAR[0] <= p0 <= LEAK_THRESHOLDS_BAR[1] for p0 in thresholds)
+
+
+def test_a_case_is_invisible_only_when_nothing_was_added_and_nothing_is_left():
+    from surrogate.synthetic.offlibrary import OffLibraryOutcome
+
+    quiet = OffLibraryOutcome("turbulent_leakage", (), (), (), 1.06, 1.05)
+    assert quiet.invisible and quiet.clean and not quiet.found
+    left = OffLibraryOutcome("turbulent_leakage", (), (), (), 1.5, 1.05)  # above the floor
+    assert not left.invisible and not left.clean
+    unlike_twin = OffLibraryOutcome("turbulent_leakage", (), (), (), 1.25, 1.02)
+    assert not unlike_twin.invisible
+    wrong = OffLibraryOutcome("turbulent_leakage", ("shape_force_of_opening",), (),
+                              ("shape_force_of_opening",), 1.05, 1.05)
+    assert not wrong.invisible and not wrong.clean
+    assert not OffLibraryOutcome("turbulent_leakage", (), (), (), 1.06).invisible  # no twin run
