@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .errors import InputError
 from .units import P_ATM, from_si, label
 
 #: [bar] the highest pressure accepted anywhere: above any mobile or industrial hydraulics
@@ -55,8 +56,6 @@ class Range:
         """``value`` of a command-line ``option`` when plausible, else InputError saying the
         range (and the unit it may have been given in)."""
         if not self.contains(value):
-            from .errors import InputError
-
             raise InputError(f"{option} {value:g}: expected {self.describe()}"
                              f"{self.unit_hint(value)}")
         return value
