@@ -48,6 +48,7 @@ import numpy as np
 from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY, load_effects_file
 from surrogate.effects.handover import write_effect_file
+from surrogate.errors import InputError
 from surrogate.fitting.heldout import run_groups
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log
@@ -94,9 +95,15 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
     records = []
     for case in off_library_suite(cases, controls, seed, leaks):
         began = time.perf_counter()
-        log_case = hidden_effect_case(case.hidden, case.values, sequence=sequence,
-                                      seed=case.seed, library=LIBRARY + OFF_LIBRARY,
-                                      mismatch=MapMismatch(), maps_under_test=maps(kind))
+        try:
+            log_case = hidden_effect_case(case.hidden, case.values, sequence=sequence,
+                                          seed=case.seed, library=LIBRARY + OFF_LIBRARY,
+                                          mismatch=MapMismatch(), maps_under_test=maps(kind))
+        except InputError as error:  # an effect too large for the valve to have a log at all
+            print(f"  {kind} {case.seed}: {case.hidden:<20} -> no log: {error}", flush=True)
+            records.append({"hidden": case.hidden, "seed": case.seed, "values": case.values,
+                            "skipped": str(error)})
+            continue
         workflow = run_workflow(log_case.log, start=log_case.start, max_additions=ADDITIONS)
         twin = None
         if case.hidden is not None and twins:
@@ -121,6 +128,8 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
               + "".join(f"; file keeps {share:.0%} of {name}'s held-out gain"
                         for name, share in kept.items())
               + (f"; TWIN got {', '.join(twin_invented)}" if twin_invented else ""), flush=True)
+    skipped = [r for r in records if "skipped" in r]
+    records = [r for r in records if "skipped" not in r]
     hidden = [r for r in records if r["hidden"] is not None]
     clean = [r for r in records if r["hidden"] is None]
 
@@ -133,6 +142,7 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
                "as_twin_share": float(np.mean([r["right_term"] and r["as_twin"]
                                                 for r in hidden])) if hidden else None,
                "controls_clean": sum(r["found"] for r in clean),
+               "skipped": skipped,
                "twins_clean": f"{sum(not r['twin_invented'] for r in hidden)} of "
                               f"{sum(r['twin_over_floor'] is not None for r in hidden)}",
                # physics or sensor terms beyond the hidden effect's kind and variable

@@ -177,12 +177,13 @@ class OpeningLeakage(OffLibraryEffect):
 
     @classmethod
     def draw(cls, rng):
-        return {"G": 2.0 * leak_size(rng)}  # twice: half the stroke is the typical opening
+        return {"G": leak_size(rng)}
 
 
 class WarmLeakage(OffLibraryEffect):
-    """A leak whose clearance opens as the valve warms: G·(Δp/100 bar)·exp(b·(T − 40 °C)/20 K),
-    with no viscosity in it (a gap between parts of unlike expansion)."""
+    """A leak whose clearance opens as the valve warms: G·(Δp/100 bar)·exp(b·(T − 60 °C)/20 K),
+    with no viscosity in it (a gap between parts of unlike expansion); G is its size at the
+    bench's warmest, 60 °C."""
 
     name = "warm_leakage"
     kind = "leakage"
@@ -192,7 +193,7 @@ class WarmLeakage(OffLibraryEffect):
                        Parameter("b", 1.0, "1", min=0.0, max=3.0, vary=False))
 
     def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
-        warmer = (np.asarray(state.temperature, float) - 313.15) / 20.0
+        warmer = (np.asarray(state.temperature, float) - 333.15) / 20.0
         return (self["G"] * np.maximum(dp, 0.0) / (100.0 * BAR)
                 * np.exp(self["b"] * warmer))
 
@@ -201,10 +202,14 @@ class WarmLeakage(OffLibraryEffect):
         return {"G": leak_size(rng), "b": rng.uniform(0.5, 1.5)}
 
 
+#: a leak's flow at 100 bar [L/min]: from barely visible (about the flow meter's noise) to
+#: dominant (the bench's smallest flows; a larger leak leaves runs no equilibrium at all)
+LEAK_SIZES_LPM = (0.05, 1.0)
+
+
 def leak_size(rng: np.random.Generator) -> float:
-    """A leak's flow at 100 bar [L/min], log-uniform from barely visible (0.05 L/min, about the
-    flow meter's noise) to dominant (1.5 L/min, a fifth of the bench's typical flow)."""
-    return float(np.exp(rng.uniform(np.log(0.05), np.log(1.5))))
+    """A leak's flow at 100 bar [L/min], log-uniform over :data:`LEAK_SIZES_LPM`."""
+    return float(np.exp(rng.uniform(*np.log(LEAK_SIZES_LPM))))
 
 
 OFF_LIBRARY = EffectLibrary([DetentForce, KinkedSpring, ExtrusionFriction, FlowFriction,
@@ -244,18 +249,23 @@ def off_library_suite(cases: int = 20, controls: int = 10, seed: int = 4242, lea
                       ) -> list[OffLibraryCase]:
     """``cases`` logs with one off-library effect each (:data:`SHAPES` in turn, sizes, shapes
     and positions drawn), ``leaks`` with a leak of another law than the laminar one
-    (:data:`LEAK_LAWS` in turn, sizes log-uniform from barely visible to dominant), and
+    (:data:`LEAK_LAWS` in turn, sizes stratified in ln G over :data:`LEAK_SIZES_LPM`), and
     ``controls`` with nothing hidden; every log has its own seed."""
     rng = np.random.default_rng(seed)
     suite = [OffLibraryCase(SHAPES[i % len(SHAPES)], OFF_LIBRARY[SHAPES[i % len(SHAPES)]].draw(rng),
                             seed + 1 + i) for i in range(cases)]
     leak_rng = np.random.default_rng([seed, 1])  # its own stream: the cases above keep theirs
+    # sizes stratified in ln G, the strata shuffled: every suite spans barely visible to
+    # dominant, whatever its length, and each law meets small and large sizes
+    strata = leak_rng.permutation(leaks)
+    low, high = np.log(LEAK_SIZES_LPM)
     for i in range(leaks):
         name = LEAK_LAWS[i % len(LEAK_LAWS)]
         values = OFF_LIBRARY[name].draw(leak_rng)
-        if name == "threshold_leakage":  # thresholds from low to high, sizes as every leak's
-            values = {"G": leak_size(leak_rng),
-                      "p0": float(leak_rng.uniform(*LEAK_THRESHOLDS_BAR))}
+        if name == "threshold_leakage":  # thresholds from low to high
+            values["p0"] = float(leak_rng.uniform(*LEAK_THRESHOLDS_BAR))
+        share = (strata[i] + leak_rng.uniform()) / leaks
+        values["G"] = float(np.exp(low + share * (high - low)))
         suite.append(OffLibraryCase(name, values, seed + 301 + i))
     return suite + [OffLibraryCase(None, None, seed + 501 + i) for i in range(controls)]
 

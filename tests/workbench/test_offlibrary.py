@@ -123,9 +123,8 @@ def test_leaks_of_other_laws_join_the_suite_without_moving_its_cases():
     leaks = with_leaks[20:-10]
     assert [case.hidden for case in leaks] == [LEAK_LAWS[i % 4] for i in range(40)]
     assert len({case.seed for case in with_leaks}) == len(with_leaks)
-    sizes = [case.values["G"] / (2.0 if case.hidden == "opening_leakage" else 1.0)
-             for case in leaks]
-    assert 0.05 <= min(sizes) < 0.1 and 0.8 < max(sizes) <= 1.5
+    sizes = [case.values["G"] for case in leaks]
+    assert 0.05 <= min(sizes) < 0.1 and 0.6 < max(sizes) <= 1.0
     thresholds = [case.values["p0"] for case in leaks if case.hidden == "threshold_leakage"]
     assert min(thresholds) < 50 and max(thresholds) > 110
     assert all(LEAK_THRESHOLDS_BAR[0] <= p0 <= LEAK_THRESHOLDS_BAR[1] for p0 in thresholds)
