@@ -124,6 +124,10 @@ class FlowFriction(OffLibraryEffect):
         return {"K": rng.uniform(3.0, 7.0), "n": rng.uniform(1.0, 2.5)}
 
 
+#: a leak's size: its flow at 100 bar (and 46 cSt, for a laminar one) [m³/s]
+LEAK_SIZE = Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM)
+
+
 class ThresholdLeakage(OffLibraryEffect):
     """A laminar leak G·max(Δp − p₀, 0)·ν_ref/ν that opens above the pressure drop p₀ (G per
     100 bar above it, at 46 cSt)."""
@@ -132,7 +136,7 @@ class ThresholdLeakage(OffLibraryEffect):
     kind = "leakage"
     title = "a leak opening above a pressure drop"
     variable = "dp"
-    parameter_specs = (Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM),
+    parameter_specs = (LEAK_SIZE,
                        Parameter("p0", 80 * BAR, "bar", min=0.0, max=400 * BAR, vary=False))
 
     def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
@@ -151,7 +155,7 @@ class TurbulentLeakage(OffLibraryEffect):
     kind = "leakage"
     title = "a leak through an orifice, rising with the square root of the pressure drop"
     variable = "dp"
-    parameter_specs = (Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM),)
+    parameter_specs = (LEAK_SIZE,)
 
     def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
         return self["G"] * np.sqrt(np.maximum(dp, 0.0) / (100.0 * BAR))
@@ -169,7 +173,7 @@ class OpeningLeakage(OffLibraryEffect):
     kind = "leakage"
     title = "a leak growing with the opening"
     variable = "dp"
-    parameter_specs = (Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM),)
+    parameter_specs = (LEAK_SIZE,)
 
     def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
         return (self["G"] * np.maximum(state.u, 0.0) / 0.63e-3
@@ -189,7 +193,7 @@ class WarmLeakage(OffLibraryEffect):
     kind = "leakage"
     title = "a leak growing with the temperature"
     variable = "dp"
-    parameter_specs = (Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM),
+    parameter_specs = (LEAK_SIZE,
                        Parameter("b", 1.0, "1", min=0.0, max=3.0, vary=False))
 
     def leakage(self, dp: np.ndarray, state: FlowState) -> np.ndarray:
