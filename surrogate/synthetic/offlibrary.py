@@ -124,7 +124,7 @@ class FlowFriction(OffLibraryEffect):
         return {"K": rng.uniform(3.0, 7.0), "n": rng.uniform(1.0, 2.5)}
 
 
-#: a leak's size: its flow at 100 bar (and 46 cSt, for a laminar one) [m³/s]
+#: a leak's size G, about its flow at 100 bar (each leak's docstring says where exactly) [m³/s]
 LEAK_SIZE = Parameter("G", 0.0, "L/min", min=0.0, max=20 * LPM)
 
 
