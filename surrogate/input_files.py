@@ -26,18 +26,24 @@ SHARES = {"table": 1.0, "weights": 1 / 16, "text": 1 / 64}
 _MB = 1_000_000
 
 
+def megabytes(text: str) -> float:
+    """A bound as written [MB]: a finite number > 0, else ValueError (the command line's option
+    and the environment variable read it alike)."""
+    number = float(text)
+    if not 0 < number < float("inf"):
+        raise ValueError(f"expected a size in MB > 0, got {text}")
+    return number
+
+
 def limit_mb() -> float:
     """The bound of a table [MB]: ``$CBV_MAX_INPUT_MB`` or the default."""
     value = os.environ.get(LIMIT_VARIABLE)
     if value is None:
         return DEFAULT_LIMIT_MB
     try:
-        number = float(value)
+        return megabytes(value)
     except ValueError:
-        number = float("nan")
-    if not (number > 0 and number < float("inf")):
-        raise InputError(f"${LIMIT_VARIABLE}={value!r}: expected a size in MB > 0")
-    return number
+        raise InputError(f"${LIMIT_VARIABLE}={value!r}: expected a size in MB > 0") from None
 
 
 def limit_bytes(kind: str) -> int:
@@ -77,11 +83,19 @@ def check_size(path: str | Path, size: int, what: str, kind: str) -> None:
                          f"read as {what}; {_raise_hint()}")
 
 
+def check_input(path: str | Path, what: str, kind: str = "text") -> os.stat_result:
+    """The status of the input file ``path``, refused (InputError) before it is opened when it
+    is not a regular file (:func:`regular_file`) or is larger than the bound of ``kind``: for
+    readers that open the file themselves (numpy, PyTorch, importlib)."""
+    status = regular_file(path, what)
+    check_size(path, status.st_size, what, kind)
+    return status
+
+
 def read_input(path: str | Path, what: str, kind: str = "text") -> bytes:
     """The bytes of the input file ``path`` (``what`` it is, for messages), refused before
     reading when it is not a regular file or is larger than the bound of ``kind``."""
-    status = regular_file(path, what)
-    check_size(path, status.st_size, what, kind)
+    check_input(path, what, kind)
     bound = limit_bytes(kind)
     try:
         with open(path, "rb") as stream:
@@ -105,5 +119,5 @@ def read_input_text(path: str | Path, what: str, kind: str = "text") -> str:
         raise InputError(f"{path}, line {line}: not UTF-8 text; {what} is a text file") from None
 
 
-__all__ = ["DEFAULT_LIMIT_MB", "LIMIT_VARIABLE", "check_size", "limit_bytes", "limit_mb",
-           "read_input", "read_input_text", "regular_file"]
+__all__ = ["DEFAULT_LIMIT_MB", "LIMIT_VARIABLE", "check_input", "check_size", "limit_bytes",
+           "limit_mb", "megabytes", "read_input", "read_input_text", "regular_file"]

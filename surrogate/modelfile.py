@@ -37,16 +37,13 @@ def load_spec(name_or_path: str, valve_path: str | None = None) -> ModelSpec:
     if name in PRESETS:
         return preset(name, valve)
     path = Path(name_or_path)
-    if path.exists() or path.is_symlink():  # a folder, a FIFO, a link: say what it is
-        return _with_valve(ModelSpec.read(path), valve)
-    if not path.is_file():
+    # any entry of that name is read as a model file, so that a folder, a FIFO or a broken link
+    # is refused for what it is; only a name that is nothing at all is an unknown model
+    if not (path.exists() or path.is_symlink()):
         raise InputError(f"unknown model {name_or_path!r}"
                          f"{did_you_mean(name_or_path, PRESETS)}: give a preset "
                          f"({', '.join(PRESETS)}) or the path of a model file")
-    return _with_valve(ModelSpec.read(path), valve)
-
-
-def _with_valve(spec: ModelSpec, valve) -> ModelSpec:
+    spec = ModelSpec.read(path)
     return spec.with_valve(valve) if valve else spec
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 from ..data import load_bench_log
 from ..effects import KNOWN, EffectLibrary, load_effects_file
 from ..errors import InputError
-from ..input_files import DEFAULT_LIMIT_MB, LIMIT_VARIABLE
+from ..input_files import DEFAULT_LIMIT_MB, LIMIT_VARIABLE, megabytes
 from ..maps.registry import (MAP_KINDS, MapsSpec, MapSource, is_surrogate_folder, kind_named,
                              refuse_ambiguous_kind)
 from ..model import ValveModel
@@ -88,14 +88,11 @@ def add_command(subparsers, name: str, help: str, description: str, *,
 
 
 def positive_megabytes(text: str) -> float:
-    """argparse type: a size in MB > 0, finite."""
+    """argparse type: a size in MB > 0, finite (:func:`~surrogate.input_files.megabytes`)."""
     try:
-        value = float(text)
+        return megabytes(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a size in MB, got {text!r}") from None
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a size in MB > 0, got {text}")
-    return value
+        raise argparse.ArgumentTypeError(f"expected a size in MB > 0, got {text!r}") from None
 
 
 def required(parser: argparse.ArgumentParser):

@@ -142,9 +142,10 @@ def run(args) -> int:
     pending = []
     for task in tasks:
         earlier = read_result(args.out, task.serial)
-        if earlier is None and result_path(args.out, task.serial).exists():
-            progress(f"{result_path(args.out, task.serial)}: not a record as this version writes "
-                     f"them (edited or damaged); {task.serial} is done again")
+        path = result_path(args.out, task.serial)
+        if earlier is None and path.exists():
+            progress(f"{path}: not a record as this version writes them (edited or damaged); "
+                     f"{task.serial} is done again")
         if still_stands(earlier, task):
             records[task.serial] = earlier
         else:

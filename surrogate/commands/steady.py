@@ -98,7 +98,7 @@ def check_result(curve, where: str) -> None:
     result."""
     dp = curve.to_frame().dp_bar.to_numpy()
     bad = [value for value in dp if np.isfinite(value) and not PRESSURE_DIFFERENCE.contains(value)]
-    if len(bad):
+    if bad:
         raise InputError(f"{where}: the model gives a pressure drop of {bad[0]:.4g} bar, "
                          f"outside {PRESSURE_DIFFERENCE.describe()}; its maps or parameters are "
                          "damaged (check its surrogate folder or refit it)")

@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..input_files import check_size, regular_file
+from ..input_files import check_input
 from ..limits import FORCE
 from ..units import known_units, to_si
 from .base import CATEGORIES, KINDS, Effect, Parameter
@@ -255,8 +255,7 @@ def load_effects_file(path: str | Path):
     path = Path(path)
     if not path.exists() and not path.is_symlink():
         raise InputError(f"{path}: effects file not found")
-    what = "an effects file (Python)"
-    check_size(path, regular_file(path, what).st_size, what, "text")
+    check_input(path, "an effects file (Python)")
     if path.suffix != ".py":
         # importlib finds no loader for another suffix and would fail without saying why
         raise InputError(f"{path}: an effects file is Python code; expected a .py file, not "

@@ -241,13 +241,17 @@ class DaskCluster:
     def __init__(self, address: str, source: str = "--scheduler"):
         self.address, self.source = address, source
         self.client = None
+        self.probed = False
 
     def describe(self) -> str:
         return f"the Dask scheduler at {self.address}"
 
     def reachable(self) -> None:
         """Within seconds, before any work: Dask is installed and a scheduler answers at the
-        address (:func:`probe_scheduler`); else InputError, the command line's mistake."""
+        address (:func:`probe_scheduler`); else InputError, the command line's mistake. Probed
+        once: each probe is a connection the scheduler logs as a failed handshake."""
+        if self.probed:
+            return
         try:
             import distributed  # noqa: F401  (the fleet extra's)
         except ImportError:
@@ -256,6 +260,7 @@ class DaskCluster:
                              f"({DASK_EXTRA}), or leave out {self.source} to run on this "
                              "machine") from None
         probe_scheduler(self.address, self.source)
+        self.probed = True
 
     def check(self) -> None:
         """Connect, before any work: a missing Dask or a scheduler that does not answer is the

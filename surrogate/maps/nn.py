@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..input_files import check_size, regular_file
+from ..input_files import check_input
 from . import package
 from .learned import learned_kind
 from .network import architecture_from_dict, network
@@ -176,8 +176,7 @@ def _load_legacy(path: Path) -> dict[str, np.ndarray]:
     """A member saved as a PyTorch state_dict (folders of format 1)."""
     import torch
 
-    what = "network weights"
-    check_size(path, regular_file(path, what).st_size, what, "weights")
+    check_input(path, "network weights", "weights")
     try:
         state = torch.load(path, weights_only=True, map_location="cpu")
     except Exception as error:  # missing, truncated, or not plain tensors (pickled code)

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..features import FEATURE_NAMES, FORCE_FEATURE_NAMES
-from ..input_files import check_size, read_input, read_input_text, regular_file
+from ..input_files import check_input, check_size, read_input, read_input_text
 from ..tomlio import nesting_depth
 
 MANIFEST = "surrogate.json"
@@ -315,8 +315,7 @@ def read_npz(path: Path, what: str) -> dict[str, np.ndarray]:
     """Every array of a ``.npz`` file, read as plain numbers (``allow_pickle=False``: loading
     never runs code); refused, naming the file, when it is missing, truncated, not an ``.npz``
     archive, or holds anything but numbers."""
-    # before opening it: a FIFO would block the read, a device never end it
-    check_size(path, regular_file(path, what).st_size, what, "weights")
+    check_input(path, what, "weights")  # before numpy opens it: a FIFO would block the read
     try:
         _check_unpacked_size(path, what)
         data = np.load(path, allow_pickle=False)

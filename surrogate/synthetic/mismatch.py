@@ -100,8 +100,13 @@ class CavitationFlowForce(Effect):
     validity = "A smooth stand-in for cavitation; zero at the samples' back pressure."
 
     def force(self, state: BalanceState) -> np.ndarray:
-        ratio = (np.maximum(state.p_B, 0.0) + P_ATM) / (self["p_ref"] + P_ATM)
-        return self["c"] * np.log(ratio) * state.flow_force
+        return cavitation_change(self["c"], state.p_B, self["p_ref"]) * state.flow_force
+
+
+def cavitation_change(c: float, p_B, p_ref: float) -> np.ndarray:
+    """The relative change c·ln((p_B + p_atm)/(p_ref + p_atm)) of the flow force at back
+    pressure ``p_B`` [Pa] against ``p_ref`` [Pa] (:class:`CavitationFlowForce`) [1]."""
+    return c * np.log((np.maximum(p_B, 0.0) + P_ATM) / (p_ref + P_ATM))
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ import pandas as pd
 from ..fluid import FluidState
 from ..maps.coverage import Coverage
 from ..maps.grid import GridFlowMap, GridForceMap
-from ..units import BAR, P_ATM, to_si
-from .mismatch import MapMismatch, mismatched_samples, perturbed_maps
+from ..units import BAR, to_si
+from .mismatch import MapMismatch, cavitation_change, mismatched_samples, perturbed_maps
 
 #: the regions of operating points, in the order reports list them
 REGIONS = ("sampled", "between", "gap", "temperatures", "oils", "back pressures")
@@ -86,9 +86,8 @@ def valve_truth(samples, valve, seed: int, mismatch: MapMismatch, on=None):
     reference = REFERENCE_BACK_BAR * BAR
 
     def flow_force(p_L, p_B, u, fluid):
-        cavitation = 1.0 + draw.cavitation * np.log((np.maximum(p_B, 0.0) + P_ATM)
-                                                    / (reference + P_ATM))
-        return force.flow_force(p_L, p_B, u, fluid) * cavitation
+        return force.flow_force(p_L, p_B, u, fluid) * (
+            1.0 + cavitation_change(draw.cavitation, p_B, reference))
     return flow.pressure_drop, flow_force
 
 
