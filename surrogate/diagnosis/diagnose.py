@@ -45,7 +45,8 @@ from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
 from .judge import Judge
-from .lookalikes import absorbed, grouped, look_alike_separation
+from .lookalikes import (absorbed, declined, grouped, look_alike_separation, maps_error_rival,
+                         rival_of)
 from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
 from .result import Candidate, Diagnosis
 from .rule import RULE, SignificanceRule, gains_in_own_view
@@ -173,17 +174,27 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     # fits decisively better (:meth:`.rule.SignificanceRule.replaces`): a detent taken for a
     # progressive spring, a friction rising with the flow taken for a pilot-pressure friction
     finding = next((c for c in results if c.significant), None)
+    rivals = [maps_error_rival(judge.maps_error_heldout())]
     shaped = [cls for cls in (shape_candidates(model, candidates, library) if shapes else [])
               if cls.name not in exclude]
     if shaped:
         # beside a finding, only the shapes whose linear fit comes within four times the
         # threshold of it are refitted, sparing a dozen real refits: the linear fit, at the
         # model without the shape, understates a large shape's gain (a detent's ΔBIC -111
-        # linear, -252 refitted, beside a spring's -132; eval/offlibrary.py case 4243)
-        must_beat = None if finding is None else finding.delta_bic - 4 * rule.bic
-        found = with_views(shape_free_candidates(model, problem, own_columns, judge, shaped,
-                                                 steps=steps, workers=workers, say=say,
-                                                 must_beat=must_beat))
+        # linear, -252 refitted, beside a spring's -132; eval/offlibrary.py case 4243), and
+        # those whose linear fit predicts the held-out runs nearly as well as the finding: a
+        # look-alike that may withhold it (:func:`.lookalikes.declined`) is refitted as it was
+        must_beat = heldout_to_beat = None
+        if finding is not None:
+            must_beat = finding.delta_bic - 4 * rule.bic
+            heldout_to_beat = finding.heldout_rms / (1.0 - rule.other_kind_gain)
+        found, linear_rivals = shape_free_candidates(model, problem, own_columns, judge,
+                                                     shaped, steps=steps, workers=workers,
+                                                     say=say, must_beat=must_beat,
+                                                     heldout_to_beat=heldout_to_beat)
+        found = with_views(found)
+        # a shape refitted for real stands as its refit, not its linear fit
+        rivals += [r for r in linear_rivals if r.name not in {c.name for c in found}]
         _say_scores(say, found, set(range(len(found))))
         together = ranked(results + found)
         challenger = next((c for c in together if c.significant), None)
@@ -192,13 +203,24 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
             results = together
         else:  # reported, behind the library's finding, never added
             results += [replace(c, significant=False) for c in together if c.shape_free]
+        rivals += [rival_of(c) for c in results if c.shape_free]
+    # a physics claim must beat its look-alikes of other kinds on held-out runs, or the step
+    # adds nothing and the look-alikes are named
+    claim = next((c for c in results if c.significant), None)
+    withheld = declined(claim, rivals, judge.heldout, log, floor, rule)
+    if withheld is not None:
+        say(f"  {claim.name} withheld: " + ", ".join(
+            f"{r.name} {from_si(r.heldout_rms, 'bar'):.3f} bar" for r in withheld.rivals)
+            + f" on held-out runs against its {from_si(claim.heldout_rms, 'bar'):.3f} bar")
+        results = [replace(c, significant=False) for c in results]
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, tuple(results),
                           residual_correlations(base),
                           judge.heldout.get(HEADLINE, float("nan")),
                           judge.expected_rms(base), judge.map_limits(),
                           sensor_checks(results, judge.schemes), median_before, half_before,
                           heldout_by_scheme=judge.heldout,
-                          absorbed=absorbed(results, own_matrix, [c.key for c in own_columns]))
+                          absorbed=absorbed(results, own_matrix, [c.key for c in own_columns]),
+                          declined=withheld)
     return replace(diagnosis, separation=look_alike_separation(diagnosis, log))
 
 

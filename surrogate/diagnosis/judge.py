@@ -68,9 +68,10 @@ class Judge:
         self.own = own  # the model's own columns, at the samples the model solves
         #: the model's own penalty (a shape's roughness) in those columns, and its residual
         self.own_roughness = own_roughness(model, own_columns, int(ok.sum()))
-        self.base = RunBlocks(Linearised(problem.base_evaluation.residual, own,
-                                         self.own_roughness).held(held),
-                              self.discrepancy, self.runs, self.penalty)
+        #: the model's linearisation at its optimum, parameters on a bound held
+        self.fit = Linearised(problem.base_evaluation.residual, own, self.own_roughness
+                              ).held(held)
+        self.base = RunBlocks(self.fit, self.discrepancy, self.runs, self.penalty)
         self.ones = np.ones(len(self.base.labels))
         self.objective_before = self.base.objective(self.ones)
         self.heldout = self.base.heldout_rms(self.schemes)  # per scheme [Pa]
@@ -114,6 +115,19 @@ class Judge:
             if ranks and min(ranks) < self.rule.bic:
                 counts[chosen[int(np.argmin(ranks))].name] += 1
         return {c.name: counts.get(c.name, 0) / len(weights) for c in candidates}
+
+    def maps_error_heldout(self) -> dict[str, float]:
+        """RMS on held-out runs [Pa] per scheme of the model with the maps' own error fitted in
+        a candidate's place: the discrepancy's coefficients refitted with the model's
+        parameters under their prior (s²·‖a‖², as in the judgement), so that it stays within
+        the maps' σ. Empty without a discrepancy."""
+        if self.discrepancy is None:
+            return {}
+        size = self.discrepancy.size
+        fit = self.fit.beside(self.discrepancy.columns, np.sqrt(self.penalty) * np.eye(size),
+                              np.zeros(size))
+        blocks = RunBlocks(fit, None, self.runs, 0.0)
+        return blocks.heldout_rms(self.schemes)
 
     def expected_rms(self, base: LogReplay) -> float:
         """The RMS that noise and the maps' uncertainty (with the CFD's own error) allow

@@ -14,6 +14,14 @@ Two candidates are look-alikes on a log when either
 
 Look-alikes are reported as one group, with the bench run that would separate them
 (:mod:`surrogate.planning.bench_runs`).
+
+Look-alikes of **another kind** are judged differently: a claim of valve physics must predict
+the held-out runs clearly better than each term of another kind fitted in its place
+(:func:`declined`): a shape-free term of another physical kind (a leak of free shape in place of
+a force of the opening), a shape-free correction of the maps, and the maps' own error within
+their σ. A term of free shape bends to whatever the log holds, so a claim that one of another
+kind matches on unseen runs is a claim the log does not make; the loop then adds nothing and
+names them.
 """
 
 from __future__ import annotations
@@ -24,7 +32,7 @@ import numpy as np
 
 from ..data.loaders import BenchLog
 from ..planning.bench_runs import Separation, separating_run
-from .result import Candidate, Diagnosis
+from .result import Candidate, Declined, Diagnosis, Rival
 from .rule import RULE, SignificanceRule
 
 SAME_DIRECTION = 0.98  # cosine of two prediction changes above which they act alike
@@ -122,3 +130,53 @@ def look_alike_separation(diagnosis: Diagnosis, log: BenchLog) -> Separation | N
     other = next(c for c in diagnosis.explanations if c is not best)
     return separating_run(best.model, other.model, log, diagnosis.noise_floor, (best.name,
                                                                                 other.name))
+
+
+#: the name of the rival that is the maps' own error, fitted within their σ
+MAPS_ERROR = "maps_error"
+
+
+def maps_error_rival(heldout: dict) -> Rival:
+    """The maps' own error within their σ (:func:`~surrogate.fitting.discrepancy.
+    map_discrepancy`) as a rival, with its held-out RMS [Pa] per scheme."""
+    return Rival(MAPS_ERROR, "the CFD maps' own error, within their uncertainty", "maps",
+                 "map correction", heldout)
+
+
+def rival_of(candidate: Candidate) -> Rival:
+    """A judged candidate as a rival."""
+    return Rival(candidate.name, candidate.title, candidate.kind, candidate.category,
+                 candidate.heldout, candidate.model)
+
+
+def other_kinds(claim: Candidate, rivals: list[Rival], heldout_before: dict,
+                rule: SignificanceRule = RULE) -> list[Rival]:
+    """The rivals a physics claim must beat: corrections of the maps, and physics of another
+    kind (:attr:`~surrogate.effects.Effect.kind`), each one that would itself predict runs it
+    was not fitted to better than the model (``heldout_before`` [Pa] per scheme), as the rule
+    asks of a discovery (:meth:`.rule.SignificanceRule.predicts_unseen`): a term that fails that
+    is no explanation of the log."""
+    return [r for r in rivals if r.name != claim.name and np.isfinite(r.heldout_rms)
+            and (r.category == "map correction"
+                 or (r.category == "physics" and r.kind != claim.kind))
+            and rule.predicts_unseen(r, heldout_before)]
+
+
+def declined(claim: Candidate | None, rivals: list[Rival], heldout_before: dict,
+             log: BenchLog, noise_floor: float, rule: SignificanceRule = RULE
+             ) -> Declined | None:
+    """The physics ``claim`` withheld, with the look-alikes of other kinds among ``rivals`` that
+    it does not beat on held-out runs (:meth:`.rule.SignificanceRule.beats`), closest first,
+    and the bench run that would tell it from the closest one with a model; None when it beats
+    them all (or is no physics claim). ``heldout_before``: the model's held-out RMS [Pa] per
+    scheme, which a rival must beat to count (:func:`other_kinds`)."""
+    if claim is None or claim.category != "physics":
+        return None
+    close = sorted((r for r in other_kinds(claim, rivals, heldout_before, rule)
+                    if not rule.beats(claim, r.heldout_rms)), key=lambda r: r.heldout_rms)
+    if not close:
+        return None
+    modelled = next((r for r in close if r.model is not None), None)
+    separation = None if modelled is None or claim.model is None else separating_run(
+        claim.model, modelled.model, log, noise_floor, (claim.name, modelled.name))
+    return Declined(claim, tuple(close), separation)

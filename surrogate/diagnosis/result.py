@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..fitting.heldout import Linearised
+from ..fitting.heldout import HEADLINE, Linearised
 from ..fitting.residuals import LogReplay
 from ..model import ValveModel
 from ..planning.bench_runs import Separation
@@ -107,6 +107,47 @@ class ShapeCurve:
 
 
 @dataclass(frozen=True)
+class Rival:
+    """A look-alike of another kind fitted in a physics claim's place (:mod:`.lookalikes`): a
+    shape-free term of another physical kind, a shape-free correction of the maps, or the maps'
+    own error within their σ (:data:`.lookalikes.MAPS_ERROR`, no model)."""
+
+    name: str
+    title: str
+    kind: str
+    category: str
+    heldout: dict  # [Pa] on held-out runs, per scheme (:func:`~surrogate.fitting.heldout.run_groups`)
+    model: ValveModel | None = field(default=None, repr=False)  # the model with it fitted
+
+    @property
+    def heldout_rms(self) -> float:
+        """[Pa] on held-out runs, each left out in turn."""
+        return self.heldout.get(HEADLINE, float("nan"))
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "title": self.title, "kind": self.kind,
+                "category": self.category, "heldout_rms_bar": rounded_bar(self.heldout_rms)}
+
+
+@dataclass(frozen=True)
+class Declined:
+    """A physics claim the loop does not make: look-alikes of other kinds predict the held-out
+    runs about as well (:meth:`.rule.SignificanceRule.beats`), closest first, and the bench run
+    that would tell the claim from the closest with a model, if any."""
+
+    claim: Candidate
+    rivals: tuple[Rival, ...]
+    separation: Separation | None = None
+
+    def to_json(self) -> dict:
+        return {"claim": self.claim.name, "claim_heldout_rms_bar":
+                rounded_bar(self.claim.heldout_rms),
+                "look_alikes": [rival.to_json() for rival in self.rivals],
+                "separating_run": (None if self.separation is None
+                                   else self.separation.to_json())}
+
+
+@dataclass(frozen=True)
 class SensorCheck:
     """A run whose per-run parameter lies well outside its standard error (display units)."""
 
@@ -150,6 +191,8 @@ class Diagnosis:
     #: candidates the model's own parameters already mimic on this log (:func:`.lookalikes.
     #: absorbed`): {candidate: (parameter, cosine of their columns)}
     absorbed: dict = field(default_factory=dict)
+    #: the physics claim withheld because look-alikes of other kinds fit as well, if any
+    declined: Declined | None = None
 
     @property
     def best(self) -> Candidate | None:

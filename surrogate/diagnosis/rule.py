@@ -19,7 +19,13 @@ A candidate is **significant** when all of these hold (:meth:`SignificanceRule.p
 * it narrows the view of the hysteresis its physics acts on (:func:`gains_in_own_view`): a
   friction term the runs' half-width, any other term their median line;
 * it, or the group it cannot be told from, is the one added in the majority of bootstrap
-  resamples over runs (:data:`INCLUSION_MIN`).
+  resamples over runs (:data:`INCLUSION_MIN`);
+* a claim of valve physics predicts the held-out runs better by :data:`OTHER_KIND_GAIN` than
+  every look-alike of another kind fitted in its place: each shape-free term of another
+  physical kind, each shape-free correction of the maps, and the maps' own error within their
+  σ (:meth:`SignificanceRule.beats`; :mod:`.lookalikes`). A term of free shape bends to fit
+  whatever the log holds; if one of another kind, or the maps' error, predicts unseen runs
+  about as well, the log does not say which physics it holds.
 
 Candidates are ranked by ΔBIC, a shape-free term (:mod:`surrogate.effects.shapes`) with a
 handicap of |:data:`BIC_THRESHOLD`|: a library term that fits about as well comes first, having
@@ -52,6 +58,9 @@ HELDOUT_GAIN = 0.03
 #: effects were chosen in 62–100 % of resamples, the terms that stood in for map error where
 #: nothing of their kind was hidden in 35–57 %
 INCLUSION_MIN = 0.5
+#: a physics claim must predict the held-out runs better than each look-alike of another kind
+#: by at least this share of the look-alike's held-out RMS (the gain asked of any discovery)
+OTHER_KIND_GAIN = HELDOUT_GAIN
 
 
 @dataclass(frozen=True)
@@ -63,6 +72,7 @@ class SignificanceRule:
     gain_fraction: float = GAIN_FRACTION
     heldout_gain: float = HELDOUT_GAIN
     inclusion_min: float = INCLUSION_MIN
+    other_kind_gain: float = OTHER_KIND_GAIN
 
     def passes(self, candidate, rms_before: float, floor: float,
                heldout_before: dict[str, float]) -> bool:
@@ -108,6 +118,11 @@ class SignificanceRule:
         decisively."""
         return (shape.delta_bic + self.handicap(shape) - finding.delta_bic < self.bic
                 and shape.heldout_rms < finding.heldout_rms)
+
+    def beats(self, claim, rival_heldout: float) -> bool:
+        """Whether ``claim`` predicts the held-out runs (each left out in turn) clearly better
+        than a look-alike of another kind whose held-out RMS is ``rival_heldout`` [Pa]."""
+        return bool(claim.heldout_rms < (1.0 - self.other_kind_gain) * rival_heldout)
 
     def stable(self, group_share: float) -> bool:
         """Whether a candidate whose group is chosen in ``group_share`` of the resamples over

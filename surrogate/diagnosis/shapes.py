@@ -36,7 +36,7 @@ from ..parallel import map_threads
 from ..progress import Stage
 from ..units import LPM, from_si, to_si
 from .refit import candidate_of
-from .result import ShapeCurve
+from .result import Rival, ShapeCurve
 from .rule import delta_bic
 
 #: λ tried, relative to the columns' mean square (so that the choice does not depend on units)
@@ -226,6 +226,7 @@ class RoughnessChoice:
     rms: float  # [Pa] of the linear fit, in sample
     objective: float = float("nan")  # its sum of squares with the maps' discrepancy [Pa²]
     extra: float = float("nan")  # its effective number of parameters
+    own_step: np.ndarray | None = None  # the model's own parameters' move, in column steps
 
 
 def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
@@ -270,7 +271,7 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
             best = RoughnessChoice(weight, heldout, theta[p:] * shape.steps,
                                    float(np.sqrt(np.mean(fitted**2))),
                                    blocks.objective(np.ones(len(blocks.labels))),
-                                   blocks.effective_parameters(mine))
+                                   blocks.effective_parameters(mine), theta[:p])
     return best
 
 
@@ -282,9 +283,12 @@ CURVE_POINTS = 41
 
 def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                           classes=SHAPE_FREE, *, steps: int, workers: int | None = None,
-                          say=None, must_beat: float | None = None) -> list:
+                          say=None, must_beat: float | None = None,
+                          heldout_to_beat: float | None = None) -> tuple[list, list[Rival]]:
     """Every shape-free effect of ``classes`` fitted beside the model's own parameters and
-    judged like a library candidate (:mod:`surrogate.diagnosis.judge`), with its roughness.
+    judged like a library candidate (:mod:`surrogate.diagnosis.judge`), with its roughness;
+    and every one's linear fit as a :class:`~.result.Rival`, the look-alike a physics claim of
+    another kind must beat (:func:`.lookalikes.declined`).
 
     Each shape's coefficients are linearised from one probe replay of its hook
     (:func:`sensitivity`; five replays in all, fewer where a column of the model's own stands in
@@ -295,7 +299,8 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
     ``problem`` is the diagnosis' :class:`~surrogate.diagnosis.refit.DiagnosisProblem`,
     ``own_columns`` its model's columns, ``judge`` its :class:`~surrogate.diagnosis.judge.Judge`.
     With ``must_beat`` (a ΔBIC), only the shapes whose linear fit's ΔBIC is below it are
-    refitted.
+    refitted, or whose linear fit predicts the runs left out in turn better than
+    ``heldout_to_beat`` [Pa] (a rival that may withhold a finding must be fitted as well as it).
     """
     say = say or (lambda message: None)
     base, ok = problem.base, problem.ok
@@ -323,10 +328,13 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
             return True
         linear_bic = delta_bic(choice.objective, judge.objective_before, problem.n_eff,
                                choice.extra)
-        return linear_bic < must_beat
+        return linear_bic < must_beat or (heldout_to_beat is not None
+                                          and choice.heldout[HEADLINE] < heldout_to_beat)
 
-    fits = front_runners([fit for fit in map_threads(linear, classes, workers=workers)
-                          if promising(fit)], judge, problem.n_eff)
+    every = list(map_threads(linear, classes, workers=workers))
+    rivals = [linear_rival(model, own_columns, cls, columns, choice)
+              for cls, columns, choice in every]
+    fits = front_runners([fit for fit in every if promising(fit)], judge, problem.n_eff)
     say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
         "better")
     refitting = Stage(say, "refitting the shapes", len(fits))
@@ -335,7 +343,26 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                                                        steps=steps), fits, workers=workers):
         done.append(candidate)
         refitting(len(done))
-    return done
+    return done, rivals
+
+
+def linear_rival(model: ValveModel, own_columns, cls, columns: ShapeColumns,
+                 choice: RoughnessChoice) -> Rival:
+    """A shape's linear fit as a rival: its held-out RMS, and the model with the shape's
+    fitted coefficients and the model's own parameters moved as the fit moved them (for the
+    bench run that would tell it from a claim)."""
+    rival = model.copy()
+    parameters = rival.parameters()
+    for column, step in zip(own_columns, choice.own_step):
+        parameter = parameters[column.key]
+        parameter.value = float(np.clip(parameter.value + step * column.step, parameter.min,
+                                        parameter.max))
+    effect = columns.effect.copy()
+    for name, value in zip(effect.coefficient_names(), choice.coefficients):
+        bounds = effect.params[name]
+        bounds.value = float(np.clip(value, bounds.min, bounds.max))
+    rival.effects.append(effect)
+    return Rival(cls.name, cls.title, cls.kind, cls.category, choice.heldout, rival)
 
 
 #: shape-free terms refitted for real at most (with any whose linear fit comes within

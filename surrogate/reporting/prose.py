@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..diagnosis.lookalikes import MAPS_ERROR
 from ..diagnosis.naming import WITHIN, library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..diagnosis.rule import RULE
@@ -55,6 +56,8 @@ def diagnosis_document(diagnosis: Diagnosis) -> dict:
                               for check in diagnosis.sensor_checks],
             "separating_run": (diagnosis.separation.to_json()
                                if diagnosis.separation is not None else None),
+            "declined": (diagnosis.declined.to_json()
+                         if diagnosis.declined is not None else None),
             "finding": finding_document(diagnosis),
             "absorbed": {name: {"parameter": key, "cosine": round(cosine, 4)}
                          for name, (key, cosine) in diagnosis.absorbed.items()},
@@ -133,7 +136,10 @@ def summarise(diagnosis: Diagnosis) -> str:
     if best is None:
         unstable = next((c for c in diagnosis.candidates if not c.stable and RULE.passes(
             c, diagnosis.rms_before, diagnosis.noise_floor, diagnosis.heldout_by_scheme)), None)
-        if diagnosis.rms_before <= NOISE_LEVEL * diagnosis.noise_floor:
+        if diagnosis.declined is not None:
+            sentence = (f"The residual ({before:.2f} bar RMS) is {before / floor:.1f}x the "
+                        f"noise floor ({floor:.2f} bar).")
+        elif diagnosis.rms_before <= NOISE_LEVEL * diagnosis.noise_floor:
             sentence = (f"Nothing beyond noise is left: the residual RMS ({before:.2f} bar) is "
                         f"within {NOISE_LEVEL:.1f}x the noise floor ({floor:.2f} bar) and no "
                         "candidate improves the model significantly.")
@@ -148,7 +154,9 @@ def summarise(diagnosis: Diagnosis) -> str:
                         f"{before / floor:.1f}x the noise floor ({floor:.2f} bar): the missing "
                         "physics may lie outside the library, or in the maps; a custom effect "
                         "(--effects-file) can test a hypothesis.")
-        if unstable is not None:
+        if diagnosis.declined is not None:
+            sentence += declined_sentence(diagnosis)
+        elif unstable is not None:
             share = diagnosis.group_inclusion(unstable)
             sentence += (f" {unstable.title[0].upper()}{unstable.title[1:]} ({unstable.name}) "
                          f"would explain part of this log (ΔBIC {unstable.delta_bic:.0f}), but "
@@ -181,6 +189,42 @@ def summarise(diagnosis: Diagnosis) -> str:
     if diagnosis.sensor_checks:
         sentence += (" Sensor check (never part of the model): "
                      + "; ".join(map(sensor_check_text, diagnosis.sensor_checks[:3])) + ".")
+    return sentence
+
+
+def declined_sentence(diagnosis: Diagnosis) -> str:
+    """A physics claim withheld (:class:`~surrogate.diagnosis.result.Declined`): what it would
+    gain, the look-alikes of other kinds that predict unseen runs about as well, and what would
+    tell them apart."""
+    declined = diagnosis.declined
+    claim = declined.claim
+
+    def held(value: float) -> str:
+        return f"{from_si(value, 'bar'):.2f} bar"
+
+    rivals = "; ".join(f"{rival.title} ({rival.name}) {held(rival.heldout_rms)}"
+                       for rival in declined.rivals)
+    sentence = (f" The log does not say which physics is missing: {claim.title} "
+                f"({claim.name}) would lower the RMS on held-out runs from "
+                f"{held(diagnosis.heldout_before)} to {held(claim.heldout_rms)}, but "
+                f"{'a term' if len(declined.rivals) == 1 else 'terms'} of another kind fitted "
+                f"in its place predict{'s' if len(declined.rivals) == 1 else ''} the runs left "
+                f"out about as well ({rivals}; a claim must do {100 * RULE.other_kind_gain:.0f}"
+                " % better than each), so nothing is added.")
+    separation = declined.separation
+    if separation is not None:
+        run = str(separation)
+        sentence += (f" {run[0].upper()}{run[1:]} would tell {claim.name} from "
+                     f"{separation.between[1]}: "
+                     f"their Δp differ there by {separation.gap()}."
+                     if separation.decides else
+                     f" No bench run {search_range()} tells {claim.name} from "
+                     f"{separation.between[1]} by the noise floor (at best by "
+                     f"{separation.gap()}, {separation.where()}).")
+    if any(rival.name == MAPS_ERROR or rival.category == "map correction"
+           for rival in declined.rivals):
+        sentence += (" CFD runs where the maps are least sure (`suggest-cfd`) would tell the "
+                     "maps' error from it.")
     return sentence
 
 

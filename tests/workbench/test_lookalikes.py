@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from surrogate.diagnosis.lookalikes import COLLINEAR, collinearity, grouped, own_directions
-from surrogate.diagnosis.result import Candidate
+from surrogate.diagnosis.lookalikes import (COLLINEAR, MAPS_ERROR, collinearity, declined, grouped,
+                                           maps_error_rival, own_directions)
+from surrogate.diagnosis.result import Candidate, Rival
+from surrogate.diagnosis.rule import RULE
 from surrogate.fitting.identifiability import ENTANGLED, entangled_pairs, pushed_to_bounds
 from surrogate.leastsquares import FitResult
 from surrogate.presets import cfda
@@ -45,6 +47,49 @@ def test_per_run_and_wide_terms_are_left_to_their_prediction_changes():
     wide = candidate("wide", RNG.normal(size=(SAMPLES, 3)))
     assert own_directions(per_run, own) is None and own_directions(wide, own) is None
     assert collinearity(own_directions(candidate("a", column), own), None) == 0.0
+
+
+#: the model's held-out RMS per scheme before any candidate [Pa]
+BEFORE = {"run": 2.0e5, "temperature": 2.0e5}
+
+
+def _rival(name, heldout, kind="leakage", category="physics", temperature=1.0e5):
+    return Rival(name, name, kind, category, {"run": heldout, "temperature": temperature})
+
+
+def test_a_physics_claim_is_withheld_when_a_look_alike_of_another_kind_predicts_as_well():
+    """The claim must predict the held-out runs better than each rival of another kind by the
+    rule's margin; rivals of its own kind are the diagnosis' own choice, not look-alikes."""
+    claim = candidate("detent", None, heldout_rms=1.00e5)
+    just_behind = 1.00e5 / (1.0 - RULE.other_kind_gain) * 0.999
+    clearly_behind = 1.00e5 / (1.0 - RULE.other_kind_gain) * 1.001
+    maps = maps_error_rival({"run": 0.99e5, "temperature": 1e5})
+    assert declined(claim, [_rival("leak", clearly_behind)], BEFORE, None, 1e4) is None
+    found = declined(claim, [_rival("leak", just_behind), _rival("force shape", 0.9e5, "force"),
+                             maps], BEFORE, None, 1e4)
+    assert [r.name for r in found.rivals] == [MAPS_ERROR, "leak"]  # closest first
+    assert found.claim is claim and found.separation is None  # no model to replay here
+    # a map correction of the same kind (the flow force's own factor) is a rival too
+    assert declined(claim, [_rival("flow-force factor", 1.0e5, "force", "map correction")],
+                    BEFORE, None, 1e4) is not None
+
+
+def test_a_rival_that_cannot_predict_a_left_out_condition_is_no_explanation():
+    """A rival must itself predict runs it was not fitted to, as a discovery must: one that
+    does no better on a whole temperature left out than the model explains nothing."""
+    claim = candidate("detent", None, heldout_rms=1.00e5)
+    assert declined(claim, [_rival("leak", 0.9e5, temperature=2.0e5)], BEFORE, None,
+                    1e4) is None
+    assert declined(claim, [_rival("leak", 0.9e5, temperature=1.9e5)], BEFORE, None,
+                    1e4) is not None
+
+
+def test_only_physics_claims_face_look_alikes_of_other_kinds():
+    close = [_rival("leak", 1.0e5), maps_error_rival({"run": 1.0e5, "temperature": 1.0e5})]
+    for category in ("sensor", "map correction"):
+        claim = Candidate("c", "c", "", "sensor", category, 1e5, -50.0, heldout_rms=1.0e5)
+        assert declined(claim, close, BEFORE, None, 1e4) is None
+    assert declined(None, close, BEFORE, None, 1e4) is None
 
 
 def _fit(names, correlation):
