@@ -209,9 +209,10 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     claim = next((c for c in results if c.significant), None)
     withheld = declined(claim, rivals, judge.heldout, log, floor, rule)
     if withheld is not None:
-        say(f"  {claim.name} withheld: " + ", ".join(
+        say(f"{claim.name} withheld: " + ", ".join(
             f"{r.name} {from_si(r.heldout_rms, 'bar'):.3f} bar" for r in withheld.rivals)
-            + f" on held-out runs against its {from_si(claim.heldout_rms, 'bar'):.3f} bar")
+            + f" on held-out runs against its {from_si(claim.heldout_rms, 'bar'):.3f} bar, and"
+              " as close on each condition left out")
         results = [replace(c, significant=False) for c in results]
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, tuple(results),
                           residual_correlations(base),

@@ -27,7 +27,7 @@ from scipy.optimize import lsq_linear
 
 from ..effects import BalanceState, Effect, FlowState, Parameter
 from ..effects.shapes import NU_REFERENCE, PRESSURE_DROP, SHAPE_FREE, ShapeFreeEffect
-from ..fitting.heldout import HEADLINE, Linearised, RunBlocks
+from ..fitting.heldout import HEADLINE, POOLED, Linearised, RunBlocks
 from ..fitting.logfit import probe_change
 from ..fitting.residuals import LogReplay
 from ..leastsquares import Minimizer
@@ -266,7 +266,7 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
         blocks = RunBlocks(Linearised(fitted, jacobian[:, active]), discrepancy, runs, prior,
                            (rough[:, active], rough @ theta + offset))
         heldout = blocks.heldout_rms(schemes)
-        if best is None or heldout["pooled"] < best.heldout["pooled"]:
+        if best is None or heldout[POOLED] < best.heldout[POOLED]:
             mine = np.arange(p, int(active.sum()))
             best = RoughnessChoice(weight, heldout, theta[p:] * shape.steps,
                                    float(np.sqrt(np.mean(fitted**2))),

@@ -61,6 +61,8 @@ SAME_PILOT_BAR = 5.0
 HEADLINE = "run"
 #: schemes that leave a whole operating condition out; a candidate must predict one of them better
 CONDITIONS = ("temperature", "pilot pressure")
+#: the RMS over every scheme's held-out runs together (runs, temperatures, pilot pressures)
+POOLED = "pooled"
 
 
 def predicts_unseen(after: dict[str, float], before: dict[str, float], gain: float) -> bool:
@@ -126,6 +128,15 @@ class Linearised:
         if roughness is not None:
             roughness = (held_at_bounds(roughness[0], parameters), roughness[1])
         return Linearised(self.residual, held_at_bounds(self.jacobian, parameters), roughness)
+
+    def moved(self, step: np.ndarray) -> "Linearised":
+        """The same linearisation about the point ``step`` away (in the columns' scaling): its
+        residual and its penalty's residual there. Held-out refits about a point that is no
+        optimum would otherwise credit the whole log's step to no group."""
+        roughness = self.roughness
+        if roughness is not None:
+            roughness = (roughness[0], roughness[0] @ step + roughness[1])
+        return Linearised(self.residual + self.jacobian @ step, self.jacobian, roughness)
 
     def beside(self, columns: np.ndarray, penalty: np.ndarray, values: np.ndarray
                ) -> "Linearised":
@@ -265,7 +276,7 @@ class RunBlocks:
         return result
 
     def heldout_rms(self, schemes: dict[str, dict[str, list[str]]]) -> dict[str, float]:
-        """RMS of the residual on held-out runs [Pa], per scheme and ``"pooled"`` over all:
+        """RMS of the residual on held-out runs [Pa], per scheme and :data:`POOLED` over all:
         refitted without each group, judged on it."""
         result, total, count = {}, 0.0, 0
         for scheme, groups in schemes.items():
@@ -276,7 +287,7 @@ class RunBlocks:
             if samples:
                 result[scheme] = float(np.sqrt(max(squares, 0.0) / samples))
                 total, count = total + squares, count + samples
-        result["pooled"] = float(np.sqrt(max(total, 0.0) / count)) if count else float("nan")
+        result[POOLED] = float(np.sqrt(max(total, 0.0) / count)) if count else float("nan")
         return result
 
 

@@ -204,13 +204,15 @@ def declined_sentence(diagnosis: Diagnosis) -> str:
 
     rivals = "; ".join(f"{rival.title} ({rival.name}) {held(rival.heldout_rms)}"
                        for rival in declined.rivals)
+    one = len(declined.rivals) == 1
     sentence = (f" The log does not say which physics is missing: {claim.title} "
                 f"({claim.name}) would lower the RMS on held-out runs from "
                 f"{held(diagnosis.heldout_before)} to {held(claim.heldout_rms)}, but "
-                f"{'a term' if len(declined.rivals) == 1 else 'terms'} of another kind fitted "
-                f"in its place predict{'s' if len(declined.rivals) == 1 else ''} the runs left "
-                f"out about as well ({rivals}; a claim must do {100 * RULE.other_kind_gain:.0f}"
-                " % better than each), so nothing is added.")
+                f"{'a term' if one else 'terms'} of another kind fitted in its place "
+                f"predict{'s' if one else ''} the runs left out about as well ({rivals}), and "
+                f"the temperatures and pilot pressures left out too: a claim must do "
+                f"{100 * RULE.other_kind_gain:.0f} % better than each on one of them. Nothing "
+                "is added.")
     separation = declined.separation
     if separation is not None:
         run = str(separation)

@@ -50,44 +50,55 @@ def test_per_run_and_wide_terms_are_left_to_their_prediction_changes():
 
 
 #: the model's held-out RMS per scheme before any candidate [Pa]
-BEFORE = {"run": 2.0e5, "temperature": 2.0e5}
+BEFORE = {"run": 2.0e5, "temperature": 2.0e5, "pilot pressure": 2.0e5}
 
 
-def _rival(name, heldout, kind="leakage", category="physics", temperature=1.0e5):
-    return Rival(name, name, kind, category, {"run": heldout, "temperature": temperature})
+def _scores(run, temperature=1.0e5, pilot=1.0e5):
+    return {"run": run, "temperature": temperature, "pilot pressure": pilot}
+
+
+def _rival(name, run, kind="leakage", category="physics", temperature=1.0e5):
+    return Rival(name, name, kind, category, _scores(run, temperature))
 
 
 def test_a_physics_claim_is_withheld_when_a_look_alike_of_another_kind_predicts_as_well():
     """The claim must predict the held-out runs better than each rival of another kind by the
-    rule's margin; rivals of its own kind are the diagnosis' own choice, not look-alikes."""
-    claim = candidate("detent", None, heldout_rms=1.00e5)
+    rule's margin, on the runs left out in turn or a condition left out; rivals of its own kind
+    are the diagnosis' own choice, not look-alikes."""
+    claim = candidate("detent", None, heldout_rms=1.00e5, heldout=_scores(1.00e5))
     just_behind = 1.00e5 / (1.0 - RULE.other_kind_gain) * 0.999
     clearly_behind = 1.00e5 / (1.0 - RULE.other_kind_gain) * 1.001
-    maps = maps_error_rival({"run": 0.99e5, "temperature": 1e5})
+    maps = maps_error_rival(_scores(0.99e5))
     assert declined(claim, [_rival("leak", clearly_behind)], BEFORE, None, 1e4) is None
     found = declined(claim, [_rival("leak", just_behind), _rival("force shape", 0.9e5, "force"),
                              maps], BEFORE, None, 1e4)
     assert [r.name for r in found.rivals] == [MAPS_ERROR, "leak"]  # closest first
     assert found.claim is claim and found.separation is None  # no model to replay here
-    # a map correction of the same kind (the flow force's own factor) is a rival too
-    assert declined(claim, [_rival("flow-force factor", 1.0e5, "force", "map correction")],
-                    BEFORE, None, 1e4) is not None
+    # a correction of the maps of free shape is no rival: the maps' error within σ stands for it
+    assert declined(claim, [_rival("flow-force factor", 0.5e5, "force", "map correction")],
+                    BEFORE, None, 1e4) is None
+    # a rival as good on each run left out but clearly worse on the pilot pressures left out
+    # is told apart by them
+    worse = Rival("leak", "leak", "leakage", "physics", _scores(0.9e5, pilot=1.2e5))
+    assert declined(claim, [worse], BEFORE, None, 1e4) is None
 
 
 def test_a_rival_that_cannot_predict_a_left_out_condition_is_no_explanation():
     """A rival must itself predict runs it was not fitted to, as a discovery must: one that
-    does no better on a whole temperature left out than the model explains nothing."""
-    claim = candidate("detent", None, heldout_rms=1.00e5)
-    assert declined(claim, [_rival("leak", 0.9e5, temperature=2.0e5)], BEFORE, None,
-                    1e4) is None
-    assert declined(claim, [_rival("leak", 0.9e5, temperature=1.9e5)], BEFORE, None,
-                    1e4) is not None
+    does no better on a whole temperature or pilot pressure left out than the model explains
+    nothing, however close it comes to the claim."""
+    claim = candidate("detent", None, heldout_rms=1.0e5, heldout=_scores(1.0e5, 1.9e5, 1.95e5))
+    blind = Rival("leak", "leak", "leakage", "physics", _scores(0.98e5, 1.95e5, 1.95e5))
+    assert declined(claim, [blind], BEFORE, None, 1e4) is None
+    seeing = Rival("leak", "leak", "leakage", "physics", _scores(0.98e5, 1.9e5, 1.95e5))
+    assert declined(claim, [seeing], BEFORE, None, 1e4) is not None
 
 
 def test_only_physics_claims_face_look_alikes_of_other_kinds():
-    close = [_rival("leak", 1.0e5), maps_error_rival({"run": 1.0e5, "temperature": 1.0e5})]
+    close = [_rival("leak", 1.0e5), maps_error_rival(_scores(1.0e5))]
     for category in ("sensor", "map correction"):
-        claim = Candidate("c", "c", "", "sensor", category, 1e5, -50.0, heldout_rms=1.0e5)
+        claim = Candidate("c", "c", "", "sensor", category, 1e5, -50.0, heldout_rms=1.0e5,
+                          heldout=_scores(1.0e5))
         assert declined(claim, close, BEFORE, None, 1e4) is None
     assert declined(None, close, BEFORE, None, 1e4) is None
 
