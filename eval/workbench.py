@@ -133,6 +133,7 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
         ok = outcome.clean
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
                                 "seed": case.seed, "added": added, "chosen_in": chosen_in,
+                                "shapes_beside_library": outcome.shapes_beside_library,
                                 "final_summary": summarise(workflow.final_diagnosis),
                                 "clean": ok, "seconds": round(outcome.seconds, 1)})
         print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
@@ -141,11 +142,16 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
     record["clean_rate"] = (float(np.mean([c["clean"] for c in record["cases"]]))
                             if record["cases"] else None)
     record["false_additions"] = sum(len(c["invented"]) for c in record["controls"])
+    # shape-free terms added after the hidden library effect already explained the log
+    record["shapes_beside_library"] = sum(len(c["shapes_beside_library"])
+                                          for c in record["cases"])
     record["by_group"] = by_group(record["cases"])
     rate = "" if record["clean_rate"] is None else f"{record['clean_rate']:.0%} of "
     print(f"under map mismatch ({kind} maps): {rate}{len(record['cases'])} cases found "
           f"cleanly; {record['false_additions']} physics or sensor effects added over "
-          f"{len(record['controls'])} nothing-hidden logs")
+          f"{len(record['controls'])} nothing-hidden logs; "
+          f"{record['shapes_beside_library']} shape-free term(s) added beside a library effect "
+          "that already explained its log")
     for group, (clean, total) in record["by_group"].items():
         print(f"  {group}: {clean} of {total} clean")
     return record

@@ -359,6 +359,20 @@ class StressOutcome:
         """The physics or sensor effects added that the hidden one does not account for."""
         return unexplained_additions(self.workflow, self.case.hidden)
 
+    @property
+    def shapes_beside_library(self) -> list[str]:
+        """The shape-free terms added after the step that added the hidden library effect (or
+        a look-alike the log cannot tell from it): the log was already explained by a named
+        term, so each is a patch the library term did not need (the goal is none)."""
+        steps = self.workflow.steps
+        found = next((number for number, step in enumerate(steps)
+                      if step.diagnosis is not None and step.diagnosis.best is not None
+                      and self.case.hidden in step.diagnosis.best.group
+                      and step.diagnosis.best.name in step.added), None)
+        if found is None:
+            return []
+        return [name for step in steps[found + 1:] if step.shape_free for name in step.added]
+
 
 def run_stress_case(case: StressCase, sequence: BenchLog, maps_under_test: MapsSpec, *,
                     valve_maps: MapsSpec | None = None, mismatch: MapMismatch | None = None,
