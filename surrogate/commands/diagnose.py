@@ -66,13 +66,15 @@ def run(args) -> int:
                          candidates=args.candidates, progress=progress)
     progress(f"done in {progress.elapsed:.1f} s")
     document = diagnosis_document(diagnosis)
-    best = diagnosis.best
+    # a shape without a name is handed over, found or withheld for its look-alikes (to test
+    # by hand on a log that tells them apart)
+    shape = diagnosis.best or (diagnosis.declined.claim if diagnosis.declined else None)
     if args.out:
         with atomic_directory(args.out) as staging:
-            if best is not None and best.shape_free:  # a shape without a name: hand it over
+            if shape is not None and shape.shape_free:
                 document["effects_files"] = hand_over(
-                    [best.effect], staging, origin=log.source,
-                    notes={best.name: shape_words(best) + " " + naming_words(best)})
+                    [shape.effect], staging, origin=log.source,
+                    notes={shape.name: shape_words(shape) + " " + naming_words(shape)})
             (staging / "diagnosis.json").write_text(json.dumps(document, indent=2))
             diagnosis_table(diagnosis).to_csv(staging / "candidates.csv", index=False)
             (staging / "diagnosis.png").write_bytes(figure_png(diagnosis_figure(diagnosis)))

@@ -230,6 +230,27 @@ def declined_sentence(diagnosis: Diagnosis) -> str:
     return sentence
 
 
+def withheld_advice(declined) -> str:
+    """What to do about a claim withheld for its look-alikes of other kinds: the run that tells
+    them apart, then how to test the claim by hand."""
+    claim, rivals = declined.claim, declined.rivals
+    names = ", ".join(rival.name for rival in rivals)
+    advice = (f"The log fits {claim.name} and {names} about equally well on runs they were not "
+              "fitted to, so none was added. ")
+    separation = declined.separation
+    if separation is not None and separation.decides:
+        advice += (f"Measure {separation}: the two differ there by {separation.gap()}. ")
+    if any(rival.name == MAPS_ERROR for rival in rivals):
+        advice += ("The CFD runs suggest-cfd ranks would shrink the maps' error that stands "
+                   "in for it. ")
+    where = ("a log with that run" if separation is not None and separation.decides
+             else "a new log")
+    if claim.shape_free:
+        return advice + ("To test the shape by hand, diagnose --out DIR writes it as an effects "
+                         f"file; fit it with --effects-file FILE --add NAME on {where}.")
+    return advice + f"To test {claim.name} by hand, fit it with fit --add {claim.name} on {where}."
+
+
 def absorbed_sentence(diagnosis: Diagnosis) -> str:
     """Which candidates the model's own parameters already mimic on this log, by parameter."""
     by_parameter: dict[str, list[str]] = {}
@@ -362,6 +383,8 @@ def next_steps(workflow) -> list[str]:
     if workflow.dropped:
         steps.append(f"{workflow.dropped}: the log does not confirm it on runs it was not "
                      "fitted to. Runs at other temperatures or pilot pressures would.")
+    if diagnosis.declined is not None:
+        steps.append(withheld_advice(diagnosis.declined))
     for number, step in enumerate(workflow.steps, start=1):
         best = None if step.diagnosis is None else step.diagnosis.best
         if step.diagnosis is not None and best is not None and len(best.group) > 1:

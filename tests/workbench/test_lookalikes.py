@@ -124,3 +124,21 @@ def test_a_parameter_a_step_drives_to_its_bound_is_named_with_the_term_that_did_
     assert pushed.before == 6.5 and pushed.after == 0.0 and pushed.unit == "N"
     # one that already sat on its bound before is no news
     assert pushed_to_bounds(after, after.copy(), ["x"]) == []
+
+
+def test_the_advice_on_a_withheld_claim_names_the_run_the_cfd_and_how_to_test_it():
+    from surrogate.diagnosis.result import Declined
+    from surrogate.planning.bench_runs import Separation
+    from surrogate.reporting.prose import withheld_advice
+
+    claim = candidate("progressive_spring", None, heldout_rms=1.0e5, heldout=_scores(1.0e5))
+    run = Separation(283.15, 65e5, 10e5, 1.2e5, 0.8e5, ("progressive_spring", "shape_leakage"))
+    advice = withheld_advice(Declined(claim, (_rival("shape_leakage", 1.0e5),
+                                              maps_error_rival(_scores(1.0e5))), run))
+    assert "progressive_spring and shape_leakage, maps_error" in advice
+    assert "Measure a bench run at 10 °C and p_Pe = 65 bar" in advice and "1.5×" in advice
+    assert "suggest-cfd" in advice and "fit --add progressive_spring on a log with that run" \
+        in advice
+    undecided = Separation(283.15, 65e5, 0.0, 0.5e5, 0.8e5, run.between)
+    advice = withheld_advice(Declined(claim, (_rival("shape_leakage", 1.0e5),), undecided))
+    assert "Measure" not in advice and "suggest-cfd" not in advice and "a new log" in advice
