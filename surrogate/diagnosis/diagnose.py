@@ -45,8 +45,8 @@ from ..model import ValveModel
 from ..parallel import map_threads
 from ..units import from_si
 from .judge import Judge
-from .lookalikes import (absorbed, declined, grouped, look_alike_separation, maps_error_rival,
-                         rival_of)
+from .lookalikes import (absorbed, alike_shapes, declined, grouped, joined,
+                         look_alike_separation, maps_error_rival, rival_of)
 from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
 from .result import Candidate, Diagnosis
 from .rule import RULE, SignificanceRule, gains_in_own_view
@@ -202,7 +202,9 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
                                and rule.replaces(challenger, finding)):
             results = together
         else:  # reported, behind the library's finding, never added
-            results += [replace(c, significant=False) for c in together if c.shape_free]
+            behind = [replace(c, significant=False) for c in together if c.shape_free]
+            results = joined(results + behind, finding.name, alike_shapes(
+                finding, behind, problem.rms_before, floor, judge.heldout, rule))
         rivals += [rival_of(c) for c in results if c.shape_free]
     # a physics claim must beat its look-alikes of other kinds on held-out runs, or the step
     # adds nothing and the look-alikes are named

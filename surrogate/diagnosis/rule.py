@@ -120,6 +120,12 @@ class SignificanceRule:
         return (shape.delta_bic + self.handicap(shape) - finding.delta_bic < self.bic
                 and shape.heldout_rms < finding.heldout_rms)
 
+    def ties(self, shape, finding) -> bool:
+        """Whether shape-free term ``shape`` and the library ``finding`` fit the log equally
+        well: their ΔBICs, the shape's with its handicap, within the threshold of each other.
+        Neither is then the better explanation (:func:`.lookalikes.alike_shapes`)."""
+        return abs(shape.delta_bic + self.handicap(shape) - finding.delta_bic) < -self.bic
+
     def beats(self, claim, rival) -> bool:
         """Whether ``claim`` predicts held-out runs clearly better than ``rival``, a look-alike
         of another kind: by :attr:`other_kind_gain` of the rival's RMS, on the runs left out in

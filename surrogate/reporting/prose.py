@@ -270,7 +270,11 @@ def absorbed_sentence(diagnosis: Diagnosis) -> str:
 
 
 def explanation(candidate: Candidate) -> str:
-    """One explanation of a finding: what it is, its category and its fitted size."""
+    """One explanation of a finding: what it is, its category and its fitted size (a shape's
+    effective number of parameters)."""
+    if candidate.shape_free:
+        return (f"{candidate.title} ({candidate.name}, {candidate.category}, "
+                f"{candidate.extra:.1f} effective parameters)")
     params = ", ".join(str(p) for p in candidate.params if p.vary)
     return f"{candidate.title} ({candidate.name}, {candidate.category}: {params})"
 
@@ -280,10 +284,13 @@ def look_alike_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
     preferred, and what would decide."""
     members = diagnosis.explanations
     categories = sorted({c.category for c in members})
+    why = ("they fit it about equally well (ΔBIC within "
+           f"{-RULE.bic:.0f} of each other, a term of free shape counted with its handicap)"
+           if any(c.shape_free for c in members) else
+           "they are the same term of the force balance (their effects are collinear)")
     sentence = (f"The log holds one finding with {len(members)} explanations it cannot tell "
-                f"apart: " + ", or ".join(map(explanation, members)) + ". On this log they "
-                "are the same term of the force balance (their effects are collinear), so "
-                "neither is preferred: either lowers the residual RMS from "
+                f"apart: " + ", or ".join(map(explanation, members)) + f". On this log {why}, "
+                "so neither is preferred: either lowers the residual RMS from "
                 f"{from_si(diagnosis.rms_before, 'bar'):.2f} to about "
                 f"{from_si(best.rms_after, 'bar'):.2f} bar and the RMS on held-out runs from "
                 f"{from_si(diagnosis.heldout_before, 'bar'):.2f} to about "

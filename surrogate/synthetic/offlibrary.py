@@ -369,14 +369,32 @@ def off_library_outcome(workflow, hidden: str | None, twin=None) -> OffLibraryOu
             continue
         for name in step.added:
             added.append(name)
-            shape = term_shape(name, model)
-            if target is not None and shape == target:
+            # the term, or a look-alike the log cannot tell from it, named beside it
+            shapes = {term_shape(name, model)} | explanation_shapes(step.diagnosis, name)
+            if target is not None and target in shapes:
                 matching.append(name)
             elif _category(name, model) != "map correction":
                 invented.append(name)
     twin_ratio = float("nan") if twin is None else float(twin.final.rms / twin.noise_floor)
     return OffLibraryOutcome(hidden, tuple(added), tuple(matching), tuple(invented),
                              float(workflow.final.rms / workflow.noise_floor), twin_ratio)
+
+
+def explanation_shapes(diagnosis, name: str) -> set[tuple[str, str]]:
+    """The (kind, variable) of the physics among the explanations of ``diagnosis``' finding,
+    when ``name`` is that finding (empty otherwise): a library term and the shape of free shape
+    the log cannot tell from it are one finding (:func:`surrogate.diagnosis.lookalikes.
+    alike_shapes`)."""
+    best = diagnosis.best
+    if best is None or best.name != name:
+        return set()
+    found = set()
+    for candidate in diagnosis.explanations:
+        if candidate.name in LIBRARY_SHAPES:
+            found.add(LIBRARY_SHAPES[candidate.name])
+        elif candidate.shape_free and candidate.category == "physics":
+            found.add((candidate.kind, candidate.curve.variable))
+    return found
 
 
 def _category(name: str, model) -> str:

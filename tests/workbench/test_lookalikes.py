@@ -142,3 +142,32 @@ def test_the_advice_on_a_withheld_claim_names_the_run_the_cfd_and_how_to_test_it
     undecided = Separation(283.15, 65e5, 0.0, 0.5e5, 0.8e5, run.between)
     advice = withheld_advice(Declined(claim, (_rival("shape_leakage", 1.0e5),), undecided))
     assert "Measure" not in advice and "suggest-cfd" not in advice and "a new log" in advice
+
+
+def test_a_shape_of_the_findings_kind_that_fits_as_well_is_named_beside_it():
+    """A library finding and a shape-free term of its kind that tie on ΔBIC (the shape with its
+    handicap) and pass the rule on their own are one finding with two explanations; a shape
+    clearly behind, of another kind, or failing the rule is not."""
+    from surrogate.diagnosis.lookalikes import alike_shapes, joined
+    from surrogate.diagnosis.result import ShapeCurve
+
+    curve = ShapeCurve("p_L", "the load pressure", "bar", "N", np.zeros(2), np.zeros(2),
+                       np.zeros(2), 0.01)
+    scores = _scores(1.0e5)
+
+    def term(name, delta_bic, kind="friction", shape=True, heldout=scores):
+        return Candidate(name, name, "", kind, "physics", 1.0e5, delta_bic, heldout=heldout,
+                         heldout_rms=heldout["run"], curve=curve if shape else None,
+                         own_view=True)
+
+    finding = term("friction_seal_pressure", -430.0, shape=False)
+    tied = term("shape_friction_of_p_L", -433.0)  # -423 with its handicap: within 10
+    behind = term("shape_friction_of_q", -415.0)  # -405: clearly behind
+    other_kind = term("shape_leakage", -433.0, kind="leakage")
+    blind = term("shape_friction_of_nu", -433.0, heldout=_scores(1.99e5, 1.99e5, 1.99e5))
+    alike = alike_shapes(finding, [tied, behind, other_kind, blind], 1.5e5, 1.0e5, BEFORE)
+    assert alike == ["shape_friction_of_p_L"]
+    groups = {c.name: c.group for c in joined([finding, tied, behind], finding.name, alike)}
+    assert groups == {"friction_seal_pressure": ("shape_friction_of_p_L",),
+                      "shape_friction_of_p_L": ("friction_seal_pressure",),
+                      "shape_friction_of_q": ()}
