@@ -31,7 +31,7 @@ lower the held-out RMS by at least 90 % of what the shape-free term did (*kept*,
 
 Writes results/offlibrary/<maps>.json and prints one line per case. Run:
 ``python eval/offlibrary.py [--maps grid gp] [--cases 20] [--leaks 8] [--controls 10]
-[--every 8] [--no-twins]``
+[--every 8] [--no-twins] [--only EFFECT ...]``
 (about 10 minutes per map kind for 30 logs on grid maps on 2 cores; GP maps take longer).
 """
 
@@ -90,10 +90,12 @@ def handed_over(workflow) -> dict[str, float]:
 
 
 def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool = True,
-        leaks: int = 0) -> dict:
+        leaks: int = 0, only: list[str] | None = None) -> dict:
     sequence = noise_free_sequence(load_bench_log(SHIPPED_BENCH_LOG), every=every)
     records = []
     for case in off_library_suite(cases, controls, seed, leaks):
+        if only and (case.hidden or "nothing") not in only:
+            continue
         began = time.perf_counter()
         try:
             log_case = hidden_effect_case(case.hidden, case.values, sequence=sequence,
@@ -182,13 +184,15 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=4242, help="the suite's seed")
     parser.add_argument("--no-twins", action="store_true",
                         help="skip the nothing-hidden twin of each case (half the time)")
+    parser.add_argument("--only", nargs="+", metavar="EFFECT",
+                        help="only the cases hiding these effects ('nothing': the controls)")
     parser.add_argument("--out", default="results/offlibrary")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for kind in args.maps:
         summary = run(kind, args.cases, args.controls, args.every, args.seed,
-                      twins=not args.no_twins, leaks=args.leaks)
+                      twins=not args.no_twins, leaks=args.leaks, only=args.only)
         (out / f"{kind}.json").write_text(json.dumps(summary, indent=2) + "\n")
 
 
