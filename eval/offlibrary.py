@@ -89,6 +89,14 @@ def handed_over(workflow) -> dict[str, float]:
     return kept
 
 
+def withheld(workflow) -> list[str]:
+    """The physics claims the workflow's diagnoses withheld for their look-alikes of other
+    kinds, as "claim (look-alike, ...)"."""
+    diagnoses = [step.diagnosis for step in workflow.steps if step.diagnosis is not None]
+    return [f"{d.declined.claim.name} ({', '.join(r.name for r in d.declined.rivals)})"
+            for d in [*diagnoses, workflow.final_diagnosis] if d.declined is not None]
+
+
 def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool = True,
         leaks: int = 0, only: list[str] | None = None) -> dict:
     sequence = noise_free_sequence(load_bench_log(SHIPPED_BENCH_LOG), every=every)
@@ -118,6 +126,8 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
         seconds = time.perf_counter() - began
         kept = handed_over(workflow)
         records.append({**outcome.to_json(), "seed": case.seed, "twin_invented": twin_invented,
+                        "withheld": withheld(workflow),
+                        "twin_withheld": [] if twin is None else withheld(twin),
                         "values": case.values, "seconds": round(seconds, 1),
                         "handed_over_kept": {k: round(v, 3) for k, v in kept.items()},
                         "final_summary": summarise(workflow.final_diagnosis)})
@@ -129,7 +139,10 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
               f"floor (twin {outcome.twin_over_floor:4.2f}x)  {verdict}  ({seconds:.0f} s)"
               + "".join(f"; file keeps {share:.0%} of {name}'s held-out gain"
                         for name, share in kept.items())
-              + (f"; TWIN got {', '.join(twin_invented)}" if twin_invented else ""), flush=True)
+              + (f"; TWIN got {', '.join(twin_invented)}" if twin_invented else "")
+              + "".join(f"; withheld {claim}" for claim in records[-1]["withheld"])
+              + "".join(f"; twin withheld {claim}" for claim in records[-1]["twin_withheld"]),
+              flush=True)
     skipped = [r for r in records if "skipped" in r]
     records = [r for r in records if "skipped" not in r]
     hidden = [r for r in records if r["hidden"] is not None]

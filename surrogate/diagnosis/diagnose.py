@@ -205,11 +205,13 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
             behind = [replace(c, significant=False) for c in together if c.shape_free]
             results = joined(results + behind, finding.name, alike_shapes(
                 finding, behind, problem.rms_before, floor, judge.heldout, rule))
-        rivals += [rival_of(c) for c in results if c.shape_free]
+        rivals += [rival_of(c, judge.maps_error_heldout(c.linearised))
+                   for c in results if c.shape_free]
     # a physics claim must beat its look-alikes of other kinds on held-out runs, or the step
     # adds nothing and the look-alikes are named
     claim = next((c for c in results if c.significant), None)
-    withheld = declined(claim, rivals, judge.heldout, log, floor, rule)
+    withheld = declined(claim, rivals, judge.heldout, log, floor, rule, beside_maps=(
+        None if claim is None else judge.maps_error_heldout(claim.linearised)))
     if withheld is not None:
         say(f"{claim.name} withheld: " + ", ".join(
             f"{r.name} {from_si(r.heldout_rms, 'bar'):.3f} bar" for r in withheld.rivals)

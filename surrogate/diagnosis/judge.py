@@ -116,16 +116,16 @@ class Judge:
                 counts[chosen[int(np.argmin(ranks))].name] += 1
         return {c.name: counts.get(c.name, 0) / len(weights) for c in candidates}
 
-    def maps_error_heldout(self) -> dict[str, float]:
-        """RMS on held-out runs [Pa] per scheme of the model with the maps' own error fitted in
-        a candidate's place: the discrepancy's coefficients refitted with the model's
-        parameters under their prior (s²·‖a‖², as in the judgement), so that it stays within
-        the maps' σ. Empty without a discrepancy."""
+    def maps_error_heldout(self, fit: Linearised | None = None) -> dict[str, float]:
+        """RMS on held-out runs [Pa] per scheme of the model (or of a candidate's refit: its
+        linearisation ``fit``) with the maps' own error fitted beside it: the discrepancy's
+        coefficients refitted with the parameters under their prior (s²·‖a‖², as in the
+        judgement), so that it stays within the maps' σ. Empty without a discrepancy."""
         if self.discrepancy is None:
             return {}
         size = self.discrepancy.size
-        fit = self.fit.beside(self.discrepancy.columns, np.sqrt(self.penalty) * np.eye(size),
-                              np.zeros(size))
+        fit = (self.fit if fit is None else fit).beside(
+            self.discrepancy.columns, np.sqrt(self.penalty) * np.eye(size), np.zeros(size))
         # about the whole log's optimum, as a candidate's refit is
         fit = fit.moved(RunBlocks(fit, None, self.runs, 0.0).step(self.ones))
         return RunBlocks(fit, None, self.runs, 0.0).heldout_rms(self.schemes)

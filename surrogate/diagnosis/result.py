@@ -117,6 +117,8 @@ class Rival:
     kind: str
     category: str
     heldout: dict  # [Pa] on held-out runs, per scheme (:func:`~surrogate.fitting.heldout.run_groups`)
+    #: [Pa] the same with the maps' error within their σ fitted beside it
+    beside_maps: dict = field(default_factory=dict)
     model: ValveModel | None = field(default=None, repr=False)  # the model with it fitted
 
     @property
@@ -138,10 +140,14 @@ class Declined:
     claim: Candidate
     rivals: tuple[Rival, ...]
     separation: Separation | None = None
+    #: [Pa] per scheme: the claim's held-out RMS with the maps' error fitted beside it
+    beside_maps: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"claim": self.claim.name, "claim_heldout_rms_bar":
                 rounded_bar(self.claim.heldout_rms),
+                "claim_with_maps_error_heldout_rms_bar": rounded_bar(
+                    self.beside_maps.get(HEADLINE, float("nan"))),
                 "look_alikes": [rival.to_json() for rival in self.rivals],
                 "separating_run": (None if self.separation is None
                                    else self.separation.to_json())}

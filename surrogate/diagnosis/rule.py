@@ -21,12 +21,13 @@ A candidate is **significant** when all of these hold (:meth:`SignificanceRule.p
 * it, or the group it cannot be told from, is the one added in the majority of bootstrap
   resamples over runs (:data:`INCLUSION_MIN`);
 * a claim of valve physics predicts held-out runs better by :data:`OTHER_KIND_GAIN` than every
-  look-alike of another kind fitted in its place, each run left out in turn, or each
-  temperature, or each pilot pressure: each shape-free term of another physical kind and the
-  maps' own error within their σ (:meth:`SignificanceRule.beats`; :mod:`.lookalikes`). A term
-  of free shape bends to fit whatever the log holds; if one of another kind, or the maps'
-  error, predicts every kind of unseen run about as well, the log does not say which physics
-  it holds.
+  look-alike of another kind, each run left out in turn, or each temperature, or each pilot
+  pressure (:meth:`SignificanceRule.beats`; :mod:`.lookalikes`): each shape-free term of
+  another physical kind fitted in its place, and the maps' own error within their σ fitted
+  beside it (the claim with the maps' error against the maps' error alone). A term of free
+  shape bends to fit whatever the log holds; if one of another kind predicts every kind of
+  unseen run about as well, or the claim adds nothing the maps' error does not, the log does
+  not say which physics it holds.
 
 Candidates are ranked by ΔBIC, a shape-free term (:mod:`surrogate.effects.shapes`) with a
 handicap of |:data:`BIC_THRESHOLD`|: a library term that fits about as well comes first, having
@@ -126,21 +127,15 @@ class SignificanceRule:
         Neither is then the better explanation (:func:`.lookalikes.alike_shapes`)."""
         return abs(shape.delta_bic + self.handicap(shape) - finding.delta_bic) < -self.bic
 
-    def beats(self, claim, rival) -> bool:
-        """Whether ``claim`` predicts held-out runs clearly better than ``rival``, a look-alike
-        of another kind: by :attr:`other_kind_gain` of the rival's RMS, on the runs left out in
-        turn or on one of the conditions left out (a temperature, a pilot pressure). A rival
-        within the margin on every one leaves the log no kind of unseen run that tells them
-        apart. One is enough, as with :meth:`predicts_unseen`: leaving out the only pilot
-        pressure that reaches the largest openings leaves a force acting there undetermined,
-        true or not. A progressive spring hidden under the maps' error predicted the runs
-        left out 1.9 % better than the maps' error within its σ, the temperatures 3.9 % and
-        the pilot pressures 33 % better; one invented on a log with nothing hidden 1.8 % and
-        0.5 % better, and the pilot pressures worse (the stress suite's first case on grid
-        maps; the twin of eval/offlibrary.py case 4244 on GP maps)."""
-        return any(claim.heldout[scheme] < (1.0 - self.other_kind_gain) * rival.heldout[scheme]
-                   for scheme in (HEADLINE, *CONDITIONS)
-                   if scheme in claim.heldout and scheme in rival.heldout)
+    def beats(self, mine: dict, theirs: dict) -> bool:
+        """Whether held-out RMS ``mine`` [Pa per scheme] is clearly below a look-alike's
+        ``theirs``: by :attr:`other_kind_gain` of it, on the runs left out in turn or on one
+        of the conditions left out (a temperature, a pilot pressure). A look-alike within the
+        margin on every one leaves the log no kind of unseen run that tells them apart. One is
+        enough, as with :meth:`predicts_unseen`: leaving out the only pilot pressure that
+        reaches the largest openings leaves a force acting there undetermined, true or not."""
+        return any(mine[scheme] < (1.0 - self.other_kind_gain) * theirs[scheme]
+                   for scheme in (HEADLINE, *CONDITIONS) if scheme in mine and scheme in theirs)
 
     def stable(self, group_share: float) -> bool:
         """Whether a candidate whose group is chosen in ``group_share`` of the resamples over

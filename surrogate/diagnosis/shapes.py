@@ -227,6 +227,7 @@ class RoughnessChoice:
     objective: float = float("nan")  # its sum of squares with the maps' discrepancy [Pa²]
     extra: float = float("nan")  # its effective number of parameters
     own_step: np.ndarray | None = None  # the model's own parameters' move, in column steps
+    fit: Linearised | None = None  # the linear fit's linearisation at its optimum
 
 
 def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
@@ -271,7 +272,9 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
             best = RoughnessChoice(weight, heldout, theta[p:] * shape.steps,
                                    float(np.sqrt(np.mean(fitted**2))),
                                    blocks.objective(np.ones(len(blocks.labels))),
-                                   blocks.effective_parameters(mine), theta[:p])
+                                   blocks.effective_parameters(mine), theta[:p],
+                                   Linearised(fitted, jacobian[:, active],
+                                              (rough[:, active], rough @ theta + offset)))
     return best
 
 
@@ -332,7 +335,8 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                                           and choice.heldout[HEADLINE] < heldout_to_beat)
 
     every = list(map_threads(linear, classes, workers=workers))
-    rivals = [linear_rival(model, own_columns, cls, columns, choice)
+    rivals = [linear_rival(model, own_columns, cls, columns, choice,
+                           judge.maps_error_heldout(choice.fit))
               for cls, columns, choice in every]
     fits = front_runners([fit for fit in every if promising(fit)], judge, problem.n_eff)
     say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
@@ -347,10 +351,11 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
 
 
 def linear_rival(model: ValveModel, own_columns, cls, columns: ShapeColumns,
-                 choice: RoughnessChoice) -> Rival:
-    """A shape's linear fit as a rival: its held-out RMS, and the model with the shape's
-    fitted coefficients and the model's own parameters moved as the fit moved them (for the
-    bench run that would tell it from a claim)."""
+                 choice: RoughnessChoice, beside_maps: dict) -> Rival:
+    """A shape's linear fit as a rival: its held-out RMS (and ``beside_maps``, with the maps'
+    error fitted beside it), and the model with the shape's fitted coefficients and the
+    model's own parameters moved as the fit moved them (for the bench run that would tell it
+    from a claim)."""
     rival = model.copy()
     parameters = rival.parameters()
     for column, step in zip(own_columns, choice.own_step):
@@ -362,7 +367,8 @@ def linear_rival(model: ValveModel, own_columns, cls, columns: ShapeColumns,
         bounds = effect.params[name]
         bounds.value = float(np.clip(value, bounds.min, bounds.max))
     rival.effects.append(effect)
-    return Rival(cls.name, cls.title, cls.kind, cls.category, choice.heldout, rival)
+    return Rival(cls.name, cls.title, cls.kind, cls.category, choice.heldout, beside_maps,
+                 rival)
 
 
 #: shape-free terms refitted for real at most (with any whose linear fit comes within

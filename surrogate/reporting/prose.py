@@ -12,6 +12,7 @@ from ..diagnosis.lookalikes import MAPS_ERROR
 from ..diagnosis.naming import WITHIN, library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..diagnosis.rule import RULE
+from ..fitting.heldout import HEADLINE
 from ..planning.bench_runs import Separation, search_range
 from ..units import from_si
 
@@ -202,17 +203,28 @@ def declined_sentence(diagnosis: Diagnosis) -> str:
     def held(value: float) -> str:
         return f"{from_si(value, 'bar'):.2f} bar"
 
-    rivals = "; ".join(f"{rival.title} ({rival.name}) {held(rival.heldout_rms)}"
-                       for rival in declined.rivals)
-    one = len(declined.rivals) == 1
+    others = [rival for rival in declined.rivals if rival.name != MAPS_ERROR]
+    maps = next((rival for rival in declined.rivals if rival.name == MAPS_ERROR), None)
+    reasons = []
+    if others:
+        one = len(others) == 1
+        reasons.append(f"{'a term' if one else 'terms'} of another kind fitted in its place "
+                       f"predict{'s' if one else ''} the runs left out about as well ("
+                       + "; ".join(f"{rival.title} ({rival.name}) {held(rival.heldout_rms)}"
+                                   for rival in others)
+                       + "), and the temperatures and pilot pressures left out too")
+    if maps is not None:
+        with_maps = declined.beside_maps.get(HEADLINE, claim.heldout_rms)
+        reasons.append("the CFD maps' own error, within their uncertainty, explains as much "
+                       f"({MAPS_ERROR}): fitted beside it, the claim predicts the runs left out "
+                       f"at {held(with_maps)} against {held(maps.heldout_rms)} with the maps' "
+                       "error alone, and the conditions left out no better")
     sentence = (f" The log does not say which physics is missing: {claim.title} "
                 f"({claim.name}) would lower the RMS on held-out runs from "
                 f"{held(diagnosis.heldout_before)} to {held(claim.heldout_rms)}, but "
-                f"{'a term' if one else 'terms'} of another kind fitted in its place "
-                f"predict{'s' if one else ''} the runs left out about as well ({rivals}), and "
-                f"the temperatures and pilot pressures left out too: a claim must do "
-                f"{100 * RULE.other_kind_gain:.0f} % better than each on one of them. Nothing "
-                "is added.")
+                + "; and ".join(reasons)
+                + f". A claim must do {100 * RULE.other_kind_gain:.0f} % better than each, on "
+                  "the runs or on a condition left out; nothing is added.")
     separation = declined.separation
     if separation is not None:
         run = str(separation)

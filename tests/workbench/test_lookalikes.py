@@ -171,3 +171,19 @@ def test_a_shape_of_the_findings_kind_that_fits_as_well_is_named_beside_it():
     assert groups == {"friction_seal_pressure": ("shape_friction_of_p_L",),
                       "shape_friction_of_p_L": ("friction_seal_pressure",),
                       "shape_friction_of_q": ()}
+
+
+def test_the_maps_error_is_judged_beside_the_claim_not_in_its_place():
+    """Every log holds the maps' error: a weak true effect may explain less than it does, yet
+    add to it. The claim stands when, with the maps' error fitted beside it, it predicts the
+    runs left out clearly better than the maps' error alone; it is withheld when it adds
+    nothing the maps' error does not."""
+    claim = candidate("friction_pilot_pressure", None, heldout_rms=1.2e5,
+                      heldout=_scores(1.2e5, 1.2e5, 1.2e5))
+    maps = maps_error_rival(_scores(1.0e5, 1.0e5, 1.0e5))  # better than the claim alone
+    adds = _scores(0.95e5, 1.0e5, 1.0e5)  # 5 % better on the runs left out beside it
+    assert declined(claim, [maps], BEFORE, None, 1e4, beside_maps=adds) is None
+    nothing = _scores(0.99e5, 0.99e5, 0.99e5)
+    withheld = declined(claim, [maps], BEFORE, None, 1e4, beside_maps=nothing)
+    assert [r.name for r in withheld.rivals] == [MAPS_ERROR]
+    assert withheld.beside_maps == nothing
