@@ -185,3 +185,19 @@ def test_a_term_the_runs_do_not_agree_on_is_named_but_not_added(sequence):
     assert diagnosis.group_inclusion(top) < INCLUSION_MIN
     summary = summarise(diagnosis)
     assert top.name in summary and "resamples over runs" in summary
+
+
+@pytest.mark.slow
+def test_a_weak_true_effect_is_judged_beside_the_maps_error_not_withheld_for_it(sequence):
+    """Stress case 216 (grid maps): a pilot-pressure friction at 0.93 of its realistic size
+    under the maps' error. Fitted in its place, the maps' error within its σ predicts the runs
+    left out better than the friction does; fitted beside it, the friction adds what the maps'
+    error cannot. The friction (or its look-alike) is the finding, and the look-alike rule names
+    no rival."""
+    case = next(c for c in stress_suite(CASES, CONTROLS, settings=SETTINGS) if c.seed == 216)
+    made = hidden_effect_case(case.hidden, case.values, sequence=sequence, seed=case.seed,
+                              mismatch=MapMismatch(), maps_under_test=maps("grid"))
+    diagnosis = diagnose(fit_to_log(made.start, made.log).model, made.log)
+    best = diagnosis.best
+    assert best is not None and case.hidden in best.group, summarise(diagnosis)
+    assert diagnosis.declined is None
