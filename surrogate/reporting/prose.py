@@ -268,6 +268,8 @@ def absorbed_sentence(diagnosis: Diagnosis) -> str:
     by_parameter: dict[str, list[str]] = {}
     for name, (key, _) in diagnosis.absorbed.items():
         by_parameter.setdefault(key, []).append(name)
+    if not by_parameter:
+        return ""
     parameters = diagnosis.model.parameters()
     words = []
     for key, names in by_parameter.items():

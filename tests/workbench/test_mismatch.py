@@ -20,6 +20,7 @@ import pytest
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.diagnosis.diagnose import diagnose
+from surrogate.diagnosis.result import Candidate, Diagnosis
 from surrogate.diagnosis.rule import BIC_THRESHOLD, INCLUSION_MIN
 from surrogate.effects.shapes import FlowForceFactor, OpeningForce
 from surrogate.fitting.logfit import fit_to_log
@@ -172,19 +173,31 @@ def test_hidden_effects_are_found_cleanly_under_map_mismatch(sequence, kind):
 
 
 @pytest.mark.slow
-def test_a_term_the_runs_do_not_agree_on_is_named_but_not_added(sequence):
-    """Stress seed 1104 (nothing hidden, GP maps): a progressive spring stands in for that
-    virtual valve's map error and passes every other test, but the resamples over runs choose
-    it less often than not. The diagnosis adds nothing and its summary says why."""
+def test_a_nothing_hidden_log_whose_maps_err_with_the_back_pressure_gains_nothing(sequence):
+    """Stress seed 1104 (nothing hidden, GP maps): a progressive spring stood in for that
+    virtual valve's map error (ΔBIC below the threshold, chosen in fewer than half the
+    resamples over runs) until the maps' discrepancy could change with the back pressure; now
+    it explains nothing the maps' error does not. Nothing is added or withheld."""
     case = hidden_effect_case(None, sequence=sequence, seed=1104, mismatch=MapMismatch(),
                               maps_under_test=maps("gp"))
     diagnosis = diagnose(fit_to_log(case.start, case.log).model, case.log)
+    assert diagnosis.best is None and diagnosis.declined is None
+    spring = next(c for c in diagnosis.candidates if c.name == "progressive_spring")
+    assert spring.delta_bic > BIC_THRESHOLD
+
+
+def test_a_term_the_runs_do_not_agree_on_is_named_but_not_added():
+    """A candidate that passes every test but the bootstrap over runs is named in the summary
+    with the share of resamples that chose it, and not added."""
+    top = Candidate("progressive_spring", "progressive spring", "", "force", "physics", 1.0e5,
+                    -14.0, group=("progressive_spring",), heldout_rms=1.0e5,
+                    heldout={"run": 1.0e5, "temperature": 1.0e5}, inclusion=0.42,
+                    stable=False, own_view=True)
+    diagnosis = Diagnosis(None, None, 1.2e5, 0.8e5, 500.0, (top,), {}, 1.2e5, 2.0e5,
+                          heldout_by_scheme={"run": 1.2e5, "temperature": 1.2e5})
     assert diagnosis.best is None
-    top = diagnosis.candidates[0]
-    assert not top.stable and top.delta_bic < BIC_THRESHOLD
-    assert diagnosis.group_inclusion(top) < INCLUSION_MIN
     summary = summarise(diagnosis)
-    assert top.name in summary and "resamples over runs" in summary
+    assert "progressive_spring" in summary and "42 % of resamples over runs" in summary
 
 
 @pytest.mark.slow
