@@ -246,7 +246,8 @@ def withheld_advice(declined) -> str:
     """What to do about a claim withheld for its look-alikes of other kinds: the run that tells
     them apart, then how to test the claim by hand."""
     claim, rivals = declined.claim, declined.rivals
-    names = ", ".join(rival.name for rival in rivals)
+    names = ", ".join("the CFD maps' own error" if rival.name == MAPS_ERROR else rival.name
+                      for rival in rivals)
     advice = (f"The log fits {claim.name} and {names} about equally well on runs they were not "
               "fitted to, so none was added. ")
     separation = declined.separation

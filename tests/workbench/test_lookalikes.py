@@ -135,7 +135,7 @@ def test_the_advice_on_a_withheld_claim_names_the_run_the_cfd_and_how_to_test_it
     run = Separation(283.15, 65e5, 10e5, 1.2e5, 0.8e5, ("progressive_spring", "shape_leakage"))
     advice = withheld_advice(Declined(claim, (_rival("shape_leakage", 1.0e5),
                                               maps_error_rival(_scores(1.0e5))), run))
-    assert "progressive_spring and shape_leakage, maps_error" in advice
+    assert "progressive_spring and shape_leakage, the CFD maps' own error" in advice
     assert "Measure a bench run at 10 °C and p_Pe = 65 bar" in advice and "1.5×" in advice
     assert "suggest-cfd" in advice and "fit --add progressive_spring on a log with that run" \
         in advice
