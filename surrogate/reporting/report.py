@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from ..diagnosis.naming import WITHIN, library_matches
 from ..diagnosis.result import Diagnosis
 from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
-                              NOISE_MARGIN)
+                              NOISE_MARGIN, OTHER_KIND_GAIN)
 from ..outputs import atomic_file
 from ..units import from_si, label
 from ..workbench.compare import TEXT_RUNS, Comparison
@@ -213,6 +213,7 @@ def _heldout_shown(table: pd.DataFrame) -> pd.DataFrame:
 def diagnosis_table(diagnosis: Diagnosis) -> pd.DataFrame:
     """One row per candidate, best first (display units)."""
     rows = []
+    withheld = None if diagnosis.declined is None else diagnosis.declined.claim.name
     for c in diagnosis.candidates:
         rows.append({"effect": c.name, "what": c.title, "category": c.category,
                      "rms after [bar]": from_si(c.rms_after, "bar"),
@@ -224,7 +225,9 @@ def diagnosis_table(diagnosis: Diagnosis) -> pd.DataFrame:
                      "half-width [bar]": from_si(c.half_width_rms, "bar"), "ΔBIC": c.delta_bic,
                      "chosen in [%]": 100.0 * c.inclusion,
                      "significant": ("sensor check" if c.per_run
-                                     else "yes" if c.significant else "no"),
+                                     else "yes" if c.significant
+                                     else "withheld: a look-alike of another kind"
+                                     if c.name == withheld else "no"),
                      "parameters": parameter_summary(c.params),
                      "same as": ", ".join(n for n in c.group if n != c.name)})
     return pd.DataFrame(rows)
@@ -307,7 +310,11 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
             "half-width, any other term the median line). "
             "<i>chosen in</i>: the share of bootstrap resamples over runs in which it would be "
             f"the one added; a discovery (with its look-alikes) must be chosen in at least "
-            f"{100 * INCLUSION_MIN:.0f} % of them. A parameter per run cannot predict another "
+            f"{100 * INCLUSION_MIN:.0f} % of them. A claim of valve physics must also predict "
+            f"the runs, or a temperature or pilot pressure, left out {100 * OTHER_KIND_GAIN:g} % "
+            "better than every shape-free term of another kind and the maps' own error, each "
+            "fitted with the maps' error beside it; otherwise it is <i>withheld</i> and the "
+            "summary names them. A parameter per run cannot predict another "
             "run: such candidates are "
             "sensor checks, never part of the model. <i>median line</i> and <i>half-width</i>: "
             "the RMS of the runs' residual split into the mean of the up and down ramps at "
