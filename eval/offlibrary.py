@@ -169,6 +169,9 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
                          f"{sum(r['hidden'] == name for r in hidden)}"
                    for name in OFF_LIBRARY},
                "records": records}
+    if not hidden:  # controls only
+        print(f"{kind} maps: {summary['controls_clean']} of {len(clean)} controls clean")
+        return summary
     print(f"{kind} maps, {len(hidden)} off-library cases: clean (found, or nothing added where "
           f"the effect left nothing to find) {summary['clean_share']:.0%} "
           f"({summary['invisible']} invisible), right term "
