@@ -92,9 +92,8 @@ def handed_over(workflow) -> dict[str, float]:
 def withheld(workflow) -> list[str]:
     """The physics claims the workflow's diagnoses withheld for their look-alikes of other
     kinds, as "claim (look-alike, ...)"."""
-    diagnoses = [step.diagnosis for step in workflow.steps if step.diagnosis is not None]
-    return [f"{d.declined.claim.name} ({', '.join(r.name for r in d.declined.rivals)})"
-            for d in [*diagnoses, workflow.final_diagnosis] if d.declined is not None]
+    return [f"{d.claim.name} ({', '.join(r.name for r in d.rivals)})"
+            for d in workflow.declined]
 
 
 def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool = True,

@@ -134,11 +134,7 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
                                 "seed": case.seed, "added": added, "chosen_in": chosen_in,
                                 "shapes_beside_library": outcome.shapes_beside_library,
-                                "withheld": [
-                                    diagnosis.declined.claim.name for diagnosis in
-                                    [*(step.diagnosis for step in workflow.steps[1:]),
-                                     workflow.final_diagnosis]
-                                    if diagnosis is not None and diagnosis.declined is not None],
+                                "withheld": [d.claim.name for d in workflow.declined],
                                 "final_summary": summarise(workflow.final_diagnosis),
                                 "clean": ok, "seconds": round(outcome.seconds, 1)})
         print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "

@@ -175,6 +175,7 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     # progressive spring, a friction rising with the flow taken for a pilot-pressure friction
     finding = next((c for c in results if c.significant), None)
     rivals = [maps_error_rival(judge.maps_error_heldout())]
+    beside_maps: dict[str, dict] = {}  # a shape's held-out RMS with the maps' error beside it
     shaped = [cls for cls in (shape_candidates(model, candidates, library) if shapes else [])
               if cls.name not in exclude]
     if shaped:
@@ -205,13 +206,15 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
             behind = [replace(c, significant=False) for c in together if c.shape_free]
             results = joined(results + behind, finding.name, alike_shapes(
                 finding, behind, problem.rms_before, floor, judge.heldout, rule))
-        rivals += [rival_of(c, judge.maps_error_heldout(c.linearised))
-                   for c in results if c.shape_free]
+        beside_maps = {c.name: judge.maps_error_heldout(c.linearised)
+                       for c in results if c.shape_free}
+        rivals += [rival_of(c, beside_maps[c.name]) for c in results if c.shape_free]
     # a physics claim must beat its look-alikes of other kinds on held-out runs, or the step
     # adds nothing and the look-alikes are named
     claim = next((c for c in results if c.significant), None)
     withheld = declined(claim, rivals, judge.heldout, log, floor, rule, beside_maps=(
-        None if claim is None else judge.maps_error_heldout(claim.linearised)))
+        None if claim is None else beside_maps.get(claim.name)
+        or judge.maps_error_heldout(claim.linearised)))
     if withheld is not None:
         say(f"{claim.name} withheld: " + ", ".join(
             f"{r.name} {from_si(r.heldout_rms, 'bar'):.3f} bar" for r in withheld.rivals)

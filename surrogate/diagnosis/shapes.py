@@ -264,17 +264,15 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
         fitted = residual + jacobian @ theta
         # held out: refits of the shape's linearisation at this fit, its inactive bounds free
         active = np.r_[np.ones(p, bool), (theta[p:] > lower[p:] + 1e-9) | ~np.isfinite(lower[p:])]
-        blocks = RunBlocks(Linearised(fitted, jacobian[:, active]), discrepancy, runs, prior,
-                           (rough[:, active], rough @ theta + offset))
+        at_fit = Linearised(fitted, jacobian[:, active], (rough[:, active], rough @ theta + offset))
+        blocks = RunBlocks(at_fit, discrepancy, runs, prior)
         heldout = blocks.heldout_rms(schemes)
         if best is None or heldout[POOLED] < best.heldout[POOLED]:
             mine = np.arange(p, int(active.sum()))
             best = RoughnessChoice(weight, heldout, theta[p:] * shape.steps,
                                    float(np.sqrt(np.mean(fitted**2))),
                                    blocks.objective(np.ones(len(blocks.labels))),
-                                   blocks.effective_parameters(mine), theta[:p],
-                                   Linearised(fitted, jacobian[:, active],
-                                              (rough[:, active], rough @ theta + offset)))
+                                   blocks.effective_parameters(mine), theta[:p], at_fit)
     return best
 
 

@@ -140,6 +140,14 @@ class Workflow:
     def final(self) -> Step:
         return self.steps[-1]
 
+    @property
+    def declined(self) -> list:
+        """The physics claims its diagnoses withheld for look-alikes of other kinds, in order
+        (:class:`~surrogate.diagnosis.result.Declined`; the final diagnosis' last)."""
+        diagnoses = [step.diagnosis for step in self.steps if step.diagnosis is not None]
+        return [diagnosis.declined for diagnosis in [*diagnoses, self.final_diagnosis]
+                if diagnosis.declined is not None]
+
     def to_json(self) -> dict:
         return {"data": self.log.source, "samples": len(self.log), "maps": self.maps,
                 "noise_floor_bar": round(float(from_si(self.noise_floor, "bar")), 4),
