@@ -30,7 +30,7 @@ import numpy as np
 from ..fluid import FluidState, broadcast_query
 from ..roots import invert_increasing
 from ..units import BAR, LPM
-from .cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR
+from .cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR, gap_error
 
 
 @dataclass(frozen=True)
@@ -135,7 +135,13 @@ class FlowMap(ABC):
             return None
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         calibrated = self.calibration.std(*self.calibration_inputs(q, p_B, u, fluid))
-        return np.reshape(np.hypot(calibrated, self.cfd_error), q.shape)
+        return np.reshape(np.hypot(calibrated, self.cfd_error_at(u)), q.shape)
+
+    def cfd_error_at(self, u) -> np.ndarray:
+        """σ of ln C_d [1] that the CFD adds at openings ``u`` [m]: :attr:`cfd_error`, and in an
+        unsampled gap between openings what no mesh says (:func:`.cfd_error.gap_error`)."""
+        gaps = [] if self.coverage is None else self.coverage.gaps()
+        return np.hypot(self.cfd_error, gap_error(gaps, u))
 
     def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of the flow [m^3/s] at load pressure ``p_L``, or None.
