@@ -29,11 +29,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..maps.cfd_error import CAVITATION_FORCE_ERROR, GAP_FLOW_ERROR
 from ..maps.gp import BRIDGE, MATERN, SQRT3, GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.network import HOLD_SHARPNESS, BridgedNet, NumpyNet, smoothing_matrix
 from ..maps.nn import NetworkEnsemble
 from ..model import ValveModel
+from ..units import P_ATM
 
 OPSET = 17
 INPUTS = (("u", "m", "piston opening"), ("p_L", "Pa", "load pressure (gauge)"),
@@ -379,8 +381,8 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
     """σ [ln units] against the valve = sqrt(floor² + cfd_error² + (scale·spread)²
     + Σ (slope·d^power)²): the calibrated σ and the CFD's own error (:mod:`..maps.cfd_error`)."""
     calibration = learned_map.calibration
-    variance = g.add(g.square(g.mul(spread, calibration.scale)),
-                     calibration.floor ** 2 + learned_map.cfd_error ** 2)
+    variance = g.add(g.add(g.square(g.mul(spread, calibration.scale)), calibration.floor ** 2),
+                     g.square(_cfd_error(g, learned_map, p_B, u)))
     distances = {}
     if calibration.slopes.get("features", 0.0):
         domain = learned_map.domain
@@ -391,8 +393,6 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
                         g.mul(g.matmul(scaled, domain.points.T.copy()), 2.0))
         distances["features"] = g.sqrt(g.max(g.min_rows(squared), 0.0))
     if calibration.slopes.get("back pressure", 0.0) and learned_map.coverage is not None:
-        from ..units import P_ATM
-
         pressures = learned_map.coverage.back_pressures + P_ATM
         absolute = g.op("Unsqueeze", g.add(p_B, P_ATM), g.const([1], np.int64))
         distances["back pressure"] = g.min_rows(g.abs(g.log(g.div(absolute, pressures[None]))))
@@ -407,6 +407,38 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
         term = g.mul(g.op("Pow", distance, g.const(calibration.power)), slope)
         variance = g.add(variance, g.square(term))
     return g.sqrt(variance)
+
+
+def _cfd_error(g: Graph, learned_map, p_B: str, u: str) -> str:
+    """The CFD's own σ [ln units] as :meth:`FlowMap.cfd_error_at` and :meth:`ForceMap.cfd_error_at`
+    compute it: each mesh's bias as the map bridges it, and for the flow an unsampled gap's
+    share, for the flow force the cavitation model's, in the clip-and-sum form of
+    :mod:`..maps.cfd_error`."""
+    coverage = learned_map.coverage
+    if coverage is None:
+        return g.add(g.mul(u, 0.0), learned_map.cfd_error)
+    log_u = g.log(g.max(u, 1e-12))
+
+    def position(low: float, high: float) -> str:
+        t = g.div(g.sub(log_u, float(np.log(low))), float(np.log(high / low)))
+        return g.min(g.max(t, 0.0), 1.0)
+
+    share = g.add(g.mul(u, 0.0), 1.0)
+    for low, high in zip(coverage.openings, coverage.openings[1:]):
+        t = position(low, high)
+        bridged = g.sqrt(g.add(g.square(g.sub(1.0, t)), g.square(t)))
+        share = g.add(share, g.sub(bridged, 1.0))
+    bias = g.mul(share, learned_map.cfd_error)
+    if isinstance(learned_map, LearnedForceMap):
+        central = coverage.central_back_pressure + P_ATM
+        other = g.mul(g.abs(g.log(g.div(g.add(g.max(p_B, 0.0), P_ATM), central))),
+                      CAVITATION_FORCE_ERROR)
+    else:
+        other = g.add(g.mul(u, 0.0), 0.0)
+        for low, high in coverage.gaps():
+            other = g.add(other, g.mul(g.op("Sin", g.mul(position(low, high), float(np.pi))),
+                                       GAP_FLOW_ERROR))
+    return g.sqrt(g.add(g.square(bias), g.square(other)))
 
 
 # --- the maps ------------------------------------------------------------------------------------

@@ -30,7 +30,8 @@ import numpy as np
 from ..fluid import FluidState, broadcast_query
 from ..roots import invert_increasing
 from ..units import BAR, LPM
-from .cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR, gap_error
+from .cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, cavitation_error, gap_error,
+                        mesh_bias_share)
 
 
 @dataclass(frozen=True)
@@ -138,10 +139,13 @@ class FlowMap(ABC):
         return np.reshape(np.hypot(calibrated, self.cfd_error_at(u)), q.shape)
 
     def cfd_error_at(self, u) -> np.ndarray:
-        """σ of ln C_d [1] that the CFD adds at openings ``u`` [m]: :attr:`cfd_error`, and in an
+        """σ of ln C_d [1] that the CFD adds at openings ``u`` [m]: :attr:`cfd_error`, the
+        meshes' biases as the map bridges them (:func:`.cfd_error.mesh_bias_share`), and in an
         unsampled gap between openings what no mesh says (:func:`.cfd_error.gap_error`)."""
-        gaps = [] if self.coverage is None else self.coverage.gaps()
-        return np.hypot(self.cfd_error, gap_error(gaps, u))
+        if self.coverage is None:
+            return np.full(np.shape(u), self.cfd_error)
+        bias = self.cfd_error * mesh_bias_share(self.coverage.openings, u)
+        return np.hypot(bias, gap_error(self.coverage.gaps(), u))
 
     def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of the flow [m^3/s] at load pressure ``p_L``, or None.
@@ -209,7 +213,18 @@ class ForceMap(ABC):
             return None
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
         calibrated = self.calibration.std(*self.calibration_inputs(p_L, p_B, u, fluid))
-        return np.reshape(np.hypot(calibrated, self.cfd_error), p_L.shape)
+        return np.reshape(np.hypot(calibrated, self.cfd_error_at(p_B, u)), p_L.shape)
+
+    def cfd_error_at(self, p_B, u) -> np.ndarray:
+        """Relative σ of the flow force [1] that the CFD adds at back pressures ``p_B`` [Pa] and
+        openings ``u`` [m] (flat): :attr:`cfd_error`, the meshes' biases as the map bridges them
+        (:func:`.cfd_error.mesh_bias_share`), and away from the samples' central back pressure
+        what the cavitation model may miss (:func:`.cfd_error.cavitation_error`)."""
+        p_B, u = np.ravel(p_B), np.ravel(u)
+        if self.coverage is None:
+            return np.full(p_B.shape, self.cfd_error)
+        bias = self.cfd_error * mesh_bias_share(self.coverage.openings, u)
+        return np.hypot(bias, cavitation_error(self.coverage.central_back_pressure, p_B))
 
     def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of f_sim [N] against the valve (that of its flow force), or None if

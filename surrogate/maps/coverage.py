@@ -98,6 +98,13 @@ class Coverage:
         absolute = np.asarray(p_B, float)[..., None] + P_ATM
         return np.min(np.abs(np.log(absolute / (self.back_pressures + P_ATM))), axis=-1)
 
+    @property
+    def central_back_pressure(self) -> float:
+        """The median of the sampled back pressures [Pa]: where the CFD's sweeps are usually run
+        (the shipped set's 5 bar, beside its back-pressure set at 1.5 and 10 bar), the
+        reference of the cavitation model's error (:func:`.cfd_error.cavitation_error`)."""
+        return float(np.median(self.back_pressures))
+
     def opening_distance(self, u) -> np.ndarray:
         """How far ``u`` [m] lies from the nearest sampled opening, as a share of half the
         closest spacing of two sampled openings in ln u, at most 1 [-]: 0 on a sampled opening,

@@ -73,22 +73,44 @@ def regions(samples, valve) -> dict[str, pd.DataFrame]:
             "back pressures": pd.concat(backs, ignore_index=True)}
 
 
-def valve_truth(samples, valve, seed: int, mismatch: MapMismatch, on=None):
+def valve_truth(samples, valve, seed: int, mismatch: MapMismatch, on=()):
     """(Δp(q, p_B, u, fluid), flow force(p_L, p_B, u, fluid)) of the virtual valve ``seed``:
-    grid maps of its perturbed samples, or with ``on`` = (flow map, force map) those maps wrong
-    by the same draws."""
-    if on is None:
+    grid maps of its perturbed samples, or with ``on`` = [(flow map, force map), …] those maps
+    wrong by the same draws, averaged when there are several, each weighted by 1/σ² where it is
+    asked (a map that knows it cannot tell, the grid's flow force away from its back pressure,
+    counts little): a valve that bridges openings, oils and back pressures as none of them
+    alone does."""
+    if not on:
         perturbed, draw = mismatched_samples(samples, valve, seed, mismatch)
-        flow = GridFlowMap.from_samples(perturbed)
-        force = GridForceMap.from_samples(perturbed, valve)
+        on = [(GridFlowMap.from_samples(perturbed), GridForceMap.from_samples(perturbed, valve))]
+        pairs = on
     else:
-        flow, force, draw = perturbed_maps(*on, samples, seed, mismatch)
+        pairs = []
+        for maps in on:
+            flow, force, draw = perturbed_maps(*maps, samples, seed, mismatch)
+            pairs.append((flow, force))
     reference = REFERENCE_BACK_BAR * BAR
 
+    def pressure_drop(q, p_B, u, fluid):
+        values = [np.log(flow.pressure_drop(q, p_B, u, fluid)) for flow, _ in pairs]
+        weights = [_precision(base.log_discharge_std(q, p_B, u, fluid), values[0])
+                   for base, _ in on]
+        return np.exp(np.average(values, axis=0, weights=weights))
+
     def flow_force(p_L, p_B, u, fluid):
-        return force.flow_force(p_L, p_B, u, fluid) * (
+        values = [force.flow_force(p_L, p_B, u, fluid) for _, force in pairs]
+        weights = [_precision(base.relative_force_std(p_L, p_B, u, fluid), values[0])
+                   for _, base in on]
+        return np.average(values, axis=0, weights=weights) * (
             1.0 + cavitation_change(draw.cavitation, p_B, reference))
-    return flow.pressure_drop, flow_force
+    return pressure_drop, flow_force
+
+
+def _precision(std, like: np.ndarray) -> np.ndarray:
+    """1/σ² of a map where it is asked (1 for a map without σ), shaped like ``like``."""
+    if std is None:
+        return np.ones(np.shape(like))
+    return np.broadcast_to(1.0 / np.square(std), np.shape(like))
 
 
 def score(kind_maps, truth, table: pd.DataFrame) -> dict:

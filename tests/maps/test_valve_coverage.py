@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from surrogate.data.loaders import load_cfd_samples
-from surrogate.maps.cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR
+from surrogate.maps.cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, GAP_FLOW_ERROR,
+                                      gap_error, mesh_bias_share)
 from surrogate.maps.registry import build_maps
 from surrogate.paths import SHIPPED_CFD_SAMPLES
 from surrogate.synthetic.mismatch import MapMismatch
@@ -33,7 +34,7 @@ def test_sigma_at_the_sampled_openings_covers_the_valve_and_is_never_below_the_c
     valve, samples, states = setting
     maps = build_maps(kind, valve)
     sampled = states["sampled"]
-    summary = summarise([score(maps, valve_truth(samples, valve, seed, MapMismatch(), on=maps),
+    summary = summarise([score(maps, valve_truth(samples, valve, seed, MapMismatch(), on=[maps]),
                                sampled) for seed in SEEDS])
     for name in ("q", "flow force"):
         assert summary[name]["within 2 sigma"] >= BAND[0], (kind, name, summary[name])
@@ -47,3 +48,28 @@ def test_sigma_at_the_sampled_openings_covers_the_valve_and_is_never_below_the_c
     p_L = sampled["p_B"].to_numpy() + flow_map.pressure_drop(*query)
     relative = force_map.relative_force_std(p_L, *query[1:])
     assert np.all(relative >= FORCE_CFD_ERROR * (1 - 1e-12))
+
+
+@pytest.mark.parametrize("kind", ["nn", "gp"])
+def test_sigma_at_other_back_pressures_covers_a_valve_whose_cavitation_the_cfd_missed(
+        kind, setting):
+    """A valve made of the other kinds' maps, wrong by the CFD's draws and with a cavitation the
+    CFD's model missed away from the sweeps' back pressure: without the cavitation model's error
+    in σ the learned maps' ±2σ held 63-72 % of its flow force at 2.5, 7.5 and 15 bar."""
+    valve, samples, states = setting
+    maps = build_maps(kind, valve)
+    others = [build_maps(other, valve) for other in ("grid", "nn", "gp") if other != kind]
+    summary = summarise([score(maps, valve_truth(samples, valve, seed, MapMismatch(), on=others),
+                               states["back pressures"]) for seed in SEEDS])
+    assert summary["flow force"]["within 2 sigma"] >= BAND[0], summary["flow force"]
+
+
+def test_between_two_meshes_a_map_carries_both_biases_and_across_a_gap_what_no_mesh_says():
+    openings = np.array([0.1e-3, 0.2e-3, 0.63e-3])
+    halfway = np.sqrt(openings[:-1] * openings[1:])
+    assert np.allclose(mesh_bias_share(openings, openings), 1.0)
+    assert np.allclose(mesh_bias_share(openings, halfway), np.sqrt(0.5))
+    assert np.allclose(mesh_bias_share(openings, [0.05e-3, 1e-3]), 1.0)  # beyond: held
+    gaps = [(0.2e-3, 0.63e-3)]
+    assert np.allclose(gap_error(gaps, [halfway[1]]), GAP_FLOW_ERROR)
+    assert np.allclose(gap_error(gaps, [*openings, halfway[0]]), 0.0)
