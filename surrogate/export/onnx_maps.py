@@ -406,39 +406,46 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
         slope = calibration.slopes[name]
         term = g.mul(g.op("Pow", distance, g.const(calibration.power)), slope)
         variance = g.add(variance, g.square(term))
+    if isinstance(learned_map, LearnedFlowMap) and learned_map.coverage is not None:
+        return g.max(g.sqrt(variance), _gap_error(g, learned_map.coverage.gaps(), u))
     return g.sqrt(variance)
 
 
 def _cfd_error(g: Graph, learned_map, p_B: str, u: str) -> str:
     """The CFD's own σ [ln units] as :meth:`FlowMap.cfd_error_at` and :meth:`ForceMap.cfd_error_at`
-    compute it: each mesh's bias as the map bridges it, and for the flow an unsampled gap's
-    share, for the flow force the cavitation model's, in the clip-and-sum form of
-    :mod:`..maps.cfd_error`."""
+    compute it: each mesh's bias as the map bridges it, and for the flow force the cavitation
+    model's share, in the clip-and-sum form of :mod:`..maps.cfd_error`."""
     coverage = learned_map.coverage
     if coverage is None:
         return g.add(g.mul(u, 0.0), learned_map.cfd_error)
-    log_u = g.log(g.max(u, 1e-12))
-
-    def position(low: float, high: float) -> str:
-        t = g.div(g.sub(log_u, float(np.log(low))), float(np.log(high / low)))
-        return g.min(g.max(t, 0.0), 1.0)
-
     share = g.add(g.mul(u, 0.0), 1.0)
     for low, high in zip(coverage.openings, coverage.openings[1:]):
-        t = position(low, high)
+        t = _position(g, u, low, high)
         bridged = g.sqrt(g.add(g.square(g.sub(1.0, t)), g.square(t)))
         share = g.add(share, g.sub(bridged, 1.0))
     bias = g.mul(share, learned_map.cfd_error)
-    if isinstance(learned_map, LearnedForceMap):
-        central = coverage.central_back_pressure + P_ATM
-        other = g.mul(g.abs(g.log(g.div(g.add(g.max(p_B, 0.0), P_ATM), central))),
-                      CAVITATION_FORCE_ERROR)
-    else:
-        other = g.add(g.mul(u, 0.0), 0.0)
-        for low, high in coverage.gaps():
-            other = g.add(other, g.mul(g.op("Sin", g.mul(position(low, high), float(np.pi))),
-                                       GAP_FLOW_ERROR))
-    return g.sqrt(g.add(g.square(bias), g.square(other)))
+    if not isinstance(learned_map, LearnedForceMap):
+        return bias
+    central = coverage.central_back_pressure + P_ATM
+    cavitation = g.mul(g.abs(g.log(g.div(g.add(g.max(p_B, 0.0), P_ATM), central))),
+                       CAVITATION_FORCE_ERROR)
+    return g.sqrt(g.add(g.square(bias), g.square(cavitation)))
+
+
+def _gap_error(g: Graph, gaps, u: str) -> str:
+    """:func:`..maps.cfd_error.gap_error` at ``u``."""
+    error = g.mul(u, 0.0)
+    for low, high in gaps:
+        error = g.add(error, g.mul(g.op("Sin", g.mul(_position(g, u, low, high), float(np.pi))),
+                                   GAP_FLOW_ERROR))
+    return error
+
+
+def _position(g: Graph, u: str, low: float, high: float) -> str:
+    """:func:`..maps.cfd_error._position`: where ln u lies between ``low`` and ``high``, in
+    [0, 1]."""
+    t = g.div(g.sub(g.log(g.max(u, 1e-12)), float(np.log(low))), float(np.log(high / low)))
+    return g.min(g.max(t, 0.0), 1.0)
 
 
 # --- the maps ------------------------------------------------------------------------------------

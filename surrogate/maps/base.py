@@ -136,16 +136,19 @@ class FlowMap(ABC):
             return None
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         calibrated = self.calibration.std(*self.calibration_inputs(q, p_B, u, fluid))
-        return np.reshape(np.hypot(calibrated, self.cfd_error_at(u)), q.shape)
+        std = np.hypot(calibrated, self.cfd_error_at(u))
+        if self.coverage is not None:  # a floor, not a term: the grid's σ grows across a gap
+            std = np.maximum(std, gap_error(self.coverage.gaps(), u))  # by itself
+        return np.reshape(std, q.shape)
 
     def cfd_error_at(self, u) -> np.ndarray:
         """σ of ln C_d [1] that the CFD adds at openings ``u`` [m]: :attr:`cfd_error`, the
-        meshes' biases as the map bridges them (:func:`.cfd_error.mesh_bias_share`), and in an
-        unsampled gap between openings what no mesh says (:func:`.cfd_error.gap_error`)."""
+        meshes' biases as the map bridges them (:func:`.cfd_error.mesh_bias_share`). Across an
+        unsampled gap between openings σ is moreover never below what no mesh says there
+        (:func:`.cfd_error.gap_error`)."""
         if self.coverage is None:
             return np.full(np.shape(u), self.cfd_error)
-        bias = self.cfd_error * mesh_bias_share(self.coverage.openings, u)
-        return np.hypot(bias, gap_error(self.coverage.gaps(), u))
+        return self.cfd_error * mesh_bias_share(self.coverage.openings, u)
 
     def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of the flow [m^3/s] at load pressure ``p_L``, or None.
