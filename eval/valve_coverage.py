@@ -23,14 +23,19 @@ target is 85-98 %, the issue's band). Regions:
 * back pressures: 2.5, 7.5 and 15 bar (the samples hold 1.5, 5 and 10 bar).
 
     python eval/valve_coverage.py                        # grid, NN and GP; valves 1-5
+    python eval/valve_coverage.py --truth samples        # valves that bridge the grid's way
     python eval/valve_coverage.py --truth own            # each kind's maps, wrong by the draws
     python eval/valve_coverage.py --kinds gp --seeds 1 2 3 4 5 6 7 8 --mismatch 0.5
 
-The valve's maps (``--truth``) decide what "between the samples" means: grid maps of the
-perturbed samples bridge openings as the grid does (a learned map's bridge then counts as its
-error, fairly or not), a kind's own maps wrong by the draws leave only the CFD's error (the mesh
-bias, the gap's bump, the cavitation) to cover, and another kind's maps wrong by the draws judge
-one kind's bridge against another's.
+The valve's maps (``--truth``) decide what "between the samples" means, since each kind bridges
+openings, oils and back pressures its own way. By default each kind is judged against valves
+made of the other kinds' maps, wrong by the draws and averaged by their precision where they are
+asked (a map that knows it cannot tell counts little): a valve that bridges as the kind under
+test does not. Grid maps of the perturbed samples (``samples``) bridge as the grid does (a
+learned map's bridge then counts as its error, fairly or not, and that valve ignores its own
+CFD's back-pressure set); a kind's own maps wrong by the draws (``own``) leave only the CFD's
+error (the mesh bias, the gap's bump, the cavitation) to cover; one kind's maps judge every
+kind's bridge against that one.
 
 Writes results/valve_coverage/coverage.json. About a minute.
 """
