@@ -7,7 +7,7 @@ judges every shipped kind's σ where the truth is known: in virtual valves whose
 real one does (:func:`surrogate.synthetic.mismatch.mismatched_samples`: each sampled opening's Δp
 and flow force off by a draw of its own, the valve's own curve across the unsampled gap and below
 the smallest opening, and a cavitation term in the flow force that maps built at few back
-pressures miss). The valve's flow and flow force are grid maps of its perturbed samples.
+pressures miss); what its maps are made of, ``--truth`` below says.
 
 For each valve (one seed) and region, the states are operating points (opening, flow, oil state,
 back pressure); the valve's own Δp gives the load pressure; the map under test is asked its flow
