@@ -76,6 +76,14 @@ class FitProblem:
         """How many independent samples the residuals are worth (default: all of them)."""
         return float(len(evaluation.residual))
 
+    def changes(self, model: ValveModel, trials: Sequence[ValveModel],
+                evaluation: Evaluation) -> np.ndarray | None:
+        """The residuals' change from ``evaluation`` (``model``'s) to each of ``trials``
+        (``model`` with one parameter stepped), (n, len(trials)), if the problem can tell
+        without evaluating each (its sensitivities); None to have the Jacobian's columns
+        evaluated one by one (:meth:`column`). Default: None."""
+        return None
+
 
 class FunctionProblem(FitProblem):
     """A problem given as a plain function ``residuals(model) -> array``."""
@@ -305,9 +313,9 @@ class Minimizer:
         def jacobian(x):
             if not np.array_equal(last["x"], x):
                 objective(x)
-            at_x = last["evaluation"].residual
+            at_x = last["evaluation"]
             columns = self.jacobian(np.asarray(x, float), at_x)
-            penalty = self.penalty(len(at_x))
+            penalty = self.penalty(len(at_x.residual))
             return (columns if penalty is None
                     else np.vstack([columns, penalty[0] * self._scales]))
 
@@ -322,24 +330,37 @@ class Minimizer:
         return self._result(evaluation, result.jac[:len(evaluation.residual)],
                             bool(result.success), str(result.message), int(result.nfev))
 
-    def jacobian(self, x: np.ndarray, at_x: np.ndarray) -> np.ndarray:
-        """∂residual/∂x by forward differences (scipy's '2-point' rule), columns on threads."""
+    def jacobian(self, x: np.ndarray, at_x: Evaluation) -> np.ndarray:
+        """∂residual/∂x at ``at_x`` (the evaluation at x) by forward differences (scipy's
+        '2-point' rule): from the problem's sensitivities where it has them
+        (:meth:`FitProblem.changes`), else one evaluation per column, side by side on
+        threads."""
         steps = _forward_steps(x, self.upper)
+        trials = [self._stepped(x, j, steps[j]) for j in range(len(x))]
+        changes = self.problem.changes(self.model, trials, at_x)
+        if changes is not None:
+            return np.where(np.isfinite(changes), changes, 0.0) / steps
+        residual = at_x.residual
 
         def column(j: int) -> np.ndarray:
-            trial = self.model.copy()
-            shifted = np.array(x, float)
-            shifted[j] += steps[j]
-            self.assign(shifted, [p for _, p in free_parameters(trial, self.names)])
+            trial = trials[j]
             rows, values = self.problem.column(trial, trial.parameters()[self.names[j]])
             values = _finite(values)
             if rows is None:
-                return (values - at_x) / steps[j]
-            change = np.zeros_like(at_x)
-            change[rows] = (values - at_x[rows]) / steps[j]
+                return (values - residual) / steps[j]
+            change = np.zeros_like(residual)
+            change[rows] = (values - residual[rows]) / steps[j]
             return change
 
         return np.column_stack(list(map_threads(column, range(len(x)))))
+
+    def _stepped(self, x: np.ndarray, j: int, step: float) -> ValveModel:
+        """A copy of the model at ``x`` with parameter ``j`` stepped by ``step``."""
+        trial = self.model.copy()
+        shifted = np.array(x, float)
+        shifted[j] += step
+        self.assign(shifted, [p for _, p in free_parameters(trial, self.names)])
+        return trial
 
     # --- Gauss–Newton refinement with Broyden updates -----------------------------------------------
 

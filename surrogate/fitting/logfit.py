@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -15,7 +16,10 @@ from ..parallel import map_threads
 from ..parameters import Parameter
 from ..progress import Stage
 from ..units import from_si
-from .residuals import LogReplay, effective_samples, replay_log, run_rows
+from ..points import OperatingPoints
+from ..solver.sensitivities import pressure_drop_changes
+from .residuals import (LogReplay, effective_samples, replay_log, run_rows,
+                        state_smoothing_samples)
 
 
 class LogProblem(FitProblem):
@@ -52,6 +56,22 @@ class LogProblem(FitProblem):
     def effective_samples(self, evaluation: Evaluation) -> float:
         played = evaluation.payload
         return effective_samples(played.residual, played.runs)
+
+    def changes(self, model: ValveModel, trials, evaluation: Evaluation) -> np.ndarray:
+        """The Jacobian's changes from the replay's sensitivities
+        (:func:`surrogate.solver.sensitivities.pressure_drop_changes`): one replay's balance
+        states instead of a replay per parameter."""
+        played = evaluation.payload
+        return pressure_drop_changes(model, self._points, self.log.frame["run"].to_numpy(),
+                                     played.replay, trials, smoothing=self._smoothing)
+
+    @cached_property
+    def _points(self) -> OperatingPoints:
+        return OperatingPoints.from_bench(self.log.frame)
+
+    @cached_property
+    def _smoothing(self) -> int:
+        return state_smoothing_samples(self.log)
 
 
 def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = None, *,

@@ -183,8 +183,8 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         status_edges = np.vstack([edge.status, edge.status])
 
     starts = _segment_starts(segments, count)
-    u, moving, status = _play(u_edges[0], u_edges[1], status_edges[0], status_edges[1], starts,
-                              u_start, smoothing)
+    u, moving, status, _ = _play(u_edges[0], u_edges[1], status_edges[0], status_edges[1],
+                                 starts, u_start, smoothing)
     fluid = model.fluid(points)
     dp = np.full(count, np.nan)
     reasons = np.zeros(count, dtype=np.int64)
@@ -236,12 +236,23 @@ def _segment_starts(segments, count: int) -> np.ndarray:
     return starts
 
 
+#: where a sample's opening comes from in the play (:func:`_play`'s ``source``): the start of its
+#: run, its own lower or upper band edge (it slides), or the state the piston was left in, the
+#: (smoothed) lower or upper edge of the sample that last pushed it (it sticks)
+FROM_START, OWN_LOW, OWN_HIGH, STATE_LOW, STATE_HIGH = range(5)
+
+
 def _play(u_open, u_close, status_open, status_close, starts, u_start, smoothing=1):
     """The play, restarting at u_start where ``starts``: the state follows
-    clip(state_{k−1}, smoothed edges); a sample where the state slides takes its own edge."""
+    clip(state_{k−1}, smoothed edges); a sample where the state slides takes its own edge.
+
+    Returns (u, moving, status, source), ``source`` (2, n): for each sample, where its opening
+    comes from (:data:`FROM_START` … :data:`STATE_HIGH`) and the sample whose edge it is (−1 for
+    the run's start), which the replay's sensitivities follow (:mod:`.sensitivities`)."""
     count = len(u_open)
     u = np.empty(count)
     moving = np.zeros(count, dtype=bool)
+    source = np.full((2, count), -1, dtype=np.int64)
     status = np.where(status_open < 0, status_open, np.where(status_close < 0, status_close,
                                                              Status.OK)).astype(np.int8)
     low = np.fmin(u_open, u_close)
@@ -249,31 +260,43 @@ def _play(u_open, u_close, status_open, status_close, starts, u_start, smoothing
     solved = status >= 0
     if smoothing > 1:
         state_low = _smoothed(low, starts, solved, smoothing)
-        state_high = np.fmax(_smoothed(high, starts, solved, smoothing), state_low)
+        smoothed_high = _smoothed(high, starts, solved, smoothing)
+        state_high = np.fmax(smoothed_high, state_low)
+        # where the smoothed upper edge falls below the lower one, the state's upper bound is
+        # the lower edge
+        high_kind = np.where(smoothed_high >= state_low, STATE_HIGH, STATE_LOW)
     else:
         state_low, state_high = low, high
+        high_kind = np.full(count, STATE_HIGH)
     previous = u_start
+    state_from = (FROM_START, -1)
     # a plain loop over Python floats: about 1 µs a sample, far below the batch solve; a block
     # of samples at a time, so that a big log is never held as Python floats whole
     for begin in range(0, count, _PLAY_BLOCK):
         block = slice(begin, begin + _PLAY_BLOCK)
-        for k, (lo, hi, state_lo, state_hi, ok, start) in enumerate(zip(
+        for k, (lo, hi, state_lo, state_hi, kind_hi, ok, start) in enumerate(zip(
                 low[block].tolist(), high[block].tolist(), state_low[block].tolist(),
-                state_high[block].tolist(), solved[block].tolist(), starts[block].tolist()),
-                start=begin):
+                state_high[block].tolist(), high_kind[block].tolist(), solved[block].tolist(),
+                starts[block].tolist()), start=begin):
             if start:
                 previous = u_start
+                state_from = (FROM_START, -1)
             if ok:
                 state = min(max(previous, state_lo), state_hi)
                 if state != previous:  # pushed: the piston slides with this sample's own edge
                     moving[k] = True
-                    u[k] = lo if state > previous else hi
+                    opened = state > previous
+                    u[k] = lo if opened else hi
+                    source[0, k], source[1, k] = (OWN_LOW if opened else OWN_HIGH), k
+                    state_from = (STATE_LOW if opened else kind_hi, k)
                 else:
                     u[k] = state
+                    source[0, k], source[1, k] = state_from
                 previous = state
             else:
                 u[k] = previous
-    return u, moving, status
+                source[0, k], source[1, k] = state_from
+    return u, moving, status, source
 
 
 #: samples the play turns into Python floats at a time

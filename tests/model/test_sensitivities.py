@@ -1,0 +1,89 @@
+"""The replay's sensitivities (surrogate.solver.sensitivities) against replays: every effect's
+column of the Jacobian, linearised from one replay, matches a forward difference that replays the
+log with the parameter stepped, wherever no sample starts or stops sliding between the two."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from surrogate.data import load_bench_log
+from surrogate.effects import LIBRARY, SHAPES
+from surrogate.fitting.logfit import fit_to_log
+from surrogate.fitting.residuals import replay_log, state_smoothing_samples
+from surrogate.modelfile import load_model
+from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.points import OperatingPoints
+from surrogate.solver.sensitivities import pressure_drop_changes
+from surrogate.units import to_si
+
+#: a relative step, as the fit's forward differences take
+STEP = 1e-4
+#: the share of samples whose linearised change must agree with the replayed one, within
+#: :data:`AGREE` of the column's RMS: the rest are samples that switch between sticking and
+#: sliding, where a difference jumps and a derivative does not
+AGREEING = 0.97
+AGREE = 0.02
+
+
+@pytest.fixture(scope="module")
+def setting():
+    log = load_bench_log(SHIPPED_BENCH_LOG)
+    runs = log.frame["run"].unique()[::5][:5]
+    log = log.take(np.flatnonzero(log.frame["run"].isin(runs).to_numpy()))
+    return log, load_model("cfda")
+
+
+def switched_on(effect):
+    """``effect`` with its free parameters at a tenth of their range (or of one unit), so that
+    it acts and the model is not at a bound."""
+    for parameter in effect.params.values():
+        if parameter.vary:
+            span = parameter.max - parameter.min
+            parameter.value = parameter.min + 0.1 * (span if np.isfinite(span) else 1.0)
+    return effect
+
+
+#: every library effect with a parameter for the whole log (the pilot's zero drift has one per
+#: run) and a shape of each hook: a force, a friction, a leak
+EFFECTS = sorted(set(LIBRARY) - {"pilot_zero_drift"}) + [
+    "shape_force_of_opening", "shape_friction_of_q", "shape_leakage"]
+
+
+@pytest.mark.parametrize("name", EFFECTS)
+def test_every_effects_column_matches_a_replay(name, setting):
+    log, cfda = setting
+    library = SHAPES if name.startswith("shape_") else LIBRARY
+    own = {effect.name for effect in cfda.effects}
+    effects = [e.copy() for e in cfda.effects]
+    if name not in own:
+        effects.append(switched_on(library[name]()))
+    model = cfda.with_effects(effects)
+    if name.startswith("shape_"):  # knots where the log is
+        model = fit_to_log(model, log, names=[], max_evaluations=1).model
+    base = replay_log(model, log, diagnostics=False)
+    keys = [key for key, p in model.parameters().items()
+            if p.vary and key.startswith(name + ".")][:3]
+    assert keys, name
+    trials = []
+    for key in keys:
+        trial = model.copy()
+        parameter = trial.parameters()[key]
+        shown = parameter.display_value  # steps in display units, as the fit takes them
+        parameter.value = float(to_si(shown + STEP * max(abs(shown), 1.0), parameter.unit))
+        trials.append(trial)
+    linear = pressure_drop_changes(model, OperatingPoints.from_bench(log.frame),
+                                   log.frame["run"].to_numpy(), base.replay, trials,
+                                   smoothing=state_smoothing_samples(log))
+    for j, (key, trial) in enumerate(zip(keys, trials)):
+        replayed = replay_log(trial, log, guess=base, diagnostics=False).replay.dp - base.replay.dp
+        solved = np.isfinite(base.replay.dp)
+        assert np.all(np.isfinite(linear[solved, j])) and np.all(np.isnan(linear[~solved, j]))
+        both = solved & np.isfinite(replayed)
+        assert both.mean() > 0.5, key
+        scale = np.sqrt(np.mean(replayed[both] ** 2))
+        if scale == 0.0:  # the step moves nothing (a knot outside the log): neither may
+            assert np.all(linear[both, j] == 0.0), key
+            continue
+        agree = np.abs(linear[both, j] - replayed[both]) <= AGREE * scale
+        assert agree.mean() >= AGREEING, (key, agree.mean())
