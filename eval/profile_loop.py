@@ -7,7 +7,8 @@ what the cost is made of, so that a change can be judged by what it removes:
   (:meth:`surrogate.model.ValveModel.balance_at`, which every solve, replay and map-error gain
   goes through), and in how many calls;
 * **map queries**: points asked of the flow map (Δp at a flow) and of the force map;
-* **replays**: whole-log replays (:func:`surrogate.solver.replay.replay`) and their samples;
+* **replays**: replays of a log or part of one (:func:`surrogate.fitting.residuals.replay_log`)
+  and their samples;
 * the functions with the most time of their own and the most cumulative time.
 
     python eval/profile_loop.py diagnose                 # diagnose --model cfda, shipped log
@@ -15,7 +16,8 @@ what the cost is made of, so that a change can be judged by what it removes:
     python eval/profile_loop.py offlibrary --case 4245   # one shape-heavy off-library log
 
 Writes results/profile/<job>.json (the counts and the top functions) and <job>.pstats (for
-``snakeviz`` or ``python -m pstats``). CPU seconds throughout: the machine may be shared.
+``snakeviz`` or ``python -m pstats``). CPU seconds throughout: the machine may be shared. The
+job runs on one thread, since the profiler sees only the thread it runs in.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from surrogate import parallel  # noqa: E402
 from surrogate.data import load_bench_log  # noqa: E402
 from surrogate.paths import SHIPPED_BENCH_LOG  # noqa: E402
 
@@ -69,14 +72,14 @@ class Counts:
 def instrument() -> Counts:
     import numpy as np
 
-    import surrogate.solver.replay as replay_module
+    import surrogate.fitting.residuals as residuals
     from surrogate.maps.base import FlowMap, ForceMap
     from surrogate.model import ValveModel
 
     counts = Counts()
     counts.wrap(ValveModel, "balance_at", "balance", lambda self, u, dp, *rest: np.size(dp))
-    counts.wrap(replay_module, "replay", "replay", lambda model, points, *rest, **kw:
-                len(points))
+    # every replay of a log goes through replay_log, which calls the solver's replay
+    counts.wrap(residuals, "replay", "replay", lambda model, points, *rest, **kw: len(points))
     for cls in FlowMap.__subclasses__():
         if "pressure_drop" in vars(cls):
             counts.wrap(cls, "pressure_drop", "flow map", lambda self, q, *rest: np.size(q))
@@ -128,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default=str(ROOT / "results" / "profile"))
     args = parser.parse_args(argv)
     work = job(args.job, args)
+    # one thread: cProfile sees the thread it runs in only, and the counts are the same
+    parallel.THREAD_LIMIT = 1
     counts = instrument()
     profile = cProfile.Profile()
     began = time.process_time()

@@ -177,12 +177,22 @@ class RunBlocks:
         nuisance = np.zeros((len(fit.residual), 0)) if discrepancy is None \
             else discrepancy.columns
         x = np.column_stack([fit.jacobian, nuisance])
-        self.p = fit.jacobian.shape[1]
+        jacobian = fit.jacobian
+        self.p = jacobian.shape[1]
         runs = np.asarray(runs).astype(str)
         self.labels = list(dict.fromkeys(runs))
         r = fit.residual
         rows = [runs == run for run in self.labels]
-        self.gram = np.stack([x[m].T @ x[m] for m in rows])
+        # [J, N]ᵀ[J, N] per run, its nuisance block shared with every other refit on the same
+        # discrepancy (Discrepancy.run_grams)
+        k = nuisance.shape[1]
+        self.gram = np.empty((len(rows), self.p + k, self.p + k))
+        for index, m in enumerate(rows):
+            own = jacobian[m]
+            self.gram[index, :self.p, :] = own.T @ x[m]
+            self.gram[index, self.p:, :self.p] = self.gram[index, :self.p, self.p:].T
+        if k:
+            self.gram[:, self.p:, self.p:] = discrepancy.run_grams(self.labels, rows)
         self.cross = np.stack([x[m].T @ r[m] for m in rows])
         self.squares = np.array([float(r[m] @ r[m]) for m in rows])
         self.counts = np.array([int(m.sum()) for m in rows])
