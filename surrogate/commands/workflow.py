@@ -84,8 +84,9 @@ def run(args) -> int:
                  + ", ".join(f"{kind} {100 * score:.1f} %" for kind, score in scores.items())
                  + ")")
     workflows = {}
-    for kind in dict.fromkeys([main, *args.kinds]):  # the main kind first
-        progress(f"workflow on {kind} maps")
+    kinds = list(dict.fromkeys([main, *args.kinds]))  # the main kind first
+    for number, kind in enumerate(kinds, start=1):
+        progress(f"workflow on {kind} maps ({number} of {len(kinds)})")
         # the kinds beside the main one show what the library's loop makes of their maps: a
         # term of free shape there would mostly take up that kind's own map error, and its
         # search is the loop's costliest part
@@ -93,6 +94,36 @@ def run(args) -> int:
             log, library=library, valve=valve, max_additions=args.max_additions,
             calibrate=not args.no_calibration, shapes=kind == main,
             maps_spec=main_maps if kind == main else maps(kind), progress=progress)
+        if kind == main or number == len(kinds):
+            # the main result as soon as it is known; the report again once the comparison
+            # kinds beside it are done
+            document = write_results(out, log, workflows, main, scores)
+            if number < len(kinds):
+                progress(f"wrote the {main} maps' results to {out}; the comparison kinds follow "
+                         f"({', '.join(kinds[1:])}), their staircases added to the report after")
+    progress(f"wrote {out}/report.html")
+    workflow = workflows[main]
+    if args.json:
+        print_json(document)
+    else:
+        for kind, other in workflows.items():
+            if kind != main:
+                print(f"    ({kind} maps: {from_si(other.final.rms, 'bar'):.3f} bar after "
+                      f"{len(other.steps)} steps)")
+        print(f"on {main} maps:")
+        for number, step in enumerate(workflow.steps, start=1):
+            print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
+                  f"{from_si(step.rms, 'bar'):7.3f} bar")
+        print(f"    noise floor {from_si(workflow.noise_floor, 'bar'):.3f} bar")
+        print(summarise(workflow.final_diagnosis))
+        print(f"report: {out}/report.html")
+    return 0
+
+
+def write_results(out, log, workflows: dict, main: str, scores) -> dict:
+    """Write the main kind's staircase, final model, comparison, figures and report (with the
+    staircases of the kinds done so far beside it) into ``out``, all at once; return the
+    JSON document."""
     workflow = workflows[main]
     final = workflow.final
     comparison = compare(final.model, log, played=final.played)
@@ -124,19 +155,4 @@ def run(args) -> int:
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
                         f"Maps: {main}. Run time "
                         f"{sum(w.seconds for w in workflows.values()):.0f} s.")
-    progress(f"wrote {out}/report.html")
-    if args.json:
-        print_json(document)
-    else:
-        for kind, other in workflows.items():
-            if kind != main:
-                print(f"    ({kind} maps: {from_si(other.final.rms, 'bar'):.3f} bar after "
-                      f"{len(other.steps)} steps)")
-        print(f"on {main} maps:")
-        for number, step in enumerate(workflow.steps, start=1):
-            print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
-                  f"{from_si(step.rms, 'bar'):7.3f} bar")
-        print(f"    noise floor {from_si(workflow.noise_floor, 'bar'):.3f} bar")
-        print(summarise(workflow.final_diagnosis))
-        print(f"report: {out}/report.html")
-    return 0
+    return document

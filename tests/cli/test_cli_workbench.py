@@ -129,6 +129,35 @@ def test_workflow_shows_every_kinds_staircase_and_defaults_to_the_most_accurate(
     assert "The staircase on every kind of map" in report
 
 
+def test_workflow_writes_the_main_kinds_results_before_the_comparison_kinds(
+        capsys, viscous_log, tmp_path, monkeypatch):
+    """The main kind's results are on disk as soon as its staircase is done: a comparison kind
+    that fails (an interruption, say) leaves them there."""
+    import surrogate.commands.workflow as command
+
+    real = command.run_workflow
+    calls = []
+
+    def main_then_stop(log, **options):
+        calls.append(options["maps_spec"])
+        if len(calls) > 1:
+            raise KeyboardInterrupt
+        return real(log, **options)
+
+    monkeypatch.setattr(command, "run_workflow", main_then_stop)
+    out = tmp_path / "workflow"
+    try:
+        code = main(["workflow", "--data", str(viscous_log), "--out", str(out), "--maps", "grid",
+                     "--kinds", "grid", "nn", "--max-additions", "0", "--no-calibration"])
+    except SystemExit as stop:
+        code = stop.code
+    assert code != 0 and len(calls) == 2
+    document = json.loads((out / "workflow.json").read_text())
+    assert document["maps"] == "grid" and document["other_kinds"] == {}
+    for name in ("report.html", "staircase.csv", "final_model.toml"):
+        assert (out / name).is_file()
+
+
 def test_model_file_round_trip(tmp_path):
     model = load_model("cfda")
     model.effect("friction_constant").params["K1"].value = 7.25
