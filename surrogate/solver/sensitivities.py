@@ -46,12 +46,12 @@ _FLOW_HOOKS = ("correct_inputs", "restriction_flow", "leakage")
 
 def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
                           played: Replay, trials: Sequence[ValveModel], *, u_start: float = 0.0,
-                          smoothing: int = 1) -> np.ndarray | None:
+                          smoothing: int = 1) -> np.ndarray:
     """The change of the replay's Δp [Pa] at each sample that each of ``trials`` (``model``
     with one parameter shifted, as a Jacobian's forward difference shifts it) makes,
-    linearised: (n, len(trials)), NaN where ``played`` has no solution. None where the
-    linearisation does not apply (a sample held by the pilot without flow that the
-    balance with flow does not describe); the caller then replays.
+    linearised: (n, len(trials)), NaN where ``played`` has no solution. The opening's change is
+    not followed where the piston rests on its stop or is closed (it does not move) or no flow
+    passes (Δp does not depend on it); Δp's own change there is.
 
     ``points``, ``segments``, ``u_start`` and ``smoothing`` are the replay's (:func:`.replay.
     replay`).
