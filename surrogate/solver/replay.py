@@ -182,8 +182,8 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         u_edges = np.vstack([edge.u, edge.u])
         status_edges = np.vstack([edge.status, edge.status])
 
-    starts = _segment_starts(segments, count)
-    u, moving, status, _ = _play(u_edges[0], u_edges[1], status_edges[0], status_edges[1],
+    starts = segment_starts(segments, count)
+    u, moving, status, _ = play(u_edges[0], u_edges[1], status_edges[0], status_edges[1],
                                  starts, u_start, smoothing)
     fluid = model.fluid(points)
     dp = np.full(count, np.nan)
@@ -226,7 +226,7 @@ def _batches(index: np.ndarray) -> list[np.ndarray]:
     return [index[start:start + BATCH] for start in range(0, len(index), BATCH)]
 
 
-def _segment_starts(segments, count: int) -> np.ndarray:
+def segment_starts(segments, count: int) -> np.ndarray:
     starts = np.zeros(count, dtype=bool)
     if count:
         starts[0] = True
@@ -236,13 +236,13 @@ def _segment_starts(segments, count: int) -> np.ndarray:
     return starts
 
 
-#: where a sample's opening comes from in the play (:func:`_play`'s ``source``): the start of its
+#: where a sample's opening comes from in the play (:func:`play`'s ``source``): the start of its
 #: run, its own lower or upper band edge (it slides), or the state the piston was left in, the
 #: (smoothed) lower or upper edge of the sample that last pushed it (it sticks)
 FROM_START, OWN_LOW, OWN_HIGH, STATE_LOW, STATE_HIGH = range(5)
 
 
-def _play(u_open, u_close, status_open, status_close, starts, u_start, smoothing=1):
+def play(u_open, u_close, status_open, status_close, starts, u_start, smoothing=1):
     """The play, restarting at u_start where ``starts``: the state follows
     clip(state_{k−1}, smoothed edges); a sample where the state slides takes its own edge.
 
@@ -259,8 +259,8 @@ def _play(u_open, u_close, status_open, status_close, starts, u_start, smoothing
     high = np.fmax(u_open, u_close)
     solved = status >= 0
     if smoothing > 1:
-        state_low = _smoothed(low, starts, solved, smoothing)
-        smoothed_high = _smoothed(high, starts, solved, smoothing)
+        state_low = smoothed_edge(low, starts, solved, smoothing)
+        smoothed_high = smoothed_edge(high, starts, solved, smoothing)
         state_high = np.fmax(smoothed_high, state_low)
         # where the smoothed upper edge falls below the lower one, the state's upper bound is
         # the lower edge
@@ -303,7 +303,7 @@ def _play(u_open, u_close, status_open, status_close, starts, u_start, smoothing
 _PLAY_BLOCK = 65_536
 
 
-def _smoothed(edge: np.ndarray, starts: np.ndarray, solved: np.ndarray, window: int
+def smoothed_edge(edge: np.ndarray, starts: np.ndarray, solved: np.ndarray, window: int
               ) -> np.ndarray:
     """``edge`` smoothed within each run (quadratic Savitzky–Golay over ``window`` samples);
     unsolved samples are bridged by linear interpolation first."""

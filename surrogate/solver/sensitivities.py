@@ -13,7 +13,7 @@ balance's at that opening, Δp(u, θ), so
 
     dΔp/dθ = Δp_θ + Δp_u · du/dθ.
 
-Which edge a sample's opening is, the play says (:func:`.replay._play`'s ``source``): a sliding
+Which edge a sample's opening is, the play says (:func:`.replay.play`'s ``source``): a sliding
 sample's own edge, a stuck sample's the edge (smoothed over the run, a linear filter) of the
 sample that last pushed the piston, or nothing where the run starts. Each derivative is one
 forward difference at a fixed opening, no solve; and for a parameter of an effect that acts
@@ -35,8 +35,8 @@ import numpy as np
 from ..effects.base import Effect
 from ..model import ValveModel
 from ..points import OperatingPoints
-from .replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_HIGH, STATE_LOW, Replay, _play,
-                     _segment_starts, _smoothed)
+from .replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_HIGH, STATE_LOW, Replay, play,
+                     segment_starts, smoothed_edge)
 
 #: relative step of the opening in the derivatives along u [1]
 _U_STEP = 1e-6
@@ -86,17 +86,17 @@ def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
 
     # 2. which edge each sample's opening is (the play, replayed on the band it found)
     status_edges = np.where(np.isfinite(played.band), 0, -1)
-    starts = _segment_starts(segments, count)
-    *_, source = _play(played.band[0], played.band[1], status_edges[0], status_edges[1],
+    starts = segment_starts(segments, count)
+    *_, source = play(played.band[0], played.band[1], status_edges[0], status_edges[1],
                        starts, u_start, smoothing)
     opens_low = ~(played.band[0] > played.band[1])  # the lower edge is the opening one
     low = np.where(opens_low[:, None], edge_change[0], edge_change[1])
     high = np.where(opens_low[:, None], edge_change[1], edge_change[0])
     solved = np.isfinite(played.band).all(axis=0)
     if smoothing > 1:  # the state follows the edges smoothed over each run: a linear filter
-        state_low = np.column_stack([_smoothed(low[:, j], starts, solved, smoothing)
+        state_low = np.column_stack([smoothed_edge(low[:, j], starts, solved, smoothing)
                                      for j in range(columns)]) if columns else low
-        state_high = np.column_stack([_smoothed(high[:, j], starts, solved, smoothing)
+        state_high = np.column_stack([smoothed_edge(high[:, j], starts, solved, smoothing)
                                       for j in range(columns)]) if columns else high
     else:
         state_low, state_high = low, high
