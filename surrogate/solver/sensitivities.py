@@ -22,8 +22,11 @@ not through the flow, the inputs or the maps, G_θ is that effect's hooks evalua
 balance states the base replay already computed, so the maps are not asked at all.
 
 What this leaves out is what a finite difference would see as a jump: a sample that starts or
-stops sliding between the two parameter values. The fit's steps are continuous, so those are
-the few samples at a turn, and the Jacobian only steers the steps.
+stops sliding between the two parameter values, the few samples at a turn. The fit's Jacobian
+steers its steps and, at the optimum, linearises the held-out refits and the standard errors
+(:mod:`surrogate.fitting.heldout`): the derivative is what those want, and a tiny forward
+difference across such a jump was noise in them (:func:`surrogate.fitting.logfit.probe_column`
+takes a fiftieth of a range for that reason).
 """
 
 from __future__ import annotations
