@@ -37,7 +37,7 @@ CFD's back-pressure set); a kind's own maps wrong by the draws (``own``) leave o
 error (the mesh bias, the gap's bump, the cavitation) to cover; one kind's maps judge every
 kind's bridge against that one.
 
-Writes results/valve_coverage/coverage.json. About a minute.
+Writes results/valve_coverage/coverage.json and coverage.png (the table as a picture). Seconds.
 """
 
 from __future__ import annotations
@@ -50,6 +50,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -57,6 +59,7 @@ sys.path.insert(0, str(ROOT))
 from surrogate.data.loaders import load_cfd_samples  # noqa: E402
 from surrogate.maps.registry import build_maps  # noqa: E402
 from surrogate.paths import SHIPPED_CFD_SAMPLES  # noqa: E402
+from surrogate.reporting.report import figure_png  # noqa: E402
 from surrogate.synthetic.mismatch import MapMismatch  # noqa: E402
 from surrogate.synthetic.valve_coverage import (BAND, REGIONS, regions,  # noqa: E402
                                                 score, summarise, valve_truth)
@@ -128,8 +131,43 @@ def main(argv: list[str] | None = None) -> int:
                 "band": BAND,
                 "results": results}
     (out / "coverage.json").write_text(json.dumps(document, indent=2) + "\n")
-    print(f"wrote {out / 'coverage.json'}")
+    (out / "coverage.png").write_bytes(figure_png(coverage_figure(results, args.truth)))
+    print(f"wrote {out / 'coverage.json'} and coverage.png")
     return 0
+
+
+def coverage_figure(results: dict, truth: str) -> Figure:
+    """±2σ's share per region (rows) and kind and quantity (columns), green inside the band,
+    orange above it (σ too wide), red below (σ too narrow), with the median error and σ [%]."""
+    columns = [(kind, name) for kind in results for name in ("q", "flow force")]
+    figure = Figure(figsize=(1.6 * len(columns) + 1.6, 0.62 * len(REGIONS) + 1.3),
+                    layout="constrained")
+    ax = figure.subplots()
+    for row, region in enumerate(REGIONS):
+        for column, (kind, name) in enumerate(columns):
+            entry = results[kind][region][name]
+            share = entry.get("within 2 sigma")
+            colour = ("0.85" if share is None else "#8fd19e" if BAND[0] <= share <= BAND[1]
+                      else "#f5c27a" if share > BAND[1] else "#f08080")
+            ax.add_patch(Rectangle((column, row), 1, 1, facecolor=colour, edgecolor="white"))
+            text = "-" if share is None else f"{share:.0%}"
+            ax.text(column + 0.5, row + 0.42, text, ha="center", va="center", fontsize=11)
+            ax.text(column + 0.5, row + 0.75, f"err {entry['median error %']:.1f} / "
+                    f"σ {entry.get('median sigma %', float('nan')):.1f} %",
+                    ha="center", va="center", fontsize=7, color="0.3")
+    ax.set_xlim(0, len(columns))
+    ax.set_ylim(len(REGIONS), 0)
+    ax.set_xticks(np.arange(len(columns)) + 0.5,
+                  [f"{kind}\n{name}" for kind, name in columns])
+    ax.set_yticks(np.arange(len(REGIONS)) + 0.5, REGIONS)
+    ax.tick_params(length=0)
+    for side in ax.spines.values():
+        side.set_visible(False)
+    valves = {"others": "the other kinds' maps", "samples": "grid maps of perturbed samples",
+              "own": "each kind's own maps"}.get(truth, f"{truth} maps")
+    ax.set_title(f"±2σ's share of the virtual valves' truth (valves of {valves}); green "
+                 f"{BAND[0]:.0%}-{BAND[1]:.0%}, orange wider, red narrower", fontsize=9)
+    return figure
 
 
 if __name__ == "__main__":
