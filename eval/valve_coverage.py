@@ -25,6 +25,7 @@ target is 85-98 %, the issue's band). Regions:
     python eval/valve_coverage.py                        # grid, NN and GP; valves 1-5
     python eval/valve_coverage.py --truth samples        # valves that bridge the grid's way
     python eval/valve_coverage.py --truth own            # each kind's maps, wrong by the draws
+    python eval/valve_coverage.py --constant-cfd-error   # σ without the region terms
     python eval/valve_coverage.py --kinds gp --seeds 1 2 3 4 5 6 7 8 --mismatch 0.5
 
 The valve's maps (``--truth``) decide what "between the samples" means, since each kind bridges
@@ -68,6 +69,17 @@ from surrogate.valve import load_valve  # noqa: E402
 KINDS = ("grid", "nn", "gp")
 SEEDS = (1, 2, 3, 4, 5)
 
+def constant_cfd_error() -> None:
+    """Take the region terms of the CFD's error out of every map's σ in this process
+    (:mod:`surrogate.maps.cfd_error`: one mesh's whole bias everywhere, no gap floor, no
+    cavitation term)."""
+    import surrogate.maps.base as base
+
+    base.mesh_bias_share = lambda openings, u: np.ones(np.shape(u))
+    base.gap_error = lambda gaps, u: np.zeros(np.shape(u))
+    base.cavitation_error = lambda central, p_B: np.zeros(np.shape(p_B))
+
+
 def truth_maps(truth: str, kind: str, maps, valve) -> list:
     """The (flow, force) maps the virtual valves of ``truth`` are made of for ``kind`` under
     test (its own ``maps`` already built); none for grid maps of the perturbed samples."""
@@ -93,8 +105,14 @@ def main(argv: list[str] | None = None) -> int:
                              "a valve that bridges the grid's way), each kind's own maps wrong "
                              "by the draws ('own': the CFD's error alone), or one kind's maps "
                              "wrong by the draws for every kind")
+    parser.add_argument("--constant-cfd-error", action="store_true",
+                        help="σ as before the CFD's error grew region by region: the calibrated "
+                             "σ and the CFD's constant error only (no bridged meshes, no gap "
+                             "floor, no cavitation term), to see what those terms do")
     parser.add_argument("--out", default=str(ROOT / "results" / "valve_coverage"))
     args = parser.parse_args(argv)
+    if args.constant_cfd_error:
+        constant_cfd_error()
     began = time.process_time()
     valve = load_valve()
     samples = load_cfd_samples(SHIPPED_CFD_SAMPLES)
