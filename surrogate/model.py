@@ -45,12 +45,17 @@ class Balance:
         Fluid force minus spring force plus effect forces [N]; positive opens the valve.
     friction : numpy.ndarray
         Half-width of the Coulomb friction band [N], >= 0.
+    state : BalanceState
+        What the effects' force and friction hooks saw (the true points, Δp, the flow force):
+        the replay's sensitivities evaluate one effect's hooks on it alone
+        (:mod:`surrogate.solver.sensitivities`).
     """
 
     p_L: np.ndarray
     dp: np.ndarray
     net_force: np.ndarray
     friction: np.ndarray
+    state: BalanceState
 
 
 def _uses(effect: Effect, hook: str) -> bool:
@@ -213,38 +218,22 @@ class ValveModel:
         p_L = np.broadcast_to(p_L, points.q.shape)
         return self._balance(u, points, fluid, p_L, p_L - points.p_B, np.zeros(points.q.shape))
 
-    def balance_state(self, u, points: OperatingPoints, fluid: FluidState) -> BalanceState:
-        """What the effects' force and friction hooks see with the piston at ``u`` [m] while the
-        (measured) points' flow passes: the true points, the flow map's Δp, the force map's flow
-        force. The replay's sensitivities evaluate an effect's hooks on it alone
-        (:mod:`surrogate.solver.sensitivities`)."""
-        points = self.true_points(points)
-        dp = self.pressure_drop(u, points, fluid)
-        p_L = points.p_B + dp
-        flow_force = (self.force_map.force(p_L, points.p_B, u, fluid) - p_L * self.valve.A_L
-                      - points.p_B * self._back_area)
-        return self._state(u, points, fluid, p_L, flow_force)
-
-    def _state(self, u, points, fluid, p_L, flow_force) -> BalanceState:
-        return BalanceState(np.broadcast_to(u, points.q.shape), points.q, p_L, points.p_B,
-                            points.p_P, points.temperature, fluid, flow_force, self.valve)
-
     def _balance(self, u, points, fluid, p_L, dp, flow_force) -> Balance:
         valve = self.valve
         u = np.broadcast_to(u, points.q.shape)
         fluid_force = p_L * valve.A_L + points.p_P * valve.A_P - points.p_B * valve.A_B + flow_force
         net = fluid_force - (valve.F_cr + valve.K_f * u)
         friction = np.zeros(points.q.shape)
-        if self.effects:
-            state = self._state(u, points, fluid, p_L, flow_force)
-            for effect in self.effects:
-                extra = effect.force(state)
-                if extra is not None:
-                    net = net + extra
-                band = effect.friction(state)
-                if band is not None:
-                    friction = friction + band
-        return Balance(p_L, dp, net, friction)
+        state = BalanceState(u, points.q, p_L, points.p_B, points.p_P, points.temperature, fluid,
+                             flow_force, valve)
+        for effect in self.effects:
+            extra = effect.force(state)
+            if extra is not None:
+                net = net + extra
+            band = effect.friction(state)
+            if band is not None:
+                friction = friction + band
+        return Balance(p_L, dp, net, friction, state)
 
     def restriction_flow(self, u, points: OperatingPoints, fluid: FluidState) -> np.ndarray:
         """The flow [m^3/s] through the main restriction at opening ``u`` [m] for the (true)

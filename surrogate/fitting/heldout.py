@@ -187,13 +187,14 @@ class RunBlocks:
         # discrepancy (Discrepancy.run_grams)
         k = nuisance.shape[1]
         self.gram = np.empty((len(rows), self.p + k, self.p + k))
+        self.cross = np.empty((len(rows), self.p + k))
         for index, m in enumerate(rows):
-            own = jacobian[m]
-            self.gram[index, :self.p, :] = own.T @ x[m]
+            part = x[m]
+            self.gram[index, :self.p, :] = jacobian[m].T @ part
             self.gram[index, self.p:, :self.p] = self.gram[index, :self.p, self.p:].T
+            self.cross[index] = part.T @ r[m]
         if k:
             self.gram[:, self.p:, self.p:] = discrepancy.run_grams(self.labels, rows)
-        self.cross = np.stack([x[m].T @ r[m] for m in rows])
         self.squares = np.array([float(r[m] @ r[m]) for m in rows])
         self.counts = np.array([int(m.sum()) for m in rows])
         self.penalty = penalty * np.eye(x.shape[1] - self.p)

@@ -40,7 +40,9 @@ FORCE_CFD_ERROR = CFD_ERROR["flow force"]
 #: the shipped 0.20–0.63 mm gap by different rules (the grid's power law, the GP's kernel, the
 #: networks' features) and their flows there differ by 2.4 to 7 % from one another (``python
 #: eval/valve_coverage.py --truth nn``, ``--truth gp``, each kind's maps wrong by the same
-#: draws): none of them is the valve's, and ±2σ at the gap's middle holds that spread
+#: draws): none of them is the valve's, and ±2σ at the gap's middle holds that spread. A floor
+#: of σ, not a term beside it (:meth:`~.base.FlowMap.log_discharge_std`): the grid's calibrated σ
+#: already grows with the span it bridges
 GAP_FLOW_ERROR = 0.03
 
 #: one σ of the relative flow-force error the CFD's cavitation model adds per unit of
@@ -82,7 +84,7 @@ def _log_opening(u) -> np.ndarray:
 
 def _position(log_u: np.ndarray, low: float, high: float) -> np.ndarray:
     """Where ln u lies between the openings ``low`` and ``high`` [m], clipped to [0, 1] (the
-    ONNX export computes the same, :func:`surrogate.export.onnx_maps._cfd_error`)."""
+    ONNX export computes the same, :func:`surrogate.export.onnx_maps._position`)."""
     return np.clip((log_u - np.log(low)) / np.log(high / low), 0.0, 1.0)
 
 

@@ -19,7 +19,8 @@ sample that last pushed the piston, or nothing where the run starts. Each deriva
 forward difference at a fixed opening, no solve; and for a parameter of an effect that acts
 through its force or friction alone (most of them: springs, frictions, forces of free shape),
 not through the flow, the inputs or the maps, G_θ is that effect's hooks evaluated twice on the
-balance states the base replay already computed, so the maps are not asked at all.
+balance states of the edges (:attr:`surrogate.model.Balance.state`), so the maps are not asked
+for it at all.
 
 What this leaves out is what a finite difference would see as a jump: a sample that starts or
 stops sliding between the two parameter values, the few samples at a turn. The fit's Jacobian
@@ -74,8 +75,8 @@ def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
         if not floating.size:
             continue
         sub, at, sub_fluid = points[floating], u_edge[floating], fluid[floating]
-        state = model.balance_state(at, sub, sub_fluid)
-        here = _g(model.balance(at, sub, sub_fluid), sign)
+        balance = model.balance(at, sub, sub_fluid)
+        state, here = balance.state, _g(balance, sign)
         step = _U_STEP * at
         g_u = (_g(model.balance(at + step, sub, sub_fluid), sign) - here) / step
         for j, trial in enumerate(trials):
