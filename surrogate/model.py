@@ -200,15 +200,42 @@ class ValveModel:
         points = self.true_points(points)
         return self.balance_at(u, self.pressure_drop(u, points, fluid), points, fluid)
 
+    @property
+    def flow_from_maps_alone(self) -> bool:
+        """True when no effect changes the flow through the restriction or adds a leakage path:
+        then, for given true inputs, the balance's map part (:meth:`map_part`) depends on the
+        opening alone, whatever the effects' parameters, which lets a fit tabulate it once per
+        sample (:mod:`surrogate.solver.map_tables`)."""
+        return not any(_uses(effect, "restriction_flow") or _uses(effect, "leakage")
+                       for effect in self.effects)
+
+    def map_part(self, u, points: OperatingPoints, fluid: FluidState
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """What the maps contribute to :meth:`balance` at ``u`` [m] for the (true) points:
+        the pressure drop Δp [Pa] and the flow force f_ff [N] at that Δp."""
+        dp = self.pressure_drop(u, points, fluid)
+        return dp, self._flow_force(u, dp, points, fluid)
+
+    def balance_of_map_part(self, u, points: OperatingPoints, fluid: FluidState, dp,
+                            flow_force) -> Balance:
+        """The force balance at ``u`` [m] for the (true) points from the maps' part of it,
+        Δp [Pa] and f_ff [N] as :meth:`map_part` gives them (or a table of them): the springs,
+        pressures and effects added."""
+        return self._balance(u, points, fluid, points.p_B + dp, dp, flow_force)
+
     def balance_at(self, u, dp, points: OperatingPoints, fluid: FluidState) -> Balance:
         """The force balance at ``u`` [m] with the pressure drop ``dp`` [Pa] imposed on the
         (true, i.e. already corrected) points, whatever the flow map says: the flow force at
         that load pressure. Its slopes in u and Δp carry map errors through the balance
         (:mod:`surrogate.solver.uncertainty`)."""
+        return self._balance(u, points, fluid, points.p_B + dp, dp,
+                             self._flow_force(u, dp, points, fluid))
+
+    def _flow_force(self, u, dp, points, fluid) -> np.ndarray:
+        """f_ff [N]: what the force map gives beyond the uniform pressures at Δp [Pa]."""
         p_L = points.p_B + dp
         f_sim = self.force_map.force(p_L, points.p_B, u, fluid)
-        flow_force = f_sim - p_L * self.valve.A_L - points.p_B * self._back_area
-        return self._balance(u, points, fluid, p_L, dp, flow_force)
+        return f_sim - p_L * self.valve.A_L - points.p_B * self._back_area
 
     def balance_without_flow(self, u, p_L, points: OperatingPoints,
                              fluid: FluidState) -> Balance:

@@ -93,6 +93,12 @@ class FlowMap(ABC):
                                   q, np.full(q.shape, 10.0 * BAR), xatol=1e-6)
         return np.where(q > 0, roots.x, 0.0).reshape(shape)
 
+    def opening_knots(self) -> np.ndarray:
+        """Openings [m] where the map has a kink along u (at a fixed flow, or Δp): none for a
+        smooth map. A fit's tables of the map put nodes there
+        (:mod:`surrogate.solver.map_tables`)."""
+        return np.empty(0)
+
     def _require_implemented(self, method: str) -> None:
         if getattr(type(self), method) is getattr(FlowMap, method):
             raise NotImplementedError(f"{type(self).__name__} must implement flow() or "
@@ -187,6 +193,12 @@ class ForceMap(ABC):
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """f_sim [N], positive in the opening direction."""
         raise NotImplementedError
+
+    def opening_knots(self) -> np.ndarray:
+        """Openings [m] where the map has a kink along u (at a fixed flow, or Δp): none for a
+        smooth map. A fit's tables of the map put nodes there
+        (:mod:`surrogate.solver.map_tables`)."""
+        return np.empty(0)
 
     def extrapolation_reasons(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """Why a query lies outside the map's data (bit flags of :mod:`.coverage`, 0 inside)."""

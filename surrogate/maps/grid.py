@@ -154,6 +154,11 @@ class _SweepGrid:
             distances["opening beyond"] = distances["opening beyond"] + weight * np.abs(excess)
         return distances
 
+    def opening_knots(self) -> np.ndarray:
+        """The sampled openings [m] of every fluid level: between them the grid is linear in
+        ln u, so its value has a kink at each."""
+        return np.exp(np.unique(np.concatenate([level.log_u for level in self.levels])))
+
     @property
     def fixed_back_pressure(self) -> float:
         """The one back pressure [Pa] whose samples the grid uses: CFD runs at others would not

@@ -42,6 +42,7 @@ from scipy.signal import savgol_filter
 
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
+from .map_tables import applies, balance_reader, tables_for
 from .steady import BATCH, Status, solve_steady
 from .uncertainty import map_error_gains
 
@@ -77,6 +78,10 @@ class Replay:
         (2, n): the maps' standard deviations of those two errors against the valve (the
         calibrated one and the CFD's own in quadrature, :mod:`surrogate.maps.cfd_error`) [1], so
         that ``map_gain * map_std`` is the one-σ effect (:attr:`map_error`).
+    tables : TableView or None
+        The samples' rows of the map tables the solver read instead of the maps (a fit's inner
+        loop, :mod:`.map_tables`), for the replay's sensitivities to read them alike; None
+        where it asked the maps.
     """
 
     points: OperatingPoints
@@ -88,6 +93,7 @@ class Replay:
     band: np.ndarray
     map_gain: np.ndarray | None = None
     map_std: np.ndarray | None = None
+    tables: object | None = None
 
     @property
     def map_error(self) -> np.ndarray | None:
@@ -119,7 +125,8 @@ class Replay:
         return Replay(self.points[index], self.u[index], self.dp[index], self.status[index],
                       self.moving[index], self.reasons_outside[index], self.band[:, index],
                       None if self.map_gain is None else self.map_gain[:, index],
-                      None if self.map_std is None else self.map_std[:, index])
+                      None if self.map_std is None else self.map_std[:, index],
+                      None if self.tables is None else self.tables[index])
 
 
 def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
@@ -162,23 +169,26 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         done[0] += points_done
         if stage is not None:
             stage(min(count * done[0] // work, count))
+    # a fit's inner loop (a guess, no diagnostics) reads each sample's maps from a table
+    tables = None if guess is None or diagnostics else _tables(model, points, guess.band)
     if model.has_friction and 2 * count <= BATCH:  # both edges of the band in one batch
         both = concatenate([points.replace(direction=np.full(count, OPENING)),
                             points.replace(direction=np.full(count, CLOSING))])
         start = None if guess is None else guess.band.ravel()
-        edges = solve_steady(model, both, guess=start, positions_only=True)
+        edges = solve_steady(model, both, guess=start, positions_only=True,
+                             tables=None if tables is None else tables.tile(2))
         u_edges, status_edges = edges.u.reshape(2, count), edges.status.reshape(2, count)
     elif model.has_friction:  # a big log: one edge after the other, each solved in batches
         u_edges, status_edges = np.empty((2, count)), np.empty((2, count), dtype=np.int8)
         for row, side in enumerate((OPENING, CLOSING)):
             edge = solve_steady(model, points.replace(direction=np.full(count, side)),
                                 guess=None if guess is None else guess.band[row],
-                                positions_only=True, solved=solved)
+                                positions_only=True, solved=solved, tables=tables)
             u_edges[row], status_edges[row] = edge.u, edge.status
     else:
         start = None if guess is None else guess.band[0]
         edge = solve_steady(model, points, friction=False, guess=start, positions_only=True,
-                            solved=solved)
+                            solved=solved, tables=tables)
         u_edges = np.vstack([edge.u, edge.u])
         status_edges = np.vstack([edge.status, edge.status])
 
@@ -191,7 +201,9 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
     solved_rows = np.flatnonzero(status >= 0)
     for part in _batches(solved_rows):
         sub = points[part]
-        dp[part] = model.balance(u[part], sub, fluid[part]).dp
+        balance = balance_reader(model, sub, fluid[part], None if tables is None
+                                 else tables[part])
+        dp[part] = balance(u[part], np.arange(len(part))).dp
         if diagnostics:
             reasons[part] = model.extrapolation_reasons(u[part], sub.p_B + dp[part], sub,
                                                         fluid[part])
@@ -216,7 +228,19 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
             solved(len(part) // 2)
     if stage is not None and count * done[0] // work < count:
         stage(count)
-    return Replay(points, u, dp, status, moving, reasons, u_edges, map_gain, map_std)
+    return Replay(points, u, dp, status, moving, reasons, u_edges, map_gain, map_std, tables)
+
+
+def _tables(model: ValveModel, points: OperatingPoints, band: np.ndarray):
+    """The points' rows of the map tables of ``model``'s maps, tabulated around ``band`` where
+    missing (:mod:`.map_tables`); None where they would not hold its map part
+    (:func:`.map_tables.applies`)."""
+    true = model.true_points(points)
+    if not applies(model, points, true):
+        return None
+    tables = tables_for(model)
+    tables.tabulate(model, points, band)
+    return tables.view(points)
 
 
 def _batches(index: np.ndarray) -> list[np.ndarray]:

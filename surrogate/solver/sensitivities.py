@@ -39,6 +39,7 @@ import numpy as np
 from ..effects.base import Effect
 from ..model import ValveModel
 from ..points import OperatingPoints
+from .map_tables import balance_reader
 from .replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_HIGH, STATE_LOW, Replay, play,
                      segment_starts, smoothed_edge)
 
@@ -75,16 +76,18 @@ def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
         if not floating.size:
             continue
         sub, at, sub_fluid = points[floating], u_edge[floating], fluid[floating]
-        balance = model.balance(at, sub, sub_fluid)
+        balance_at = _balance_as_replayed(model, played, floating, sub, sub_fluid)
+        balance = balance_at(at)
         state, here = balance.state, _g(balance, sign)
         step = _U_STEP * at
-        g_u = (_g(model.balance(at + step, sub, sub_fluid), sign) - here) / step
+        g_u = (_g(balance_at(at + step), sign) - here) / step
         for j, trial in enumerate(trials):
             if fast[j]:
                 g_theta = sum(_hooks(new, state, sign) - _hooks(old, state, sign)
                               for old, new in changed[j])
             else:
-                g_theta = _g(trial.balance(at, sub, sub_fluid), sign) - here
+                g_theta = _g(_balance_as_replayed(trial, played, floating, sub, sub_fluid)(at),
+                             sign) - here
             with np.errstate(divide="ignore", invalid="ignore"):
                 edge_change[row, floating, j] = -g_theta / g_u
 
@@ -120,11 +123,22 @@ def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
     sub, at, sub_fluid = points[solved_rows], played.u[solved_rows], fluid[solved_rows]
     dp = played.dp[solved_rows]
     step = _U_STEP * np.maximum(at, 1e-3 * stroke)
-    dp_u = (model.balance(at + step, sub, sub_fluid).dp - dp) / step
+    balance_at = _balance_as_replayed(model, played, solved_rows, sub, sub_fluid)
+    dp_u = (balance_at(at + step).dp - dp) / step
     for j, trial in enumerate(trials):
-        direct = 0.0 if fast[j] else trial.balance(at, sub, sub_fluid).dp - dp
+        direct = 0.0 if fast[j] else (
+            _balance_as_replayed(trial, played, solved_rows, sub, sub_fluid)(at).dp - dp)
         change[solved_rows, j] = direct + dp_u * du[solved_rows, j]
     return change
+
+
+def _balance_as_replayed(model, played: Replay, rows, points, fluid):
+    """``balance(u)`` of the samples ``rows`` as the replay evaluated ``model`` (or a trial of
+    it): from the map tables it read (:mod:`.map_tables`), or from the maps."""
+    read = balance_reader(model, points, fluid,
+                          None if played.tables is None else played.tables[rows])
+    index = np.arange(len(points))
+    return lambda u: read(u, index)
 
 
 def _g(balance, sign: float) -> np.ndarray:

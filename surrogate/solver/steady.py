@@ -77,6 +77,7 @@ from ..parallel import map_threads
 from ..points import OperatingPoints
 from ..roots import find_roots, invert_increasing
 from ..units import BAR, from_si
+from .map_tables import COARSE, balance_reader
 from .uncertainty import pressure_drop_std
 
 _OPENING_FLOOR = 1e-7  # smallest opening tried, as a fraction of the stroke
@@ -202,20 +203,23 @@ BATCH = 50_000
 
 def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool = True,
                  guess: np.ndarray | None = None, positions_only: bool = False,
-                 solved: Callable[[int], None] | None = None) -> SteadyState:
+                 solved: Callable[[int], None] | None = None, tables=None) -> SteadyState:
     """Solve the force balance at every point (:func:`_solve_batch`, :data:`BATCH` points at a
     time; the points are independent, so the batches change nothing). ``solved`` is called
-    with the number of points of each batch as it is done, for progress reports."""
+    with the number of points of each batch as it is done, for progress reports. ``tables``:
+    the points' rows of their map tables (a :class:`.map_tables.TableView`), read instead of
+    the maps where they hold the opening asked for."""
     count = len(points)
     if count <= BATCH:
         return _solve_batch(model, points, friction=friction, guess=guess,
-                            positions_only=positions_only)
+                            positions_only=positions_only, tables=tables)
 
     def batch(start: int) -> SteadyState:
         part = slice(start, min(start + BATCH, count))
         return _solve_batch(model, points[part], friction=friction,
                             guess=None if guess is None else guess[part],
-                            positions_only=positions_only)
+                            positions_only=positions_only,
+                            tables=None if tables is None else tables[part])
 
     parts = []
     for part in map_threads(batch, range(0, count, BATCH)):
@@ -229,7 +233,8 @@ def solve_steady(model: ValveModel, points: OperatingPoints, *, friction: bool =
 
 
 def _solve_batch(model: ValveModel, points: OperatingPoints, *, friction: bool = True,
-                 guess: np.ndarray | None = None, positions_only: bool = False) -> SteadyState:
+                 guess: np.ndarray | None = None, positions_only: bool = False,
+                 tables=None) -> SteadyState:
     """Solve the force balance at every point.
 
     Parameters
@@ -248,6 +253,8 @@ def _solve_batch(model: ValveModel, points: OperatingPoints, *, friction: bool =
         True skips what only a caller of the pressure drop needs: ``dp`` of flowing points stays
         NaN, ``reasons_outside`` 0 and ``dp_std`` None. The replay asks for the friction band's
         edges this way.
+    tables : TableView, optional
+        The points' rows of their map tables (:mod:`.map_tables`), for flowing points.
     """
     count = len(points)
     u = np.full(count, np.nan)
@@ -262,7 +269,7 @@ def _solve_batch(model: ValveModel, points: OperatingPoints, *, friction: bool =
         u[flowing], dp[flowing], status[flowing] = _solve_flowing(
             model, points[flowing], sign[flowing],
             None if guess is None else np.asarray(guess, float)[flowing],
-            with_dp=not positions_only)
+            with_dp=not positions_only, tables=None if tables is None else tables[flowing])
     still = np.flatnonzero(~invalid & (points.q == 0))
     if still.size:
         u[still], dp[still], status[still] = _solve_still(model, points[still], sign[still])
@@ -283,18 +290,28 @@ class _FlowingBalance:
     """The force balance h(u) = net force − s·friction of flowing points, falling with u (or
     not: see the module docstring), and the roots of it found so far."""
 
-    def __init__(self, model, points, sign):
+    def __init__(self, model, points, sign, tables=None):
         self.model, self.points, self.sign = model, points, sign
         # the side whose rule picks the smallest equilibrium (opening, or no friction)
         self.opens = sign >= 0
         self.fluid = model.fluid(points)
+        self.balance = balance_reader(model, points, self.fluid, tables)
+        # for the rule's sign checks only: the coarse tables too (a sign change found there is
+        # checked again on the fine ones or the maps)
+        self.rough_balance = self.balance if tables is None else balance_reader(
+            model, points, self.fluid, tables, COARSE)
         self.stroke = model.valve.U_max
         self.floor = self.stroke * _OPENING_FLOOR
         self.u = np.full(len(points), np.nan)
         self.status = np.full(len(points), Status.NOT_CONVERGED, dtype=np.int8)
 
     def __call__(self, u, i):
-        balance = self.model.balance(u, self.points[i], self.fluid[i])
+        balance = self.balance(u, i)
+        return balance.net_force - self.sign[i] * balance.friction
+
+    def rough(self, u, i):
+        """h as :meth:`__call__`, possibly from coarse tables: for a sign far from zero."""
+        balance = self.rough_balance(u, i)
         return balance.net_force - self.sign[i] * balance.friction
 
     def solve_in(self, lower, upper, which, h_lower, h_upper) -> None:
@@ -308,10 +325,10 @@ class _FlowingBalance:
                                                Status.NOT_CONVERGED))
 
 
-def _solve_flowing(model, points, sign, guess=None, with_dp=True):
+def _solve_flowing(model, points, sign, guess=None, with_dp=True, tables=None):
     """(u, Δp, status) of points with flow: first in narrow brackets around a guess, then the
     rest over the whole stroke."""
-    h = _FlowingBalance(model, points, sign)
+    h = _FlowingBalance(model, points, sign, tables)
     pending = np.arange(len(points))
     if guess is not None:
         pending = np.setdiff1d(pending, _solve_near_guess(h, guess))
@@ -321,7 +338,7 @@ def _solve_flowing(model, points, sign, guess=None, with_dp=True):
     dp = np.full(len(points), np.nan)
     if with_dp:
         solved = np.flatnonzero(h.status >= 0)
-        dp[solved] = model.balance(h.u[solved], points[solved], h.fluid[solved]).dp
+        dp[solved] = h.balance(h.u[solved], solved).dp
     return h.u, dp, h.status
 
 
@@ -436,8 +453,12 @@ def _first_met(h: _FlowingBalance) -> None:
         repeated = np.zeros(samples.shape, dtype=bool)
         repeated[:, 1:] = samples[:, 1:] == samples[:, :-1]
         values = np.empty(samples.shape)
-        values[~repeated] = h(samples[~repeated], np.broadcast_to(which[:, None],
-                                                                  samples.shape)[~repeated])
+        index = np.broadcast_to(which[:, None], samples.shape)
+        values[~repeated] = h.rough(samples[~repeated], index[~repeated])
+        # a sign change the coarse tables see is checked on the fine ones, or the maps
+        near = ~repeated & np.where(opens[:, None], values <= 0, values >= 0)
+        if near.any():
+            values[near] = h(samples[near], index[near])
         for k in range(1, width):
             values[repeated[:, k], k] = values[repeated[:, k], k - 1]
         # a sample "beyond": the rule's equilibrium lies further out than it (NaN: no evidence)

@@ -1,0 +1,91 @@
+"""How closely a fit's map tables reproduce the maps they stand for (:mod:`surrogate.solver.map_tables`).
+
+For each map kind, CFDA on those maps replays the shipped bench log once; every sample's map part
+is tabulated around its friction band, as a fit tabulates it, and then compared with the maps
+asked directly at random openings inside each sample's table: the pressure drop Δp and the flow
+force f_ff, relative, and what an error of f_ff means for Δp through the balance (f_ff / A_L, in
+bar). Also the CPU time of tabulating against one replay.
+
+    python eval/map_tables_accuracy.py              # grid, nn and gp
+    python eval/map_tables_accuracy.py --kinds grid
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from surrogate import presets  # noqa: E402
+from surrogate.data import load_bench_log  # noqa: E402
+from surrogate.fitting.residuals import replay_log  # noqa: E402
+from surrogate.paths import SHIPPED_BENCH_LOG  # noqa: E402
+from surrogate.points import OperatingPoints  # noqa: E402
+from surrogate.solver.map_tables import MapTables  # noqa: E402
+from surrogate.units import BAR  # noqa: E402
+
+
+def accuracy(kind: str, level: int = 0, seed: int = 0) -> dict:
+    model = presets.cfda(maps_spec=presets.maps(kind)).build()
+    log = load_bench_log(SHIPPED_BENCH_LOG)
+    start = time.process_time()
+    played = replay_log(model, log, diagnostics=False)
+    replay_cpu = time.process_time() - start
+    points = model.true_points(OperatingPoints.from_bench(log.frame))
+    tables = MapTables(model)
+    start = time.process_time()
+    tables.tabulate(model, points, played.replay.band)
+    tabulate_cpu = time.process_time() - start
+    view = tables.view(points)
+    held = np.flatnonzero(view.row >= 0)
+    rng = np.random.default_rng(seed)
+    # a random opening in each sample's window of the level asked for
+    nodes, first, count, _, _ = view.levels[level]
+    low = nodes[first[view.row[held]]]
+    high = nodes[first[view.row[held]] + count[view.row[held]] - 1]
+    u = np.exp(low + (high - low) * rng.random(held.size))
+    dp, flow_force, inside = view[held].lookup(u, coarsest=level)
+    sub = points[held]
+    dp_maps, force_maps = model.map_part(u, sub, model.fluid(sub))
+    dp_error = np.abs(dp / dp_maps - 1)
+    force_error = np.abs(flow_force - force_maps)
+    relative_force = force_error / np.maximum(np.abs(force_maps), 1e-3)
+    return {"kind": kind, "level": level, "samples": held.size, "nodes": tables.size,
+            "inside": float(inside.mean()), "replay_cpu": replay_cpu,
+            "tabulate_cpu": tabulate_cpu,
+            "dp_median": float(np.median(dp_error)), "dp_max": float(dp_error.max()),
+            "force_median": float(np.median(relative_force)),
+            "force_p99": float(np.quantile(relative_force, 0.99)),
+            "force_as_dp_max_bar": float(force_error.max() / model.valve.A_L / BAR),
+            "beyond_mbar": float(np.mean(np.maximum(np.abs(dp - dp_maps), force_error
+                                                    / model.valve.A_L) > 1e-3 * BAR))}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--kinds", nargs="+", default=["grid", "nn", "gp"])
+    parser.add_argument("--levels", nargs="+", type=int, default=[0, 1],
+                        help="table levels to check (0 fine, 1 coarse)")
+    args = parser.parse_args(argv)
+    print(f"{'kind':5} {'level':>5} {'samples':>7} {'nodes':>8} {'tabulate/replay':>15} "
+          f"{'Δp rel. med':>11} {'max':>8} {'f_ff rel. med':>13} {'p99':>8} "
+          f"{'f_ff max as Δp':>15} {'> 1 mbar':>9}")
+    for kind in args.kinds:
+        for level in args.levels:
+            r = accuracy(kind, level)
+            print(f"{r['kind']:5} {r['level']:5d} {r['samples']:7d} {r['nodes']:8d} "
+                  f"{r['tabulate_cpu'] / r['replay_cpu']:14.1f}× "
+                  f"{r['dp_median']:11.1e} {r['dp_max']:8.1e} {r['force_median']:13.1e} "
+                  f"{r['force_p99']:8.1e} {r['force_as_dp_max_bar']:11.1e} bar "
+                  f"{r['beyond_mbar']:8.2%}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,371 @@
+"""Maps evaluated once: each sample's map part of the balance, tabulated along the opening.
+
+While a fit runs, the maps do not change. Where no effect alters the flow through the restriction
+or adds a leakage path (:attr:`surrogate.model.ValveModel.flow_from_maps_alone`), what the maps
+contribute to a sample's force balance, the pressure drop Δp(u) at the sample's flow and the flow
+force f_ff(u) at that Δp, is a function of the opening u alone, whatever the effects' parameters.
+A fit replays its log dozens of times and the solver asks the balance about a dozen times per
+sample and replay, each time asking both maps (a Gaussian process, a network ensemble, or a grid
+of PCHIP curves) afresh. So the first replay with a guess tabulates each sample's map part once,
+around the openings where that sample's piston was (its friction band ± :data:`MARGIN`), and the
+solver reads the table from then on; openings outside a sample's table ask the maps, as before.
+
+The table
+---------
+Nodes lie on one grid in ln u shared by all samples: every :data:`STEP` in ln u, plus the openings
+where a map has a kink along u (a grid map's sampled openings, :meth:`surrogate.maps.base.
+FlowMap.opening_knots`). Each sample holds a contiguous window of it. Per node the table keeps
+ln Δp and r = f_ff/Δp (smooth where f_ff itself varies like Δp, as u⁻²), and their slopes in
+ln u, from the node values by three-point differences, one-sided at a window's ends and at kinks.
+Between two nodes both are cubic Hermite interpolants: C¹ between kinks, third order in the
+step. Against the maps asked directly, over the shipped log's bands, Δp and f_ff agree to
+~1e-7 (``python eval/map_tables_accuracy.py``); a grid map's Δp, linear in ln u between kinks
+that are nodes, is exact.
+
+Rows are keyed by the true inputs that fix the map part (flow, back pressure, temperature): a
+replay of a subset of a log's runs, or of a model with another sensor correction that leaves
+these inputs alone, finds the rows already there. A sample whose piston leaves its window is
+tabulated again around its new band. One table store per pair of maps, freed with them.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+
+import numpy as np
+import pandas as pd
+
+from ..model import Balance, ValveModel
+from ..points import OperatingPoints
+
+#: the tables' levels: node spacing in ln u [1], and how far beyond a sample's band (the
+#: smallest and largest of its edges) the window reaches, in ln u [1]. The fine level holds the
+#: solver's brackets around a guess (±2 %, then ±10 %). The coarse one serves only the sign
+#: checks of the rule that picks among several equilibria, a factor 3 below an opening edge and
+#: above a closing one (:mod:`.steady`): h is far from zero there on a valve with one
+#: equilibrium, and the solver asks the maps again where the coarse table finds a sign change.
+LEVELS = ((0.01, 0.12), (0.2, np.log(3.0) + 0.2))
+#: the level every balance reads, and the one the sign checks may read too
+FINE, COARSE = 0, 1
+#: nodes a store holds at most over its levels (48 bytes each): one that would outgrow it
+#: starts afresh
+MAX_NODES = 1_000_000
+#: nodes closer than this fraction of a step to a kink are dropped, so that no segment is tiny
+_KINK_CLEARANCE = 0.25
+#: columns of a level's values: ln Δp and r = f_ff/Δp, their slopes in ln u to the right of
+#: the node, then to its left (the two differ at kinks); a node's six values lie side by side,
+#: as the interpolation gathers them
+_QUANTITIES = 6
+
+
+class _Level:
+    """One level of a store: its nodes in ln u, and each row's window of them."""
+
+    def __init__(self, step: float, reach: float, knots: np.ndarray, stroke: float):
+        self.step, self.reach, self.top = step, reach, np.log(stroke)
+        low, high = np.log(stroke) - 20.0, np.log(stroke) + 1.0
+        uniform = np.arange(np.floor(low / step), np.ceil(high / step) + 1) * step
+        if knots.size:
+            distance = np.min(np.abs(uniform[:, None] - knots[None, :]), axis=1)
+            uniform = uniform[distance > _KINK_CLEARANCE * step]
+        self.nodes = np.unique(np.concatenate([uniform, knots]))
+        self.kink = np.isin(self.nodes, knots)
+        self.clear()
+
+    def clear(self) -> None:
+        # per row: first node, node count, offset into the flat values (replaced, never
+        # changed in place, so that a view keeps what it took)
+        self.first = np.empty(0, np.intp)
+        self.count = np.empty(0, np.intp)
+        self.offset = np.empty(0, np.intp)
+        self.values = np.empty((0, _QUANTITIES))
+
+    def windows(self, x_low: np.ndarray, x_high: np.ndarray):
+        """(first node, node count) of windows reaching :attr:`reach` beyond [x_low, x_high]
+        (ln u), up to the stroke, at least three nodes each."""
+        low = x_low - self.reach
+        high = np.minimum(x_high + self.reach, self.top)
+        last = len(self.nodes) - 1
+        begin = np.clip(np.searchsorted(self.nodes, low, "right") - 1, 0, last - 2)
+        end = np.clip(np.searchsorted(self.nodes, high, "left"), begin + 2, last)
+        return begin, end - begin + 1
+
+    def holds(self, rows: np.ndarray, x_low: np.ndarray, x_high: np.ndarray) -> np.ndarray:
+        """Whether each row's window reaches half :attr:`reach` beyond [x_low, x_high] (or the
+        window's end is the stroke's or the floor's); False for rows −1."""
+        held = rows >= 0
+        if not self.first.size:
+            return np.zeros(rows.shape, bool)
+        safe = np.where(held, rows, 0)
+        start = self.nodes[self.first[safe]]
+        stop = self.nodes[self.first[safe] + self.count[safe] - 1]
+        room = 0.5 * self.reach
+        return held & (start <= x_low - room) & (
+            (stop >= x_high + room) | (stop >= self.top))
+
+    def append(self, begin, count, values) -> None:
+        self.offset = np.concatenate([self.offset, len(self.values) + np.cumsum(count)
+                                      - count])
+        self.first = np.concatenate([self.first, begin])
+        self.count = np.concatenate([self.count, count])
+        self.values = np.vstack([self.values, values])
+
+    def snapshot(self) -> tuple:
+        return self.nodes, self.first, self.count, self.offset, self.values
+
+
+class MapTables:
+    """The tabulated map part of many samples' balances, for one model's pair of maps.
+
+    Get it with :func:`tables_for`; :meth:`tabulate` adds or renews samples' rows,
+    :meth:`view` reads them.
+    """
+
+    def __init__(self, model: ValveModel):
+        self.stroke = model.valve.U_max
+        knots = np.concatenate([model.flow_map.opening_knots(), model.force_map.opening_knots()])
+        knots = np.log(knots[(knots > 0) & np.isfinite(knots)])
+        self.levels = [_Level(step, reach, knots, self.stroke) for step, reach in LEVELS]
+        self._lock = threading.Lock()
+        self._keys: dict[bytes, int] = {}
+
+    @property
+    def size(self) -> int:
+        """Nodes held over all levels."""
+        return sum(len(level.values) for level in self.levels)
+
+    @staticmethod
+    def _row_keys(points: OperatingPoints) -> list[bytes]:
+        keys = np.ascontiguousarray(np.column_stack([points.q, points.p_B, points.temperature]))
+        return [row.tobytes() for row in keys]
+
+    def tabulate(self, model: ValveModel, points: OperatingPoints, band: np.ndarray) -> None:
+        """Tabulate (or renew) the rows of the flowing ``points`` whose ``band`` (2, n) [m] of
+        openings a level does not hold with room to spare (half its reach)."""
+        band = np.asarray(band, float)
+        with np.errstate(invalid="ignore"):
+            low, high = np.nanmin(band, axis=0), np.nanmax(band, axis=0)
+        usable = np.isfinite(low) & (low > 0) & (points.q > 0)
+        x_low = np.log(np.where(usable, low, 1.0))
+        x_high = np.log(np.where(usable, high, 1.0))
+        rows = self.view(points).row
+        with self._lock:
+            covered = np.logical_and.reduce([level.holds(rows, x_low, x_high)
+                                             for level in self.levels])
+        todo = np.flatnonzero(usable & ~covered)
+        if not todo.size:
+            return
+        # unique inputs only: repeated samples share a row
+        keys = self._row_keys(points[todo])
+        _, unique = np.unique(np.asarray(keys, dtype=object), return_index=True)
+        todo, keys = todo[unique], [keys[i] for i in unique]
+        windows = [level.windows(x_low[todo], x_high[todo])
+                   for level in self.levels]
+        total = sum(int(count.sum()) for _, count in windows)
+        if total > MAX_NODES:
+            return
+        sub = points[todo]
+        tables = [_tabulate(model, sub, level, begin, count)
+                  for level, (begin, count) in zip(self.levels, windows)]
+        with self._lock:
+            if self.size + total > MAX_NODES:
+                for level in self.levels:
+                    level.clear()
+                self._keys = {}
+            start = len(self.levels[0].first)
+            for level, (begin, count), values in zip(self.levels, windows, tables):
+                level.append(begin, count, values)
+            for i, key in enumerate(keys):  # a renewed row replaces the old one
+                self._keys[key] = start + i
+
+    def view(self, points: OperatingPoints) -> "TableView":
+        """The rows of ``points`` as the store holds them now (−1 where it has none);
+        tabulating more later does not change the view."""
+        with self._lock:
+            get = self._keys.get
+            rows = np.fromiter((get(key, -1) for key in self._row_keys(points)), np.intp,
+                               len(points))
+            return TableView(rows, [level.snapshot() for level in self.levels])
+
+
+def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, count):
+    """(count.sum(), :data:`_QUANTITIES`) values of ``points``' windows of ``level``."""
+    which = np.repeat(np.arange(len(points)), count)
+    position = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    at = points[which]
+    dp, flow_force = model.map_part(np.exp(level.nodes[np.repeat(begin, count) + position]),
+                                    at, model.fluid(at))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        values = np.vstack([np.log(dp), flow_force / dp])
+    return np.ascontiguousarray(
+        np.vstack([values, _slopes(level.nodes, level.kink, values, begin, count)]).T)
+
+
+class TableView:
+    """Some points' rows of a :class:`MapTables`, frozen as they were when taken."""
+
+    def __init__(self, rows: np.ndarray, levels: list[tuple]):
+        self.row, self.levels = rows, levels
+
+    def __getitem__(self, index) -> "TableView":
+        return TableView(self.row[index], self.levels)
+
+    def tile(self, times: int) -> "TableView":
+        """The view of the points repeated ``times`` over, as a replay stacks a band's edges."""
+        return TableView(np.tile(self.row, times), self.levels)
+
+    def lookup(self, u: np.ndarray, coarsest: int = FINE
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Δp [Pa], f_ff [N], inside) of the view's points at openings ``u`` [m], from the
+        finest level (up to ``coarsest``) whose window holds ``u``; ``inside`` is False (and
+        the values NaN) where a point has no row or no such window holds ``u``."""
+        u = np.asarray(u, float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = np.log(u)
+        dp = np.full(u.shape, np.nan)
+        flow_force = np.full(u.shape, np.nan)
+        inside = np.zeros(u.shape, bool)
+        pending = np.flatnonzero((self.row >= 0) & np.isfinite(x))
+        for level in self.levels[: coarsest + 1]:
+            if not pending.size:
+                break
+            found, values = _interpolate(level, self.row[pending], x[pending])
+            at = pending[found]
+            dp[at] = np.exp(values[0])
+            flow_force[at] = values[1] * dp[at]
+            inside[at] = True
+            pending = pending[~found]
+        return dp, flow_force, inside
+
+
+def _interpolate(level: tuple, rows: np.ndarray, x: np.ndarray):
+    """(found, (2, found.sum()) ln Δp and r) at ln u ``x`` of ``rows`` in one level's snapshot:
+    cubic Hermite between the nodes around x, with the slope right of the segment's start and
+    left of its end."""
+    nodes, first, count, offset, values = level
+    if not first.size:
+        return np.zeros(x.shape, bool), np.empty((2, 0))
+    segment = np.searchsorted(nodes, x, "right") - 1
+    local = segment - first[rows]
+    found = (local >= 0) & (local < count[rows] - 1)
+    k, flat = segment[found], offset[rows[found]] + local[found]
+    width = nodes[k + 1] - nodes[k]
+    t = (x[found] - nodes[k]) / width
+    t2, t3 = t * t, t * t * t
+    h00, h10 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t
+    h01, h11 = -2 * t3 + 3 * t2, t3 - t2
+    start, end = values[flat].T, values[flat + 1].T
+    result = (h00 * start[:2] + h01 * end[:2]
+              + width * (h10 * start[2:4] + h11 * end[4:6]))
+    return found, result
+
+
+def _slopes(nodes, kink, values, begin, count) -> np.ndarray:
+    """(4, nodes) slopes in ln u of the rows' two tabulated quantities: rows 0–1 the slope to
+    the right of each node, 2–3 to its left; three-point differences, one-sided at a window's
+    ends and at kinks (where the two differ)."""
+    total = values.shape[1]
+    ends = np.cumsum(count)
+    starts = ends - count
+    position = np.arange(total) - np.repeat(starts, count)
+    x = nodes[np.repeat(begin, count) + position]
+    at_start = position == 0
+    at_end = position == np.repeat(count - 1, count)
+    at_kink = kink[np.repeat(begin, count) + position]
+
+    def shifted(array, by):
+        out = np.full_like(array, np.nan)
+        if by > 0:
+            out[..., :-by] = array[..., by:]
+        else:
+            out[..., -by:] = array[..., :by]
+        return out
+
+    x_next, x_prev = shifted(x, 1), shifted(x, -1)
+    x_next2, x_prev2 = shifted(x, 2), shifted(x, -2)
+    f, f_next, f_prev = values, shifted(values, 1), shifted(values, -1)
+    f_next2, f_prev2 = shifted(values, 2), shifted(values, -2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a, b = x - x_prev, x_next - x
+        central = (-b / (a * (a + b)) * f_prev + (b - a) / (a * b) * f
+                   + a / (b * (a + b)) * f_next)
+        c, d = x_next - x, x_next2 - x_next
+        forward = (-(2 * c + d) / (c * (c + d)) * f + (c + d) / (c * d) * f_next
+                   - c / (d * (c + d)) * f_next2)
+        e, g = x - x_prev, x_prev - x_prev2
+        backward = ((2 * e + g) / (e * (e + g)) * f - (e + g) / (e * g) * f_prev
+                    + e / (g * (e + g)) * f_prev2)
+        secant_right = (f_next - f) / (x_next - x)
+        secant_left = (f - f_prev) / (x - x_prev)
+    short = np.repeat(count < 3, count)
+    # the right slope: one-sided forward at a window's start or a kink, the secant where no
+    # forward stencil fits before the window's end or the next kink; the left one mirrored
+    kink_next = np.append(at_kink[1:], False)
+    kink_prev = np.insert(at_kink[:-1], 0, False)
+    cramped_right = (position >= np.repeat(count - 2, count)) | kink_next
+    cramped_left = (position < 2) | kink_prev
+    right = np.where(at_start | at_kink, np.where(cramped_right, secant_right, forward),
+                     central)
+    left = np.where(at_end | at_kink, np.where(cramped_left, secant_left, backward), central)
+    right = np.where(short, secant_right, right)
+    left = np.where(short, secant_left, left)
+    return np.vstack([right, left])
+
+
+_STORES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_STORES_LOCK = threading.Lock()
+
+
+def tables_for(model: ValveModel) -> MapTables | None:
+    """The table store of ``model``'s pair of maps (made on first use), or None when its flow is
+    not the maps' alone (:attr:`~surrogate.model.ValveModel.flow_from_maps_alone`)."""
+    if not model.flow_from_maps_alone:
+        return None
+    with _STORES_LOCK:
+        by_force = _STORES.setdefault(model.flow_map, weakref.WeakKeyDictionary())
+        tables = by_force.get(model.force_map)
+        if tables is None:
+            tables = by_force[model.force_map] = MapTables(model)
+    return tables
+
+
+def applies(model: ValveModel, points: OperatingPoints, true: OperatingPoints) -> bool:
+    """Whether tables keyed by the measured ``points`` hold ``model``'s map part: its flow is
+    the maps' alone and its sensor corrections (``true``, the points it corrects them to) leave
+    the flow, back pressure and temperature as measured. A fit of a flowmeter's gain, say,
+    moves the flow at every evaluation, and would tabulate anew each time."""
+    return (model.flow_from_maps_alone and np.array_equal(true.q, points.q)
+            and np.array_equal(true.p_B, points.p_B)
+            and np.array_equal(true.temperature, points.temperature))
+
+
+class TabulatedBalance:
+    """A model's balance at given points, read from their rows of the map tables where those
+    hold the opening asked for, from the maps elsewhere. The points' map part must be what the
+    rows tabulate (:func:`applies`)."""
+
+    def __init__(self, model: ValveModel, view: TableView, points: OperatingPoints, fluid,
+                 coarsest: int = FINE):
+        self.model, self.view, self.coarsest = model, view, coarsest
+        self.points, self.fluid = model.true_points(points), fluid
+
+    def __call__(self, u, index) -> Balance:
+        """The balance of the points ``index`` at openings ``u`` [m]."""
+        u = np.broadcast_to(np.asarray(u, float), np.shape(index)).copy()
+        points, fluid = self.points[index], self.fluid[index]
+        dp, flow_force, inside = self.view[index].lookup(u, self.coarsest)
+        if not inside.all():
+            away = np.flatnonzero(~inside)
+            dp[away], flow_force[away] = self.model.map_part(u[away], points[away], fluid[away])
+        return self.model.balance_of_map_part(u, points, fluid, dp, flow_force)
+
+
+def balance_reader(model: ValveModel, points: OperatingPoints, fluid, view: TableView | None,
+                   coarsest: int = FINE):
+    """``balance(u, index)``: ``model``'s balance of the points ``index`` at openings ``u`` [m],
+    read from ``view``, their rows of the map tables (levels up to ``coarsest``), where given
+    and where they hold the model's map part (:func:`applies`), from the maps otherwise."""
+    if view is not None and applies(model, points, model.true_points(points)):
+        return TabulatedBalance(model, view, points, fluid, coarsest)
+    return lambda u, index: model.balance(u, points[index], fluid[index])

@@ -1,0 +1,159 @@
+"""The fit's map tables (surrogate.solver.map_tables) against the maps they stand for, and the
+play's prefix scan against the loop it replaced."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from surrogate.data import load_bench_log
+from surrogate.effects import LIBRARY
+from surrogate.fitting.residuals import replay_log
+from surrogate.modelfile import load_model
+from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.points import OperatingPoints
+from surrogate.solver.map_tables import FINE, MapTables
+from surrogate.solver.replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_HIGH, STATE_LOW, play,
+                                     smoothed_edge)
+from surrogate.solver.steady import Status
+from surrogate.units import BAR
+
+
+@pytest.fixture(scope="module")
+def setting():
+    log = load_bench_log(SHIPPED_BENCH_LOG)
+    runs = log.frame["run"].unique()[::4][:6]
+    log = log.take(np.flatnonzero(log.frame["run"].isin(runs).to_numpy()))
+    model = load_model("cfda")
+    return log, model, replay_log(model, log, diagnostics=False)
+
+
+def test_a_grid_maps_pressure_drop_is_tabulated_exactly_and_its_flow_force_closely(setting):
+    """Between the grid's sampled openings (nodes of the table) ln Δp is linear in ln u: the
+    table holds it to rounding. The flow force bends along u; its cubic is third order."""
+    log, model, played = setting
+    points = OperatingPoints.from_bench(log.frame)
+    tables = MapTables(model)
+    tables.tabulate(model, points, played.replay.band)
+    view = tables.view(points)
+    held = np.flatnonzero(view.row >= 0)
+    assert held.size > 0.9 * np.count_nonzero(points.q > 0)
+    nodes, first, count, _, _ = view.levels[FINE]
+    rows = view.row[held]
+    low, high = nodes[first[rows]], nodes[first[rows] + count[rows] - 1]
+    u = np.exp(low + (high - low) * np.random.default_rng(3).random(held.size))
+    dp, flow_force, inside = view[held].lookup(u)
+    assert inside.all()
+    sub = points[held]
+    dp_maps, force_maps = model.map_part(u, sub, model.fluid(sub))
+    np.testing.assert_allclose(dp, dp_maps, rtol=1e-11)
+    force_error = np.abs(flow_force - force_maps) / model.valve.A_L
+    assert np.median(force_error) < 1e-5 * BAR
+    assert np.quantile(force_error, 0.99) < 5e-3 * BAR
+
+
+def test_outside_its_window_a_sample_is_not_in_the_table(setting):
+    log, model, played = setting
+    points = OperatingPoints.from_bench(log.frame)
+    tables = MapTables(model)
+    tables.tabulate(model, points, played.replay.band)
+    view = tables.view(points)
+    flowing = np.flatnonzero(view.row >= 0)[:50]
+    far = played.replay.band[0, flowing] * 10.0
+    *_, inside = view[flowing].lookup(far)
+    assert not inside.any()
+    *_, inside = view[flowing].lookup(played.replay.band[0, flowing])
+    assert inside.all()
+
+
+def test_a_replay_from_the_tables_matches_one_from_the_maps(setting):
+    """A fit's inner loop (a guess, no diagnostics) reads the tables; what it replays is the
+    maps' replay to well under the noise of a bench log (tenths of a bar)."""
+    log, model, played = setting
+    tabulated = replay_log(model, log, guess=played, diagnostics=False)
+    assert tabulated.replay.tables is not None
+    assert played.replay.tables is None
+    both = np.isfinite(tabulated.replay.dp) & np.isfinite(played.replay.dp)
+    assert both.mean() > 0.9
+    difference = tabulated.replay.dp[both] - played.replay.dp[both]
+    assert np.sqrt(np.mean(difference ** 2)) < 5e-3 * BAR
+    assert np.array_equal(tabulated.replay.moving, played.replay.moving)
+
+
+@pytest.mark.parametrize("name, tabulated", [("pilot_transducer_offset", True),
+                                             ("flowmeter_gain", False),
+                                             ("laminar_leakage", False)])
+def test_tables_are_read_only_where_they_hold_the_models_map_part(setting, name, tabulated):
+    """An offset of the pilot's transducer leaves the map part alone; a flowmeter's gain moves
+    the flow the maps are asked about, a leak the flow through the restriction."""
+    log, model, played = setting
+    effect = LIBRARY[name]()
+    for parameter in effect.params.values():
+        parameter.value = parameter.min + 0.05 * (parameter.max - parameter.min)
+    changed = model.with_effects([*model.effects, effect])
+    again = replay_log(changed, log, guess=played, diagnostics=False)
+    assert (again.replay.tables is not None) == tabulated
+
+
+def _looped_play(u_open, u_close, status_open, status_close, starts, u_start, smoothing):
+    """The play as the loop it was: a reference for the prefix scan."""
+    count = len(u_open)
+    u = np.empty(count)
+    moving = np.zeros(count, dtype=bool)
+    source = np.full((2, count), -1, dtype=np.int64)
+    status = np.where(status_open < 0, status_open, np.where(status_close < 0, status_close,
+                                                             Status.OK)).astype(np.int8)
+    low, high = np.fmin(u_open, u_close), np.fmax(u_open, u_close)
+    solved = status >= 0
+    if smoothing > 1:
+        state_low = smoothed_edge(low, starts, solved, smoothing)
+        smoothed_high = smoothed_edge(high, starts, solved, smoothing)
+        state_high = np.fmax(smoothed_high, state_low)
+        high_kind = np.where(smoothed_high >= state_low, STATE_HIGH, STATE_LOW)
+    else:
+        state_low, state_high = low, high
+        high_kind = np.full(count, STATE_HIGH)
+    previous, state_from = u_start, (FROM_START, -1)
+    for k in range(count):
+        if starts[k]:
+            previous, state_from = u_start, (FROM_START, -1)
+        if solved[k]:
+            state = min(max(previous, state_low[k]), state_high[k])
+            if state != previous:
+                moving[k] = True
+                opened = state > previous
+                u[k] = low[k] if opened else high[k]
+                source[:, k] = (OWN_LOW if opened else OWN_HIGH), k
+                state_from = (STATE_LOW if opened else high_kind[k], k)
+            else:
+                u[k] = state
+                source[:, k] = state_from
+            previous = state
+        else:
+            u[k] = previous
+            source[:, k] = state_from
+    return u, moving, status, source
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31), count=st.integers(1, 300),
+       smoothing=st.sampled_from([1, 5, 7]), u_start=st.sampled_from([0.0, 1.0]))
+def test_the_plays_prefix_scan_is_the_loop_to_the_bit(seed, count, smoothing, u_start):
+    rng = np.random.default_rng(seed)
+    centre = 1.0 + 0.01 * np.cumsum(rng.normal(size=count))
+    half = np.abs(rng.normal(0.0, 0.05, count))
+    u_open, u_close = centre - half, centre + half
+    swap = rng.random(count) < 0.1  # where an effect turns the band over
+    u_open, u_close = np.where(swap, u_close, u_open), np.where(swap, u_open, u_close)
+    status_open = np.where(rng.random(count) < 0.05, -2, 0)
+    status_close = np.where(rng.random(count) < 0.05, -3, 0)
+    u_open[status_open < 0], u_close[status_close < 0] = np.nan, np.nan
+    starts = rng.random(count) < 0.03
+    starts[0] = True
+    expected = _looped_play(u_open, u_close, status_open, status_close, starts, u_start,
+                            smoothing)
+    found = play(u_open, u_close, status_open, status_close, starts, u_start, smoothing)
+    for wanted, got in zip(expected, found):
+        np.testing.assert_array_equal(got, wanted)
