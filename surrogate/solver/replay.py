@@ -37,8 +37,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from functools import lru_cache
+
 import numpy as np
-from scipy.signal import savgol_filter
+from numpy.lib.stride_tricks import sliding_window_view
+from scipy.signal import savgol_coeffs
 
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
@@ -274,9 +277,6 @@ def play(u_open, u_close, status_open, status_close, starts, u_start, smoothing=
     comes from (:data:`FROM_START` … :data:`STATE_HIGH`) and the sample whose edge it is (−1 for
     the run's start), which the replay's sensitivities follow (:mod:`.sensitivities`)."""
     count = len(u_open)
-    u = np.empty(count)
-    moving = np.zeros(count, dtype=bool)
-    source = np.full((2, count), -1, dtype=np.int64)
     status = np.where(status_open < 0, status_open, np.where(status_close < 0, status_close,
                                                              Status.OK)).astype(np.int8)
     low = np.fmin(u_open, u_close)
@@ -292,45 +292,54 @@ def play(u_open, u_close, status_open, status_close, starts, u_start, smoothing=
     else:
         state_low, state_high = low, high
         high_kind = np.full(count, STATE_HIGH)
-    previous = u_start
-    state_from = (FROM_START, -1)
-    # a plain loop over Python floats: about 1 µs a sample, far below the batch solve; a block
-    # of samples at a time, so that a big log is never held as Python floats whole
-    for begin in range(0, count, _PLAY_BLOCK):
-        block = slice(begin, begin + _PLAY_BLOCK)
-        for k, (lo, hi, state_lo, state_hi, kind_hi, ok, start) in enumerate(zip(
-                low[block].tolist(), high[block].tolist(), state_low[block].tolist(),
-                state_high[block].tolist(), high_kind[block].tolist(), solved[block].tolist(),
-                starts[block].tolist()), start=begin):
-            if start:
-                previous = u_start
-                state_from = (FROM_START, -1)
-            if ok:
-                state = min(max(previous, state_lo), state_hi)
-                if state != previous:  # pushed: the piston slides with this sample's own edge
-                    moving[k] = True
-                    opened = state > previous
-                    u[k] = lo if opened else hi
-                    source[0, k], source[1, k] = (OWN_LOW if opened else OWN_HIGH), k
-                    state_from = (STATE_LOW if opened else kind_hi, k)
-                else:
-                    u[k] = state
-                    source[0, k], source[1, k] = state_from
-                previous = state
-            else:
-                u[k] = previous
-                source[0, k], source[1, k] = state_from
+    state = _play_states(state_low, state_high, solved, starts, u_start)
+    previous = np.empty(count)
+    previous[1:] = state[:-1]
+    previous[starts] = u_start
+    # pushed: the piston slides with this sample's own edge; else it stays where it was
+    moving = solved & (state != previous)
+    opened = state > previous
+    u = np.where(moving, np.where(opened, low, high), state)
+    # a sample that stays comes from the edge of the run's last sample that moved
+    index = np.arange(count)
+    last_moved = np.maximum.accumulate(np.where(moving, index, -1))
+    run_start = np.maximum.accumulate(np.where(starts, index, 0))
+    stays = ~moving & (last_moved >= run_start) & (last_moved >= 0)
+    source = np.full((2, count), -1, dtype=np.int64)
+    source[0] = FROM_START
+    source[0, moving] = np.where(opened[moving], OWN_LOW, OWN_HIGH)
+    source[1, moving] = index[moving]
+    mover = last_moved[stays]
+    source[0, stays] = np.where(opened[mover], STATE_LOW, high_kind[mover])
+    source[1, stays] = mover
     return u, moving, status, source
 
 
-#: samples the play turns into Python floats at a time
-_PLAY_BLOCK = 65_536
+def _play_states(state_low, state_high, solved, starts, u_start) -> np.ndarray:
+    """The piston's state after each sample, state_k = clip(state_{k−1}, low_k, high_k), by a
+    prefix scan instead of a loop: each sample's step is a clamp into [a, b] (none where it is
+    unsolved; the constant u_start clipped to its band where a run starts), and a clamp after
+    a clamp is a clamp, [clip(a₁, a₂, b₂), clip(b₁, a₂, b₂)], so ⌈log₂ n⌉ vector passes compose
+    them all. min and max round nothing: the states are the loop's to the bit."""
+    count = len(state_low)
+    a = np.where(solved, state_low, -np.inf)
+    b = np.where(solved, state_high, np.inf)
+    restart = np.minimum(np.maximum(u_start, a), b)
+    a, b = np.where(starts, restart, a), np.where(starts, restart, b)
+    step = 1
+    while step < count:
+        later_a, later_b = a[step:], b[step:]
+        a = np.concatenate([a[:step], np.minimum(np.maximum(a[:-step], later_a), later_b)])
+        b = np.concatenate([b[:step], np.minimum(np.maximum(b[:-step], later_a), later_b)])
+        step *= 2
+    return np.minimum(np.maximum(u_start, a), b)
 
 
 def smoothed_edge(edge: np.ndarray, starts: np.ndarray, solved: np.ndarray, window: int
-              ) -> np.ndarray:
-    """``edge`` smoothed within each run (quadratic Savitzky–Golay over ``window`` samples);
-    unsolved samples are bridged by linear interpolation first."""
+                  ) -> np.ndarray:
+    """``edge`` (n,) or (n, columns) smoothed within each run (quadratic Savitzky–Golay over
+    ``window`` samples, scipy's ``savgol_filter(..., mode="interp")``); unsolved samples are
+    bridged by linear interpolation first."""
     result = edge.copy()
     bounds = [*np.flatnonzero(starts).tolist(), len(edge)]
     for begin, end in zip(bounds[:-1], bounds[1:]):
@@ -338,7 +347,35 @@ def smoothed_edge(edge: np.ndarray, starts: np.ndarray, solved: np.ndarray, wind
         size = min(window, (end - begin) // 2 * 2 - 1)  # odd, and no longer than the run
         if good.sum() < 2 or size < 5:
             continue
-        index = np.arange(end - begin)
-        filled = np.interp(index, index[good], edge[begin:end][good])
-        result[begin:end] = savgol_filter(filled, size | 1, 2, mode="interp")
+        run = edge[begin:end]
+        if not good.all():
+            index = np.arange(end - begin)
+            run = np.column_stack([np.interp(index, index[good], column[good])
+                                   for column in run.reshape(end - begin, -1).T]
+                                  ).reshape(run.shape)
+        result[begin:end] = _savgol(run, size | 1)
     return result
+
+
+@lru_cache(maxsize=16)
+def _savgol_operators(size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The quadratic Savitzky–Golay filter over ``size`` samples as linear maps: the centre
+    weights, and the matrices that give the first and the last size//2 outputs from the first
+    and the last ``size`` inputs (the quadratic fitted to them and evaluated there)."""
+    half = size // 2
+    fit = np.linalg.pinv(np.vander(np.arange(size, dtype=float), 3))
+    return (savgol_coeffs(size, 2, use="dot"),
+            np.vander(np.arange(half, dtype=float), 3) @ fit,
+            np.vander(np.arange(size - half, size, dtype=float), 3) @ fit)
+
+
+def _savgol(x: np.ndarray, size: int) -> np.ndarray:
+    """``x`` (L, ...) smoothed along its first axis as ``savgol_filter(x, size, 2,
+    mode="interp", axis=0)`` (to rounding), with the filter's weights computed once."""
+    weights, first, last = _savgol_operators(size)
+    half, length = size // 2, len(x)
+    y = np.empty_like(x)
+    y[half:length - half] = sliding_window_view(x, size, axis=0) @ weights
+    y[:half] = np.tensordot(first, x[:size], axes=(1, 0))
+    y[length - half:] = np.tensordot(last, x[length - size:], axes=(1, 0))
+    return y

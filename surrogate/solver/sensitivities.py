@@ -101,10 +101,8 @@ def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
     high = np.where(opens_low[:, None], edge_change[1], edge_change[0])
     solved = np.isfinite(played.band).all(axis=0)
     if smoothing > 1:  # the state follows the edges smoothed over each run: a linear filter
-        state_low = np.column_stack([smoothed_edge(low[:, j], starts, solved, smoothing)
-                                     for j in range(columns)]) if columns else low
-        state_high = np.column_stack([smoothed_edge(high[:, j], starts, solved, smoothing)
-                                      for j in range(columns)]) if columns else high
+        state_low = smoothed_edge(low, starts, solved, smoothing) if columns else low
+        state_high = smoothed_edge(high, starts, solved, smoothing) if columns else high
     else:
         state_low, state_high = low, high
     du = np.zeros((count, columns))
