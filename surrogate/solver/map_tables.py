@@ -53,6 +53,8 @@ FINE, COARSE = 0, 1
 MAX_NODES = 1_000_000
 #: nodes closer than this fraction of a step to a kink are dropped, so that no segment is tiny
 _KINK_CLEARANCE = 0.25
+#: nodes tabulated in one call of the maps
+_BLOCK = 4096
 #: columns of a level's values: ln Δp and r = f_ff/Δp, their slopes in ln u to the right of
 #: the node, then to its left (the two differ at kinks); a node's six values lie side by side,
 #: as the interpolation gathers them
@@ -193,9 +195,13 @@ def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, 
     """(count.sum(), :data:`_QUANTITIES`) values of ``points``' windows of ``level``."""
     which = np.repeat(np.arange(len(points)), count)
     position = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    at = points[which]
-    dp, flow_force = model.map_part(np.exp(level.nodes[np.repeat(begin, count) + position]),
-                                    at, model.fluid(at))
+    u = np.exp(level.nodes[np.repeat(begin, count) + position])
+    dp, flow_force = np.empty(u.size), np.empty(u.size)
+    # the maps asked a block at a time: their temporaries then stay in the processor's cache
+    for block in range(0, u.size, _BLOCK):
+        part = slice(block, block + _BLOCK)
+        at = points[which[part]]
+        dp[part], flow_force[part] = model.map_part(u[part], at, model.fluid(at))
     with np.errstate(divide="ignore", invalid="ignore"):
         values = np.vstack([np.log(dp), flow_force / dp])
     return np.ascontiguousarray(
