@@ -46,9 +46,10 @@ def accuracy(kind: str, level: int = 0, seed: int = 0) -> dict:
     held = np.flatnonzero(view.row >= 0)
     rng = np.random.default_rng(seed)
     # a random opening in each sample's window of the level asked for
-    nodes, first, count, _, _ = view.levels[level]
-    low = nodes[first[view.row[held]]]
-    high = nodes[first[view.row[held]] + count[view.row[held]] - 1]
+    snapshot = view.levels[level]
+    start = snapshot.first[view.row[held]]
+    low = snapshot.nodes[start]
+    high = snapshot.nodes[start + snapshot.count[view.row[held]] - 1]
     u = np.exp(low + (high - low) * rng.random(held.size))
     dp, flow_force, inside = view[held].lookup(u, coarsest=level)
     sub = points[held]

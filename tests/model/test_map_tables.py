@@ -40,9 +40,10 @@ def test_a_grid_maps_pressure_drop_is_tabulated_exactly_and_its_flow_force_close
     view = tables.view(points)
     held = np.flatnonzero(view.row >= 0)
     assert held.size > 0.9 * np.count_nonzero(points.q > 0)
-    nodes, first, count, _, _ = view.levels[FINE]
+    level = view.levels[FINE]
     rows = view.row[held]
-    low, high = nodes[first[rows]], nodes[first[rows] + count[rows] - 1]
+    start = level.first[rows]
+    low, high = level.nodes[start], level.nodes[start + level.count[rows] - 1]
     u = np.exp(low + (high - low) * np.random.default_rng(3).random(held.size))
     dp, flow_force, inside = view[held].lookup(u)
     assert inside.all()
