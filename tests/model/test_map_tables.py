@@ -14,7 +14,7 @@ from surrogate.fitting.residuals import replay_log
 from surrogate.modelfile import load_model
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
-from surrogate.solver.map_tables import FINE, MapTables
+from surrogate.solver.map_tables import FINE, MapTables, _Locator
 from surrogate.solver.replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_HIGH, STATE_LOW, play,
                                      smoothed_edge)
 from surrogate.solver.steady import Status
@@ -158,3 +158,17 @@ def test_the_plays_prefix_scan_is_the_loop_to_the_bit(seed, count, smoothing, u_
     found = play(u_open, u_close, status_open, status_close, starts, u_start, smoothing)
     for wanted, got in zip(expected, found):
         np.testing.assert_array_equal(got, wanted)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), close=st.integers(0, 4))
+def test_the_bucket_locator_finds_the_segment_a_binary_search_finds(seed, close):
+    """Uniform nodes with kinks among them, some closer to each other than a bucket is wide."""
+    rng = np.random.default_rng(seed)
+    kinks = rng.uniform(-10.0, -5.0, 6)
+    kinks = np.concatenate([kinks, kinks[0] + 1e-4 * np.arange(1, close + 1)])
+    nodes = np.unique(np.concatenate([np.arange(-20.0, 1.0, 0.01), kinks]))
+    locate = _Locator(nodes, 0.00125)
+    x = np.concatenate([rng.uniform(-21.0, 2.0, 2000), nodes, np.nextafter(nodes, np.inf),
+                        np.nextafter(nodes, -np.inf)])
+    np.testing.assert_array_equal(locate(x), np.searchsorted(nodes, x, "right") - 1)
