@@ -169,11 +169,14 @@ class ValveModel:
                 points = corrected
         return points
 
-    def pressure_drop(self, u, points: OperatingPoints, fluid: FluidState) -> np.ndarray:
+    def pressure_drop(self, u, points: OperatingPoints, fluid: FluidState, maps=None
+                      ) -> np.ndarray:
         """Δp [Pa] across the valve at opening ``u`` [m] for the (true) points' flow.
 
         With leakage effects the flow splits between the restriction and the leakage paths at
-        a common Δp (:func:`surrogate.leakage.shared_pressure_drop`)."""
+        a common Δp (:func:`surrogate.leakage.shared_pressure_drop`). ``maps``: the maps' values
+        at these points and openings, when a fit reads them from its tables
+        (:class:`surrogate.solver.map_tables.TabulatedMaps`) instead of asking the maps."""
         state = FlowState(np.broadcast_to(u, points.q.shape), points.q, points.p_B, points.p_P,
                           points.temperature, fluid, self.valve)
         flow_effects = [e for e in self.effects if _uses(e, "restriction_flow")]
@@ -183,6 +186,8 @@ class ValveModel:
             sub = state if isinstance(index, slice) else state.subset(index)
             for effect in flow_effects:
                 q = effect.restriction_flow(q, sub)
+            if maps is not None:
+                return maps.pressure_drop(q, index)
             return self.flow_map.pressure_drop(q, sub.p_B, sub.u, sub.fluid)
 
         dp = through_restriction(points.q)
@@ -195,44 +200,35 @@ class ValveModel:
 
         return shared_pressure_drop(points.q, dp, through_restriction, leak_at)
 
-    def balance(self, u, points: OperatingPoints, fluid: FluidState) -> Balance:
-        """The force balance with the piston at ``u`` [m] while the points' flow passes."""
+    def balance(self, u, points: OperatingPoints, fluid: FluidState, maps=None) -> Balance:
+        """The force balance with the piston at ``u`` [m] while the points' flow passes
+        (``maps``: as :meth:`pressure_drop`'s)."""
         points = self.true_points(points)
-        return self.balance_at(u, self.pressure_drop(u, points, fluid), points, fluid)
-
-    @property
-    def flow_from_maps_alone(self) -> bool:
-        """True when no effect changes the flow through the restriction or adds a leakage path:
-        then, for given true inputs, the balance's map part (:meth:`map_part`) depends on the
-        opening alone, whatever the effects' parameters, which lets a fit tabulate it once per
-        sample (:mod:`surrogate.solver.map_tables`)."""
-        return not any(_uses(effect, "restriction_flow") or _uses(effect, "leakage")
-                       for effect in self.effects)
+        return self.balance_at(u, self.pressure_drop(u, points, fluid, maps), points, fluid,
+                               maps)
 
     def map_part(self, u, points: OperatingPoints, fluid: FluidState
                  ) -> tuple[np.ndarray, np.ndarray]:
         """What the maps contribute to :meth:`balance` at ``u`` [m] for the (true) points:
         the pressure drop Δp [Pa] and the flow force f_ff [N] at that Δp."""
         dp = self.pressure_drop(u, points, fluid)
-        return dp, self._flow_force(u, dp, points, fluid)
+        return dp, self.flow_force(u, dp, points, fluid)
 
-    def balance_of_map_part(self, u, points: OperatingPoints, fluid: FluidState, dp,
-                            flow_force) -> Balance:
-        """The force balance at ``u`` [m] for the (true) points from the maps' part of it,
-        Δp [Pa] and f_ff [N] as :meth:`map_part` gives them (or a table of them): the springs,
-        pressures and effects added."""
-        return self._balance(u, points, fluid, points.p_B + dp, dp, flow_force)
-
-    def balance_at(self, u, dp, points: OperatingPoints, fluid: FluidState) -> Balance:
+    def balance_at(self, u, dp, points: OperatingPoints, fluid: FluidState, maps=None
+                   ) -> Balance:
         """The force balance at ``u`` [m] with the pressure drop ``dp`` [Pa] imposed on the
         (true, i.e. already corrected) points, whatever the flow map says: the flow force at
         that load pressure. Its slopes in u and Δp carry map errors through the balance
-        (:mod:`surrogate.solver.uncertainty`)."""
+        (:mod:`surrogate.solver.uncertainty`). ``maps``: as :meth:`pressure_drop`'s."""
         return self._balance(u, points, fluid, points.p_B + dp, dp,
-                             self._flow_force(u, dp, points, fluid))
+                             self.flow_force(u, dp, points, fluid, maps))
 
-    def _flow_force(self, u, dp, points, fluid) -> np.ndarray:
-        """f_ff [N]: what the force map gives beyond the uniform pressures at Δp [Pa]."""
+    def flow_force(self, u, dp, points: OperatingPoints, fluid: FluidState, maps=None
+                   ) -> np.ndarray:
+        """f_ff [N]: what the force map gives at ``u`` [m] and Δp [Pa] beyond the uniform
+        pressures (``maps``: as :meth:`pressure_drop`'s)."""
+        if maps is not None:
+            return maps.flow_force(dp)
         p_L = points.p_B + dp
         f_sim = self.force_map.force(p_L, points.p_B, u, fluid)
         return f_sim - p_L * self.valve.A_L - points.p_B * self._back_area

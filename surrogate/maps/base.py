@@ -68,6 +68,10 @@ class FlowMap(ABC):
     calibration = None
     #: σ of ln C_d that the CFD itself adds, each opening's mesh biased its own way [1]
     cfd_error = FLOW_CFD_ERROR
+    #: True for a map smooth (C⁴ or better) in the flow at a fixed opening: a fit's tables may
+    #: then read it at another flow than a sample's own from a polynomial about it
+    #: (:mod:`surrogate.solver.map_tables`)
+    smooth = False
 
     def flow(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """Flow [m^3/s] at load pressure ``p_L`` [Pa], back pressure ``p_B`` [Pa], opening ``u`` [m].
@@ -189,6 +193,8 @@ class ForceMap(ABC):
     calibration = None
     #: relative σ of the flow force that the CFD itself adds (:mod:`.cfd_error`) [1]
     cfd_error = FORCE_CFD_ERROR
+    #: True for a map smooth (C⁴ or better) in Δp at a fixed opening (as :attr:`FlowMap.smooth`)
+    smooth = False
 
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         """f_sim [N], positive in the opening direction."""

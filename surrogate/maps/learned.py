@@ -54,6 +54,10 @@ class LearnedFlowMap(FlowMap):
     ``coverage`` says where the training samples are.
     """
 
+    # tanh networks and RBF kernels are C^∞ in the flow and Δp (but where a GP holds a feature at
+    # its training range's edge: a kink there)
+    smooth = True
+
     def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str,
                  calibration: Calibration | None = None, coverage: Coverage | None = None):
         self.spec = spec
@@ -94,6 +98,10 @@ class LearnedFlowMap(FlowMap):
 
 class LearnedForceMap(ForceMap):
     """Force map whose flow-force fraction α comes from a learned predictor."""
+
+    # tanh networks and RBF kernels are C^∞ in the flow and Δp (but where a GP holds a feature at
+    # its training range's edge: a kink there)
+    smooth = True
 
     def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str,
                  calibration: Calibration | None = None, coverage: Coverage | None = None):

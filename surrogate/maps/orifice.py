@@ -28,6 +28,8 @@ class OrificeFlowMap(FlowMap):
         Discharge-area coefficient [m]: the discharge area is a_d = w·u.
     """
 
+    smooth = True  # an orifice and a uniform pressure are analytic
+
     kind = "orifice"
 
     def __init__(self, discharge_coefficient: float, w: float):
@@ -60,6 +62,8 @@ class UniformPressureForceMap(ForceMap):
     domain is f_sim = p_L·A_L + p_B·(A_s3 − A_B), so that the total fluid force
     f_sim − p_B·A_s3 + p_P·A_P equals the basic model's p_L·A_L + p_P·A_P − p_B·A_B (eq. 6).
     """
+
+    smooth = True  # an orifice and a uniform pressure are analytic
 
     kind = "uniform pressure"
 

@@ -1,31 +1,43 @@
-"""Maps evaluated once: each sample's map part of the balance, tabulated along the opening.
+"""Maps evaluated once: each sample's maps tabulated along the opening while a fit runs.
 
-While a fit runs, the maps do not change. Where no effect alters the flow through the restriction
-or adds a leakage path (:attr:`surrogate.model.ValveModel.flow_from_maps_alone`), what the maps
-contribute to a sample's force balance, the pressure drop Δp(u) at the sample's flow and the flow
-force f_ff(u) at that Δp, is a function of the opening u alone, whatever the effects' parameters.
-A fit replays its log dozens of times and the solver asks the balance about a dozen times per
-sample and replay, each time asking both maps (a Gaussian process, a network ensemble, or a grid
-of PCHIP curves) afresh. So the first replay with a guess tabulates each sample's map part once,
-around the openings where that sample's piston was (its friction band ± :data:`MARGIN`), and the
-solver reads the table from then on; openings outside a sample's table ask the maps, as before.
+While a fit runs, the maps do not change. For one sample of a log (its flow q, back pressure p_B
+and temperature), what the maps contribute to the force balance, the pressure drop Δp(u) that
+passes q and the flow force f_ff(u) at that Δp, is a function of the opening u alone. A fit
+replays its log dozens of times, and the solver asks the balance about a dozen times per sample
+and replay, each time asking both maps (a Gaussian process, a network ensemble, or a grid of
+PCHIP curves) afresh. So the first replay of a fit tabulates each sample's maps once, around the
+openings where its piston was (its friction band, :data:`LEVELS`), and the solver reads the
+tables from then on; an opening outside a sample's table asks the maps, as before.
 
-The table
----------
-Nodes lie on one grid in ln u shared by all samples: every :data:`STEP` in ln u, plus the openings
-where a map has a kink along u (a grid map's sampled openings, :meth:`surrogate.maps.base.
-FlowMap.opening_knots`). Each sample holds a contiguous window of it. Per node the table keeps
-ln Δp and r = f_ff/Δp (smooth where f_ff itself varies like Δp, as u⁻²), and their slopes in
-ln u, from the node values by three-point differences, one-sided at a window's ends and at kinks.
-Between two nodes both are cubic Hermite interpolants: C¹ between kinks, third order in the
-step. Against the maps asked directly, over the shipped log's bands, Δp and f_ff agree to
-~1e-7 (``python eval/map_tables_accuracy.py``); a grid map's Δp, linear in ln u between kinks
-that are nodes, is exact.
+Effects that change the flow
+----------------------------
+A leak, a discharge correction or a flowmeter's gain send another flow q_r than the measured one
+through the restriction, and so ask the force map about another Δp. For models with such an
+effect on smooth maps (:attr:`surrogate.maps.base.FlowMap.smooth`: the learned ones, an orifice)
+each node also keeps ln Δp as a quartic in ln q_r and r = f_ff/Δp as one in ln Δp, through the
+maps at five flows (and pressure drops) :data:`_EXPANSION_STEP` apart about the sample's own;
+read within :data:`EXPANSION_REACH` of them, further away the maps are asked. A grid map's
+sweeps are C¹ PCHIP curves held at their ends, with kinks no polynomial follows: models that
+change the flow on grid maps ask the maps. The effects themselves are evaluated as always: only
+the maps are tabulated.
 
-Rows are keyed by the true inputs that fix the map part (flow, back pressure, temperature): a
-replay of a subset of a log's runs, or of a model with another sensor correction that leaves
-these inputs alone, finds the rows already there. A sample whose piston leaves its window is
-tabulated again around its new band. One table store per pair of maps, freed with them.
+The tables
+----------
+Nodes lie on one grid in ln u shared by all samples, plus the openings where a map has a kink
+along u (a grid map's sampled openings, :meth:`surrogate.maps.base.FlowMap.opening_knots`); each
+sample holds a contiguous window of it. Per node the tables keep ln Δp and r (smooth where f_ff
+itself varies like Δp, as u⁻²) and their slopes in ln u, from the node values by three-point
+differences, one-sided at a window's ends and at kinks: between two nodes both are cubic
+Hermite interpolants, C¹ between kinks, third order in the step; the expansions' coefficients
+are linear between nodes. ``python eval/map_tables_accuracy.py`` compares the tables with the
+maps over the shipped log's bands (a grid map's Δp, linear in ln u between kinks that are nodes,
+is exact) and a replay read from them with one that asks the maps.
+
+Who reads them: the replays of a fit's inner loop (a guess, no diagnostics) and their
+sensitivities (:mod:`.replay`, :mod:`.sensitivities`); what is reported (a replay without a
+guess, or with diagnostics) asks the maps. Rows are keyed by the measured inputs that fix a
+sample's maps (q, p_B, temperature): a replay of some of a log's runs finds the rows already
+there. One store per pair of maps, freed with them.
 """
 
 from __future__ import annotations
@@ -37,7 +49,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..model import Balance, ValveModel
+from ..model import Balance, ValveModel, _uses
 from ..points import OperatingPoints
 
 #: the tables' levels: node spacing in ln u [1], and how far beyond a sample's band (the
@@ -45,23 +57,46 @@ from ..points import OperatingPoints
 #: solver's brackets around a guess (±2 %, then ±10 %). The coarse one serves only the sign
 #: checks of the rule that picks among several equilibria, a factor 3 below an opening edge and
 #: above a closing one (:mod:`.steady`): h is far from zero there on a valve with one
-#: equilibrium, and the solver asks the maps again where the coarse table finds a sign change.
+#: equilibrium, and the solver asks again on the fine level or the maps where the coarse one
+#: finds a sign change.
 LEVELS = ((0.01, 0.12), (0.2, np.log(3.0) + 0.2))
 #: the level every balance reads, and the one the sign checks may read too
 FINE, COARSE = 0, 1
-#: nodes a store holds at most over its levels (48 bytes each): one that would outgrow it
-#: starts afresh
+#: nodes a store holds at most over its levels (48 bytes each, 64 with expansions): one that
+#: would outgrow it starts afresh
 MAX_NODES = 1_000_000
-#: nodes closer than this fraction of a step to a kink are dropped, so that no segment is tiny
-_KINK_CLEARANCE = 0.25
+#: how far from the sample's own flow (in ln q_r) and pressure drop (in ln Δp) an expansion is
+#: read [1]; beyond, the maps are asked
+EXPANSION_REACH = 0.15
+#: the spacing of the five flows and pressure drops an expansion passes through [1]
+_EXPANSION_STEP = 0.05
 #: sets of points whose rows a store remembers (a fit's log, its held-out subsets)
 _KNOWN_VIEWS = 64
-#: nodes tabulated in one call of the maps
+#: nodes tabulated in one call of the maps: their temporaries then stay in the processor's cache
 _BLOCK = 4096
+#: nodes closer than this fraction of a step to a kink are dropped, so that no segment is tiny
+_KINK_CLEARANCE = 0.25
 #: columns of a level's values: ln Δp and r = f_ff/Δp, their slopes in ln u to the right of
-#: the node, then to its left (the two differ at kinks); a node's six values lie side by side,
-#: as the interpolation gathers them
+#: the node, then to its left (the two differ at kinks); a node's values lie side by side, as
+#: the interpolation gathers them
 _QUANTITIES = 6
+#: columns of a level's expansions: the first to fourth derivatives of ln Δp in ln q_r, then of
+#: r in ln Δp, at the sample's own flow and Δp (single precision: they multiply small steps)
+_EXPANSIONS = 8
+
+
+def needs_expansions(model: ValveModel) -> bool:
+    """Whether ``model`` may ask its maps about another flow than the measured one: it has an
+    effect that changes the flow through the restriction, adds a leak, or corrects the inputs
+    (a flowmeter's gain; whatever its value, so that a fit's steps read the tables alike)."""
+    return any(_uses(effect, hook) for effect in model.effects
+               for hook in ("restriction_flow", "leakage", "correct_inputs"))
+
+
+def expandable(model: ValveModel) -> bool:
+    """Whether ``model``'s maps may be read from a polynomial about a sample's own flow and Δp
+    (:attr:`surrogate.maps.base.FlowMap.smooth`)."""
+    return model.flow_map.smooth and model.force_map.smooth
 
 
 class _Level:
@@ -86,6 +121,7 @@ class _Level:
         self.count = np.empty(0, np.intp)
         self.offset = np.empty(0, np.intp)
         self.values = np.empty((0, _QUANTITIES))
+        self.expansions = np.empty((0, _EXPANSIONS), np.float32)
 
     def windows(self, x_low: np.ndarray, x_high: np.ndarray):
         """(first node, node count) of windows reaching :attr:`reach` beyond [x_low, x_high]
@@ -98,8 +134,8 @@ class _Level:
         return begin, end - begin + 1
 
     def holds(self, rows: np.ndarray, x_low: np.ndarray, x_high: np.ndarray) -> np.ndarray:
-        """Whether each row's window reaches half :attr:`reach` beyond [x_low, x_high] (or the
-        window's end is the stroke's or the floor's); False for rows −1."""
+        """Whether each row's window reaches half :attr:`reach` beyond [x_low, x_high] (or to
+        the stroke); False for rows −1."""
         held = rows >= 0
         if not self.first.size:
             return np.zeros(rows.shape, bool)
@@ -110,16 +146,17 @@ class _Level:
         return held & (start <= x_low - room) & (
             (stop >= x_high + room) | (stop >= self.top))
 
-    def append(self, begin, count, values) -> None:
+    def append(self, begin, count, values, expansions) -> None:
         self.offset = np.concatenate([self.offset, len(self.values) + np.cumsum(count)
                                       - count])
         self.first = np.concatenate([self.first, begin])
         self.count = np.concatenate([self.count, count])
         self.values = np.vstack([self.values, values])
+        self.expansions = np.vstack([self.expansions, expansions])
 
     def snapshot(self) -> "_Snapshot":
         return _Snapshot(self.nodes, self.first, self.count, self.offset, self.values,
-                         self.locate)
+                         self.expansions, self.locate)
 
 
 class _Snapshot(NamedTuple):
@@ -130,6 +167,7 @@ class _Snapshot(NamedTuple):
     count: np.ndarray
     offset: np.ndarray
     values: np.ndarray
+    expansions: np.ndarray
     locate: "_Locator"
 
 
@@ -159,7 +197,7 @@ class _Locator:
 
 
 class MapTables:
-    """The tabulated map part of many samples' balances, for one model's pair of maps.
+    """The tabulated maps of many samples, for one pair of maps.
 
     Get it with :func:`tables_for`; :meth:`tabulate` adds or renews samples' rows,
     :meth:`view` reads them.
@@ -173,6 +211,7 @@ class MapTables:
         self._lock = threading.Lock()
         self._keys: dict[bytes, int] = {}
         self._known: dict[bytes, np.ndarray] = {}
+        self._expanded = np.empty(0, bool)  # per row: whether it holds expansions
 
     @property
     def size(self) -> int:
@@ -184,9 +223,11 @@ class MapTables:
         keys = np.ascontiguousarray(np.column_stack([points.q, points.p_B, points.temperature]))
         return [row.tobytes() for row in keys]
 
-    def tabulate(self, model: ValveModel, points: OperatingPoints, band: np.ndarray) -> None:
-        """Tabulate (or renew) the rows of the flowing ``points`` whose ``band`` (2, n) [m] of
-        openings a level does not hold with room to spare (half its reach)."""
+    def tabulate(self, model: ValveModel, points: OperatingPoints, band: np.ndarray,
+                 expansions: bool = False) -> None:
+        """Tabulate (or renew) the rows of the flowing (measured) ``points`` whose ``band``
+        (2, n) [m] of openings a level does not hold with room to spare (half its reach), or
+        that lack ``expansions`` (:func:`needs_expansions`)."""
         band = np.asarray(band, float)
         with np.errstate(invalid="ignore"):
             low, high = np.nanmin(band, axis=0), np.nanmax(band, axis=0)
@@ -197,6 +238,10 @@ class MapTables:
         with self._lock:
             covered = np.logical_and.reduce([level.holds(rows, x_low, x_high)
                                              for level in self.levels])
+            if expansions and self._expanded.size:
+                covered &= self._expanded[np.maximum(rows, 0)]
+            elif expansions:
+                covered[:] = False
         todo = np.flatnonzero(usable & ~covered)
         if not todo.size:
             return
@@ -204,23 +249,23 @@ class MapTables:
         keys = self._row_keys(points[todo])
         _, unique = np.unique(np.asarray(keys, dtype=object), return_index=True)
         todo, keys = todo[unique], [keys[i] for i in unique]
-        windows = [level.windows(x_low[todo], x_high[todo])
-                   for level in self.levels]
+        windows = [level.windows(x_low[todo], x_high[todo]) for level in self.levels]
         total = sum(int(count.sum()) for _, count in windows)
         if total > MAX_NODES:
             return
         sub = points[todo]
-        tables = [_tabulate(model, sub, level, begin, count)
+        tables = [_tabulate(model, sub, level, begin, count, expansions)
                   for level, (begin, count) in zip(self.levels, windows)]
         with self._lock:
             if self.size + total > MAX_NODES:
                 for level in self.levels:
                     level.clear()
-                self._keys = {}
+                self._keys, self._expanded = {}, np.empty(0, bool)
             self._known = {}
             start = len(self.levels[0].first)
-            for level, (begin, count), values in zip(self.levels, windows, tables):
-                level.append(begin, count, values)
+            for level, (begin, count), (values, expanded) in zip(self.levels, windows, tables):
+                level.append(begin, count, values, expanded)
+            self._expanded = np.concatenate([self._expanded, np.full(len(keys), expansions)])
             for i, key in enumerate(keys):  # a renewed row replaces the old one
                 self._keys[key] = start + i
 
@@ -245,27 +290,47 @@ class MapTables:
             return TableView(rows, [level.snapshot() for level in self.levels])
 
 
-def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, count):
-    """(count.sum(), :data:`_QUANTITIES`) values of ``points``' windows of ``level``."""
+def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, count,
+              expansions: bool):
+    """The values (count.sum(), :data:`_QUANTITIES`) of ``points``' windows of ``level``,
+    and their expansions (count.sum(), :data:`_EXPANSIONS`; NaN without ``expansions``)."""
     which = np.repeat(np.arange(len(points)), count)
     position = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     u = np.exp(level.nodes[np.repeat(begin, count) + position])
-    dp, flow_force = np.empty(u.size), np.empty(u.size)
-    # the maps asked a block at a time: their temporaries then stay in the processor's cache
+    steps = _EXPANSION_STEP * np.arange(-2, 3) if expansions else np.zeros(1)
+    log_dp = np.empty((len(steps), u.size))  # at the flows e^step·q
+    ratio = np.empty((len(steps), u.size))  # at the Δp's e^step·Δp(q)
     for block in range(0, u.size, _BLOCK):
         part = slice(block, block + _BLOCK)
         at = points[which[part]]
-        dp[part], flow_force[part] = model.map_part(u[part], at, model.fluid(at))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        values = np.vstack([np.log(dp), flow_force / dp])
-    return np.ascontiguousarray(
+        fluid = model.fluid(at)
+        for row, step in enumerate(steps):
+            log_dp[row, part] = np.log(model.flow_map.pressure_drop(
+                at.q * np.exp(step), at.p_B, u[part], fluid))
+        centre = len(steps) // 2
+        dp = np.exp(log_dp[centre, part])
+        for row, step in enumerate(steps):
+            shifted = dp * np.exp(step)
+            ratio[row, part] = model.flow_force(u[part], shifted, at, fluid) / shifted
+    centre = len(steps) // 2
+    values = np.vstack([log_dp[centre], ratio[centre]])
+    values = np.ascontiguousarray(
         np.vstack([values, _slopes(level.nodes, level.kink, values, begin, count)]).T)
+    if not expansions:
+        return values, np.full((u.size, _EXPANSIONS), np.nan, np.float32)
+    # the quartic through the five: its derivatives at the centre, by five-point differences
+    h = _EXPANSION_STEP
+    differences = np.array([[1, -8, 0, 8, -1], [-1, 16, -30, 16, -1], [-1, 2, 0, -2, 1],
+                            [1, -4, 6, -4, 1]]) / np.array([[12 * h], [12 * h**2], [2 * h**3],
+                                                            [h**4]])
+    expanded = np.vstack([differences @ log_dp, differences @ ratio])
+    return values, np.ascontiguousarray(expanded.T, np.float32)
 
 
 class TableView:
     """Some points' rows of a :class:`MapTables`, frozen as they were when taken."""
 
-    def __init__(self, rows: np.ndarray, levels: list[tuple]):
+    def __init__(self, rows: np.ndarray, levels: list[_Snapshot]):
         self.row, self.levels = rows, levels
 
     def __getitem__(self, index) -> "TableView":
@@ -275,41 +340,50 @@ class TableView:
         """The view of the points repeated ``times`` over, as a replay stacks a band's edges."""
         return TableView(np.tile(self.row, times), self.levels)
 
-    def lookup(self, u: np.ndarray, coarsest: int = FINE
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(Δp [Pa], f_ff [N], inside) of the view's points at openings ``u`` [m], from the
-        finest level (up to ``coarsest``) whose window holds ``u``; ``inside`` is False (and
-        the values NaN) where a point has no row or no such window holds ``u``."""
+    def read(self, u: np.ndarray, coarsest: int = FINE, expansions: bool = False):
+        """(inside, (2, n) ln Δp and r, (4, n) expansions or None) of the view's points at
+        openings ``u`` [m], from the finest level (up to ``coarsest``) whose window holds u;
+        ``inside`` is False (and the values NaN) where a point has no row or no such window
+        holds u."""
         u = np.asarray(u, float)
         with np.errstate(divide="ignore", invalid="ignore"):
             x = np.log(u)
-        dp = np.full(u.shape, np.nan)
-        flow_force = np.full(u.shape, np.nan)
-        inside = np.zeros(u.shape, bool)
+        values = np.full((2, u.size), np.nan)
+        expanded = np.full((_EXPANSIONS, u.size), np.nan) if expansions else None
+        inside = np.zeros(u.size, bool)
         pending = np.flatnonzero((self.row >= 0) & np.isfinite(x))
         for level in self.levels[: coarsest + 1]:
             if not pending.size:
                 break
-            found, values = _interpolate(level, self.row[pending], x[pending])
+            found, main, extra = _interpolate(level, self.row[pending], x[pending], expansions)
             at = pending[found]
-            dp[at] = np.exp(values[0])
-            flow_force[at] = values[1] * dp[at]
+            values[:, at] = main
+            if expansions:
+                expanded[:, at] = extra
             inside[at] = True
             pending = pending[~found]
-        return dp, flow_force, inside
+        return inside, values, expanded
+
+    def lookup(self, u: np.ndarray, coarsest: int = FINE
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Δp [Pa], f_ff [N], inside) of the view's points at openings ``u`` [m] and their
+        measured flows (:meth:`read`)."""
+        inside, values, _ = self.read(u, coarsest)
+        dp = np.exp(values[0])
+        return dp, values[1] * dp, inside
 
 
-def _interpolate(level: "_Snapshot", rows: np.ndarray, x: np.ndarray):
-    """(found, (2, found.sum()) ln Δp and r) at ln u ``x`` of ``rows`` in one level's snapshot:
-    cubic Hermite between the nodes around x, with the slope right of the segment's start and
-    left of its end."""
+def _interpolate(level: _Snapshot, rows: np.ndarray, x: np.ndarray, expansions: bool):
+    """(found, (2, found.sum()) ln Δp and r, (4, found.sum()) expansions or None) at ln u ``x``
+    of ``rows`` in one level's snapshot: cubic Hermite between the nodes around x, with the
+    slope right of the segment's start and left of its end; the expansions linear."""
     if not level.first.size:
-        return np.zeros(x.shape, bool), np.empty((2, 0))
+        return np.zeros(x.shape, bool), np.empty((2, 0)), np.empty((_EXPANSIONS, 0))
     segment = level.locate(x)
     local = segment - level.first[rows]
     found = (local >= 0) & (local < level.count[rows] - 1)
     if found.all():
-        k, flat, x = segment, level.offset[rows] + local, x
+        k, flat = segment, level.offset[rows] + local
     else:
         k, flat, x = segment[found], level.offset[rows[found]] + local[found], x[found]
     left = level.nodes[k]
@@ -323,7 +397,12 @@ def _interpolate(level: "_Snapshot", rows: np.ndarray, x: np.ndarray):
     h11 = width * t2 * (t - 1.0)
     start = np.take(level.values, flat, axis=0).T  # np.take: a third of fancy indexing's time
     end = np.take(level.values, flat + 1, axis=0).T
-    return found, h00 * start[:2] + h01 * end[:2] + h10 * start[2:4] + h11 * end[4:6]
+    main = h00 * start[:2] + h01 * end[:2] + h10 * start[2:4] + h11 * end[4:6]
+    if not expansions:
+        return found, main, None
+    extra = ((1.0 - t) * np.take(level.expansions, flat, axis=0).T
+             + t * np.take(level.expansions, flat + 1, axis=0).T)
+    return found, main, extra
 
 
 def _slopes(nodes, kink, values, begin, count) -> np.ndarray:
@@ -382,11 +461,8 @@ _STORES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 _STORES_LOCK = threading.Lock()
 
 
-def tables_for(model: ValveModel) -> MapTables | None:
-    """The table store of ``model``'s pair of maps (made on first use), or None when its flow is
-    not the maps' alone (:attr:`~surrogate.model.ValveModel.flow_from_maps_alone`)."""
-    if not model.flow_from_maps_alone:
-        return None
+def tables_for(model: ValveModel) -> MapTables:
+    """The table store of ``model``'s pair of maps (made on first use)."""
     with _STORES_LOCK:
         by_force = _STORES.setdefault(model.flow_map, weakref.WeakKeyDictionary())
         tables = by_force.get(model.force_map)
@@ -395,42 +471,103 @@ def tables_for(model: ValveModel) -> MapTables | None:
     return tables
 
 
-def applies(model: ValveModel, points: OperatingPoints, true: OperatingPoints) -> bool:
-    """Whether tables keyed by the measured ``points`` hold ``model``'s map part: its flow is
-    the maps' alone and its sensor corrections (``true``, the points it corrects them to) leave
-    the flow, back pressure and temperature as measured. A fit of a flowmeter's gain, say,
-    moves the flow at every evaluation, and would tabulate anew each time."""
-    return (model.flow_from_maps_alone and np.array_equal(true.q, points.q)
-            and np.array_equal(true.p_B, points.p_B)
+def applies(points: OperatingPoints, true: OperatingPoints) -> bool:
+    """Whether tables keyed by the measured ``points`` hold the maps of a model that corrects
+    them to ``true``: the back pressure and temperature are as measured (a flow that differs is
+    read from the expansions)."""
+    return (np.array_equal(true.p_B, points.p_B)
             and np.array_equal(true.temperature, points.temperature))
 
 
+class TabulatedMaps:
+    """The maps at one balance call's points and openings, read from their tables: what a
+    :class:`~surrogate.model.ValveModel` asks instead of its maps (its ``maps`` argument).
+    Whatever the tables do not hold, the maps answer."""
+
+    def __init__(self, model: ValveModel, view: TableView, points: OperatingPoints, fluid, u,
+                 coarsest: int = FINE):
+        """``points``: as measured (the tables' keys; a model's corrected flow is read from
+        the expansions about them); ``u`` [m] the openings of the balance call."""
+        self.model, self.points, self.fluid, self.u = model, points, fluid, u
+        self.expansions = needs_expansions(model)
+        self.inside, (self.log_dp, self.ratio), self.expanded = view.read(u, coarsest,
+                                                                          self.expansions)
+
+    def pressure_drop(self, q: np.ndarray, index=slice(None)) -> np.ndarray:
+        """Δp [Pa] that passes the flow ``q`` [m^3/s] through the restriction at the points
+        ``index`` (all by default)."""
+        q = np.asarray(q, float)
+        reference = self.points.q[index]
+        log_dp = self.log_dp[index]
+        inside = self.inside[index]
+        if np.array_equal(q, reference):  # the measured flow: the tables' own value
+            dp = np.exp(log_dp)
+        elif self.expanded is None:  # no expansions: the maps answer for another flow
+            same = q == reference
+            dp, inside = np.where(same, np.exp(log_dp), np.nan), inside & same
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = np.log(q / reference)
+            dp = np.exp(log_dp + _taylor(self.expanded[:4, index], step))
+            inside = inside & (np.abs(step) <= EXPANSION_REACH) & np.isfinite(dp)
+        if not inside.all():
+            away = np.flatnonzero(~inside)
+            where = np.arange(len(self.u))[index][away]
+            dp[away] = self.model.flow_map.pressure_drop(
+                q[away], self.points.p_B[where], self.u[where], self.fluid[where])
+        return dp
+
+    def flow_force(self, dp: np.ndarray) -> np.ndarray:
+        """f_ff [N] at the pressure drops ``dp`` [Pa] of all the points."""
+        dp = np.asarray(dp, float)
+        own = np.exp(self.log_dp)
+        inside = self.inside
+        if np.array_equal(dp, own):  # Δp at the measured flow: the tables' own value
+            ratio = self.ratio
+        elif self.expanded is None:
+            same = dp == own
+            ratio, inside = np.where(same, self.ratio, np.nan), inside & same
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = np.log(dp / own)
+                ratio = self.ratio + _taylor(self.expanded[4:], step)
+            inside = inside & (np.abs(step) <= EXPANSION_REACH) & np.isfinite(ratio)
+        force = ratio * dp
+        if not inside.all():
+            away = np.flatnonzero(~inside)
+            force[away] = self.model.flow_force(self.u[away], dp[away], self.points[away],
+                                                self.fluid[away])
+        return force
+
+
+def _taylor(derivatives: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Σ_k f⁽ᵏ⁾·stepᵏ/k! for k = 1…4 (the rows of ``derivatives``): the quartic's change."""
+    d1, d2, d3, d4 = derivatives
+    return step * (d1 + step * (d2 / 2 + step * (d3 / 6 + step * d4 / 24)))
+
+
 class TabulatedBalance:
-    """A model's balance at given points, read from their rows of the map tables where those
-    hold the opening asked for, from the maps elsewhere. The points' map part must be what the
-    rows tabulate (:func:`applies`)."""
+    """A model's balance at given (measured) points, its maps read from their tables where
+    those hold the opening asked for (:class:`TabulatedMaps`)."""
 
     def __init__(self, model: ValveModel, view: TableView, points: OperatingPoints, fluid,
                  coarsest: int = FINE):
         self.model, self.view, self.coarsest = model, view, coarsest
-        self.points, self.fluid = model.true_points(points), fluid
+        self.points, self.fluid = points, fluid
 
     def __call__(self, u, index) -> Balance:
         """The balance of the points ``index`` at openings ``u`` [m]."""
         u = np.broadcast_to(np.asarray(u, float), np.shape(index)).copy()
         points, fluid = self.points[index], self.fluid[index]
-        dp, flow_force, inside = self.view[index].lookup(u, self.coarsest)
-        if not inside.all():
-            away = np.flatnonzero(~inside)
-            dp[away], flow_force[away] = self.model.map_part(u[away], points[away], fluid[away])
-        return self.model.balance_of_map_part(u, points, fluid, dp, flow_force)
+        maps = TabulatedMaps(self.model, self.view[index], points, fluid, u, self.coarsest)
+        return self.model.balance(u, points, fluid, maps)
 
 
 def balance_reader(model: ValveModel, points: OperatingPoints, fluid, view: TableView | None,
                    coarsest: int = FINE):
-    """``balance(u, index)``: ``model``'s balance of the points ``index`` at openings ``u`` [m],
-    read from ``view``, their rows of the map tables (levels up to ``coarsest``), where given
-    and where they hold the model's map part (:func:`applies`), from the maps otherwise."""
-    if view is not None and applies(model, points, model.true_points(points)):
+    """``balance(u, index)``: ``model``'s balance of the (measured) points ``index`` at
+    openings ``u`` [m], its maps read from ``view``, their rows of the tables (levels up to
+    ``coarsest``), where given and where they apply (:func:`applies`), else asked."""
+    if view is not None and applies(points, model.true_points(points)):
         return TabulatedBalance(model, view, points, fluid, coarsest)
     return lambda u, index: model.balance(u, points[index], fluid[index])

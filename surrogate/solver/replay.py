@@ -45,7 +45,7 @@ from scipy.signal import savgol_coeffs
 
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
-from .map_tables import applies, balance_reader, tables_for
+from .map_tables import applies, balance_reader, expandable, needs_expansions, tables_for
 from .steady import BATCH, Status, solve_steady
 from .uncertainty import map_error_gains
 
@@ -235,14 +235,15 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
 
 
 def _tables(model: ValveModel, points: OperatingPoints, band: np.ndarray):
-    """The points' rows of the map tables of ``model``'s maps, tabulated around ``band`` where
-    missing (:mod:`.map_tables`); None where they would not hold its map part
-    (:func:`.map_tables.applies`)."""
-    true = model.true_points(points)
-    if not applies(model, points, true):
+    """The points' rows of the tables of ``model``'s maps, tabulated around ``band`` where
+    missing (:mod:`.map_tables`); None where they would not hold them
+    (:func:`.map_tables.applies`), or where the model changes the flow on maps that cannot be
+    expanded about a sample's own (:func:`.map_tables.expandable`)."""
+    expansions = needs_expansions(model)
+    if not applies(points, model.true_points(points)) or (expansions and not expandable(model)):
         return None
     tables = tables_for(model)
-    tables.tabulate(model, points, band)
+    tables.tabulate(model, points, band, expansions)
     return tables.view(points)
 
 
