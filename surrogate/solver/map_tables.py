@@ -506,9 +506,9 @@ class TabulatedMaps:
             same = q == reference
             dp, inside = np.where(same, np.exp(log_dp), np.nan), inside & same
         else:
-            with np.errstate(divide="ignore", invalid="ignore"):
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 step = np.log(q / reference)
-            dp = np.exp(log_dp + _taylor(self.expanded[:4, index], step))
+                dp = np.exp(log_dp + _taylor(self.expanded[:4, index], step))
             inside = inside & (np.abs(step) <= EXPANSION_REACH) & np.isfinite(dp)
         if not inside.all():
             away = np.flatnonzero(~inside)
