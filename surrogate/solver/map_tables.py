@@ -115,8 +115,9 @@ class _Level:
         self.clear()
 
     def clear(self) -> None:
-        # per row: first node, node count, offset into the flat values (replaced, never
-        # changed in place, so that a view keeps what it took)
+        # per row: first node, node count, offset into the flat values; buffers that grow in
+        # place (amortised), their rows never rewritten: what a reader found there stays true
+        self.rows = self.nodes_used = 0
         self.first = np.empty(0, np.intp)
         self.count = np.empty(0, np.intp)
         self.offset = np.empty(0, np.intp)
@@ -136,9 +137,9 @@ class _Level:
     def holds(self, rows: np.ndarray, x_low: np.ndarray, x_high: np.ndarray) -> np.ndarray:
         """Whether each row's window reaches half :attr:`reach` beyond [x_low, x_high] (or to
         the stroke); False for rows −1."""
-        held = rows >= 0
-        if not self.first.size:
-            return np.zeros(rows.shape, bool)
+        held = (rows >= 0) & (rows < self.rows)
+        if not held.any():
+            return held
         safe = np.where(held, rows, 0)
         start = self.nodes[self.first[safe]]
         stop = self.nodes[self.first[safe] + self.count[safe] - 1]
@@ -147,16 +148,32 @@ class _Level:
             (stop >= x_high + room) | (stop >= self.top))
 
     def append(self, begin, count, values, expansions) -> None:
-        self.offset = np.concatenate([self.offset, len(self.values) + np.cumsum(count)
-                                      - count])
-        self.first = np.concatenate([self.first, begin])
-        self.count = np.concatenate([self.count, count])
-        self.values = np.vstack([self.values, values])
-        self.expansions = np.vstack([self.expansions, expansions])
+        rows, nodes = len(begin), len(values)
+        self.first, self.count, self.offset = (
+            _room(array, self.rows + rows) for array in (self.first, self.count, self.offset))
+        self.values = _room(self.values, self.nodes_used + nodes)
+        self.expansions = _room(self.expansions, self.nodes_used + nodes)
+        new = slice(self.rows, self.rows + rows)
+        self.first[new], self.count[new] = begin, count
+        self.offset[new] = self.nodes_used + np.cumsum(count) - count
+        self.values[self.nodes_used:self.nodes_used + nodes] = values
+        self.expansions[self.nodes_used:self.nodes_used + nodes] = expansions
+        self.rows += rows
+        self.nodes_used += nodes
 
     def snapshot(self) -> "_Snapshot":
         return _Snapshot(self.nodes, self.first, self.count, self.offset, self.values,
                          self.expansions, self.locate)
+
+
+def _room(array: np.ndarray, length: int) -> np.ndarray:
+    """``array``, or a copy half as long again as ``length`` with its rows, where it is too
+    short to hold ``length`` rows."""
+    if len(array) >= length:
+        return array
+    grown = np.empty((int(1.5 * length) + 16, *array.shape[1:]), array.dtype)
+    grown[: len(array)] = array
+    return grown
 
 
 class _Snapshot(NamedTuple):
@@ -212,11 +229,13 @@ class MapTables:
         self._keys: dict[bytes, int] = {}
         self._known: dict[bytes, np.ndarray] = {}
         self._expanded = np.empty(0, bool)  # per row: whether it holds expansions
+        # counts the stores' clearings: a view of an earlier generation finds no rows
+        self.generation = 0
 
     @property
     def size(self) -> int:
         """Nodes held over all levels."""
-        return sum(len(level.values) for level in self.levels)
+        return sum(level.nodes_used for level in self.levels)
 
     @staticmethod
     def _row_keys(points: OperatingPoints) -> list[bytes]:
@@ -234,14 +253,14 @@ class MapTables:
         usable = np.isfinite(low) & (low > 0) & (points.q > 0)
         x_low = np.log(np.where(usable, low, 1.0))
         x_high = np.log(np.where(usable, high, 1.0))
-        rows = self.view(points).row
+        view = self.view(points)
         with self._lock:
+            rows = view.row if view.generation == self.generation else np.full(len(points), -1)
             covered = np.logical_and.reduce([level.holds(rows, x_low, x_high)
                                              for level in self.levels])
-            if expansions and self._expanded.size:
-                covered &= self._expanded[np.maximum(rows, 0)]
-            elif expansions:
-                covered[:] = False
+            if expansions:
+                covered &= self._expanded[np.clip(rows, 0, max(len(self._expanded) - 1, 0))] \
+                    if len(self._expanded) else False
         todo = np.flatnonzero(usable & ~covered)
         if not todo.size:
             return
@@ -258,11 +277,9 @@ class MapTables:
                   for level, (begin, count) in zip(self.levels, windows)]
         with self._lock:
             if self.size + total > MAX_NODES:
-                for level in self.levels:
-                    level.clear()
-                self._keys, self._expanded = {}, np.empty(0, bool)
+                self._clear()
             self._known = {}
-            start = len(self.levels[0].first)
+            start = self.levels[0].rows
             for level, (begin, count), (values, expanded) in zip(self.levels, windows, tables):
                 level.append(begin, count, values, expanded)
             self._expanded = np.concatenate([self._expanded, np.full(len(keys), expansions)])
@@ -287,7 +304,20 @@ class MapTables:
                 if len(self._known) >= _KNOWN_VIEWS:
                     self._known.clear()
                 self._known[digest] = rows
-            return TableView(rows, [level.snapshot() for level in self.levels])
+            return TableView(rows, self, self.generation)
+
+    def snapshots(self, generation: int) -> list[_Snapshot] | None:
+        """The levels as they are now, or None after a clearing since ``generation``."""
+        with self._lock:
+            if generation != self.generation:
+                return None
+            return [level.snapshot() for level in self.levels]
+
+    def _clear(self) -> None:
+        for level in self.levels:
+            level.clear()
+        self._keys, self._known, self._expanded = {}, {}, np.empty(0, bool)
+        self.generation += 1
 
 
 def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, count,
@@ -328,17 +358,23 @@ def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, 
 
 
 class TableView:
-    """Some points' rows of a :class:`MapTables`, frozen as they were when taken."""
+    """Some points' rows of a :class:`MapTables`: rows are never rewritten, so a view reads
+    what it found until the store is cleared (then it finds none, and the maps answer)."""
 
-    def __init__(self, rows: np.ndarray, levels: list[_Snapshot]):
-        self.row, self.levels = rows, levels
+    def __init__(self, rows: np.ndarray, store: MapTables, generation: int):
+        self.row, self.store, self.generation = rows, store, generation
+
+    @property
+    def levels(self) -> list[_Snapshot]:
+        """The store's levels, or none after a clearing."""
+        return self.store.snapshots(self.generation) or []
 
     def __getitem__(self, index) -> "TableView":
-        return TableView(self.row[index], self.levels)
+        return TableView(self.row[index], self.store, self.generation)
 
     def tile(self, times: int) -> "TableView":
         """The view of the points repeated ``times`` over, as a replay stacks a band's edges."""
-        return TableView(np.tile(self.row, times), self.levels)
+        return TableView(np.tile(self.row, times), self.store, self.generation)
 
     def read(self, u: np.ndarray, coarsest: int = FINE, expansions: bool = False):
         """(inside, (2, n) ln Δp and r, (4, n) expansions or None) of the view's points at
@@ -469,6 +505,17 @@ def tables_for(model: ValveModel) -> MapTables:
         if tables is None:
             tables = by_force[model.force_map] = MapTables(model)
     return tables
+
+
+def release_tables(model: ValveModel) -> None:
+    """Drop the tables of ``model``'s maps (a workflow whose fits are done: the memory goes
+    back, a later fit tabulates afresh)."""
+    with _STORES_LOCK:
+        by_force = _STORES.get(model.flow_map)
+        tables = None if by_force is None else by_force.pop(model.force_map, None)
+    if tables is not None:
+        with tables._lock:
+            tables._clear()
 
 
 def applies(points: OperatingPoints, true: OperatingPoints) -> bool:

@@ -45,6 +45,7 @@ from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..reporting.prose import summarise
+from ..solver.map_tables import release_tables
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
 from .calibration import calibrate_maps
@@ -355,6 +356,8 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     steps = staircase.steps
     floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs,
                         source=steps[-1].played.log.source)
+    for step in steps:  # the fits are done: their tables go (the steps' replays asked the maps)
+        release_tables(step.model)
     return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began,
                     maps_spec.flow.kind if start is None else "", staircase.dropped)
 
