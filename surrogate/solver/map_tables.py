@@ -74,6 +74,8 @@ _EXPANSION_STEP = 0.05
 _KNOWN_VIEWS = 64
 #: nodes tabulated in one call of the maps: their temporaries then stay in the processor's cache
 _BLOCK = 4096
+#: samples tabulated at a time (about 50 nodes each)
+_SAMPLES_AT_A_TIME = 2048
 #: nodes closer than this fraction of a step to a kink are dropped, so that no segment is tiny
 _KINK_CLEARANCE = 0.25
 #: columns of a level's values: ln Δp and r = f_ff/Δp, their slopes in ln u to the right of
@@ -272,19 +274,26 @@ class MapTables:
         total = sum(int(count.sum()) for _, count in windows)
         if total > MAX_NODES:
             return
-        sub = points[todo]
-        tables = [_tabulate(model, sub, level, begin, count, expansions)
-                  for level, (begin, count) in zip(self.levels, windows)]
         with self._lock:
             if self.size + total > MAX_NODES:
                 self._clear()
-            self._known = {}
-            start = self.levels[0].rows
-            for level, (begin, count), (values, expanded) in zip(self.levels, windows, tables):
-                level.append(begin, count, values, expanded)
-            self._expanded = np.concatenate([self._expanded, np.full(len(keys), expansions)])
-            for i, key in enumerate(keys):  # a renewed row replaces the old one
-                self._keys[key] = start + i
+        # a block of samples at a time, so that the maps' and the slopes' temporaries stay
+        # small; each block's rows are usable as soon as they are in
+        for block in range(0, len(todo), _SAMPLES_AT_A_TIME):
+            part = slice(block, block + _SAMPLES_AT_A_TIME)
+            sub = points[todo[part]]
+            tables = [_tabulate(model, sub, level, begin[part], count[part], expansions)
+                      for level, (begin, count) in zip(self.levels, windows)]
+            with self._lock:
+                self._known = {}
+                start = self.levels[0].rows
+                for level, (begin, count), (values, expanded) in zip(self.levels, windows,
+                                                                      tables):
+                    level.append(begin[part], count[part], values, expanded)
+                self._expanded = np.concatenate([self._expanded,
+                                                 np.full(len(sub), expansions)])
+                for i, key in enumerate(keys[part]):  # a renewed row replaces the old one
+                    self._keys[key] = start + i
 
     def view(self, points: OperatingPoints) -> "TableView":
         """The rows of ``points`` as the store holds them now (−1 where it has none);
