@@ -207,6 +207,14 @@ class ValveModel:
         return self.balance_at(u, self.pressure_drop(u, points, fluid, maps), points, fluid,
                                maps)
 
+    @property
+    def may_change_the_flow(self) -> bool:
+        """Whether an effect may ask the maps about another flow than the measured one: one
+        that changes the flow through the restriction, adds a leak, or corrects the inputs (a
+        flowmeter's gain; whatever its parameters' values)."""
+        return any(_uses(effect, hook) for effect in self.effects
+                   for hook in ("restriction_flow", "leakage", "correct_inputs"))
+
     def map_part(self, u, points: OperatingPoints, fluid: FluidState
                  ) -> tuple[np.ndarray, np.ndarray]:
         """What the maps contribute to :meth:`balance` at ``u`` [m] for the (true) points:

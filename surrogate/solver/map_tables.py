@@ -49,7 +49,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..model import Balance, ValveModel, _uses
+from ..model import Balance, ValveModel
 from ..points import OperatingPoints
 
 #: the tables' levels: node spacing in ln u [1], and how far beyond a sample's band (the
@@ -87,14 +87,6 @@ _QUANTITIES = 6
 #: columns of a level's expansions: the first to fourth derivatives of ln Δp in ln q_r, then of
 #: r in ln Δp, at the sample's own flow and Δp (single precision: they multiply small steps)
 _EXPANSIONS = 8
-
-
-def needs_expansions(model: ValveModel) -> bool:
-    """Whether ``model`` may ask its maps about another flow than the measured one: it has an
-    effect that changes the flow through the restriction, adds a leak, or corrects the inputs
-    (a flowmeter's gain; whatever its value, so that a fit's steps read the tables alike)."""
-    return any(_uses(effect, hook) for effect in model.effects
-               for hook in ("restriction_flow", "leakage", "correct_inputs"))
 
 
 def expandable(model: ValveModel) -> bool:
@@ -263,7 +255,7 @@ class MapTables:
                  expansions: bool = False) -> None:
         """Tabulate (or renew) the rows of the flowing (measured) ``points`` whose ``band``
         (2, n) [m] of openings a level does not hold with room to spare (half its reach), or
-        that lack ``expansions`` (:func:`needs_expansions`)."""
+        that lack ``expansions`` (:attr:`~surrogate.model.ValveModel.may_change_the_flow`)."""
         band = np.asarray(band, float)
         with np.errstate(invalid="ignore"):
             low, high = np.nanmin(band, axis=0), np.nanmax(band, axis=0)
@@ -563,7 +555,7 @@ class TabulatedMaps:
         """``points``: as measured (the tables' keys; a model's corrected flow is read from
         the expansions about them); ``u`` [m] the openings of the balance call."""
         self.model, self.points, self.fluid, self.u = model, points, fluid, u
-        self.expansions = needs_expansions(model)
+        self.expansions = model.may_change_the_flow
         self.inside, (self.log_dp, self.ratio), self.expanded = view.read(u, coarsest,
                                                                           self.expansions)
 

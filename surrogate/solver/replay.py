@@ -45,7 +45,7 @@ from scipy.signal import savgol_coeffs
 
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, STEADY, OperatingPoints, concatenate
-from .map_tables import applies, balance_reader, expandable, needs_expansions, tables_for
+from .map_tables import applies, balance_reader, expandable, tables_for
 from .steady import BATCH, Status, solve_steady
 from .uncertainty import map_error_gains
 
@@ -239,7 +239,7 @@ def _tables(model: ValveModel, points: OperatingPoints, band: np.ndarray):
     missing (:mod:`.map_tables`); None where they would not hold them
     (:func:`.map_tables.applies`), or where the model changes the flow on maps that cannot be
     expanded about a sample's own (:func:`.map_tables.expandable`)."""
-    expansions = needs_expansions(model)
+    expansions = model.may_change_the_flow
     if not applies(points, model.true_points(points)) or (expansions and not expandable(model)):
         return None
     tables = tables_for(model)
