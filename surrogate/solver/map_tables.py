@@ -74,8 +74,6 @@ _EXPANSION_STEP = 0.05
 _KNOWN_VIEWS = 64
 #: nodes tabulated in one call of the maps: their temporaries then stay in the processor's cache
 _BLOCK = 4096
-#: the widest band [ln u] a renewed row keeps its old window in
-_WIDEST_BAND = 1.0
 #: samples tabulated at a time (about 50 nodes each)
 _SAMPLES_AT_A_TIME = 2048
 #: nodes closer than this fraction of a step to a kink are dropped, so that no segment is tiny
@@ -142,19 +140,6 @@ class _Level:
         room = 0.5 * self.reach
         return held & (start <= x_low - room) & (
             (stop >= x_high + room) | (stop >= self.top))
-
-    def union(self, rows: np.ndarray, x_low: np.ndarray, x_high: np.ndarray):
-        """[x_low, x_high] (ln u) widened to hold what the rows' windows hold (less the
-        reach), where that keeps them within :data:`_WIDEST_BAND`."""
-        held = (rows >= 0) & (rows < self.rows)
-        if not held.any():
-            return x_low, x_high
-        safe = np.where(held, rows, 0)
-        start = self.nodes[self.first[safe]] + self.reach
-        stop = self.nodes[self.first[safe] + self.count[safe] - 1] - self.reach
-        low, high = np.minimum(x_low, start), np.maximum(x_high, stop)
-        widen = held & (high - low <= _WIDEST_BAND)
-        return np.where(widen, low, x_low), np.where(widen, high, x_high)
 
     def append(self, begin, count, values, expansions) -> None:
         rows, nodes = len(begin), len(values)
@@ -270,9 +255,6 @@ class MapTables:
             if expansions:
                 covered &= self._expanded[np.clip(rows, 0, max(len(self._expanded) - 1, 0))] \
                     if len(self._expanded) else False
-            # a renewed row also holds what its old one did: a fit's probes and steps move a
-            # band's edges back and forth (a probe by up to 30 %), and would renew it each time
-            x_low, x_high = self.levels[FINE].union(rows, x_low, x_high)
         todo = np.flatnonzero(usable & ~covered)
         if not todo.size:
             return
