@@ -268,7 +268,7 @@ class MapTables:
             return
         with self._lock:
             if self.size + total > MAX_NODES:
-                self._clear()
+                self._compact(total)
         # a block of samples at a time, so that the maps' and the slopes' temporaries stay
         # small; each block's rows are usable as soon as they are in
         for block in range(0, len(todo), _SAMPLES_AT_A_TIME):
@@ -313,6 +313,28 @@ class MapTables:
             if generation != self.generation:
                 return None
             return [level.snapshot() for level in self.levels]
+
+    def _compact(self, room: int) -> None:
+        """Keep only each key's latest row (renewed rows leave their old ones behind), in new
+        buffers: views taken before find none and ask the maps. Clear all where even the
+        latest rows leave no ``room`` [nodes]."""
+        live = np.array(sorted(self._keys.values()), np.intp)
+        kept = sum(int(level.count[live].sum()) for level in self.levels)
+        if kept + room > MAX_NODES:
+            self._clear()
+            return
+        renumber = {row: new for new, row in enumerate(live.tolist())}
+        for level in self.levels:
+            first, count, offset = level.first[live], level.count[live], level.offset[live]
+            nodes = np.repeat(offset, count) + np.arange(count.sum()) - np.repeat(
+                np.cumsum(count) - count, count)
+            values, expansions = level.values[nodes], level.expansions[nodes]
+            level.clear()
+            level.append(first, count, values, expansions)
+        self._keys = {key: renumber[row] for key, row in self._keys.items()}
+        self._expanded = self._expanded[live]
+        self._known = {}
+        self.generation += 1
 
     def _clear(self) -> None:
         for level in self.levels:

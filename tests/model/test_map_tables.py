@@ -201,3 +201,25 @@ def test_the_bucket_locator_finds_the_segment_a_binary_search_finds(seed, close)
     x = np.concatenate([rng.uniform(-21.0, 2.0, 2000), nodes, np.nextafter(nodes, np.inf),
                         np.nextafter(nodes, -np.inf)])
     np.testing.assert_array_equal(locate(x), np.searchsorted(nodes, x, "right") - 1)
+
+
+def test_a_full_store_keeps_each_samples_latest_row(setting, monkeypatch):
+    """Renewed rows leave old ones behind; a store that would outgrow its bound keeps only the
+    latest row of each sample (its older views then find none, and the maps answer)."""
+    log, model, played = setting
+    points = OperatingPoints.from_bench(log.frame)
+    tables = MapTables(model)
+    tables.tabulate(model, points, played.replay.band)
+    monkeypatch.setattr("surrogate.solver.map_tables.MAX_NODES", int(1.5 * tables.size))
+    before = tables.view(points)
+    moved = played.replay.band * 1.3
+    tables.tabulate(model, points, moved)
+    assert tables.generation == 1 and tables.size < 1.5 * len(before.row) * 60
+    assert not before.lookup(played.replay.band[0])[2].any()
+    view = tables.view(points)
+    held = np.flatnonzero(view.row >= 0)
+    u = moved[0, held]
+    dp, _, inside = view[held].lookup(u)
+    assert inside.all()
+    dp_maps, _ = model.map_part(u, points[held], model.fluid(points[held]))
+    np.testing.assert_allclose(dp, dp_maps, rtol=1e-11)
