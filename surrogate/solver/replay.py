@@ -36,7 +36,6 @@ RMS is 1.14 times the noise floor with 7 samples, 1.37 times with the classic pl
 from __future__ import annotations
 
 from dataclasses import dataclass
-
 from functools import lru_cache
 
 import numpy as np
