@@ -99,12 +99,11 @@ def gp_model():
     return presets.cfda(maps_spec=presets.maps("gp")).build()
 
 
-@pytest.mark.parametrize("name", ["pilot_transducer_offset", *FLOW_CHANGING])
+@pytest.mark.parametrize("name", FLOW_CHANGING)
 def test_effects_that_change_the_flow_read_smooth_maps_expansions(setting, gp_model, name):
     """A flowmeter's gain moves the flow the maps are asked about, a leak or a discharge
-    correction the flow through the restriction; on smooth maps the tables' expansions about
-    the measured flow answer as the maps do (an offset of the pilot's transducer moves
-    neither)."""
+    correction the flow through the restriction (one of each hook); on smooth maps the tables'
+    expansions about the measured flow answer as the maps do."""
     log, _, _ = setting
     # two runs: a GP map asked over a whole replay is the test's cost
     log = log.take(np.flatnonzero(log.frame["run"].isin(log.frame["run"].unique()[:2])
