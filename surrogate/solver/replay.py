@@ -277,21 +277,9 @@ def play(u_open, u_close, status_open, status_close, starts, u_start, smoothing=
     comes from (:data:`FROM_START` … :data:`STATE_HIGH`) and the sample whose edge it is (−1 for
     the run's start), which the replay's sensitivities follow (:mod:`.sensitivities`)."""
     count = len(u_open)
-    status = np.where(status_open < 0, status_open, np.where(status_close < 0, status_close,
-                                                             Status.OK)).astype(np.int8)
-    low = np.fmin(u_open, u_close)
-    high = np.fmax(u_open, u_close)
+    status, low, high, state_low, state_high, high_kind = play_bounds(
+        u_open, u_close, status_open, status_close, starts, smoothing)
     solved = status >= 0
-    if smoothing > 1:
-        state_low = smoothed_edge(low, starts, solved, smoothing)
-        smoothed_high = smoothed_edge(high, starts, solved, smoothing)
-        state_high = np.fmax(smoothed_high, state_low)
-        # where the smoothed upper edge falls below the lower one, the state's upper bound is
-        # the lower edge
-        high_kind = np.where(smoothed_high >= state_low, STATE_HIGH, STATE_LOW)
-    else:
-        state_low, state_high = low, high
-        high_kind = np.full(count, STATE_HIGH)
     state = _play_states(state_low, state_high, solved, starts, u_start)
     previous = np.empty(count)
     previous[1:] = state[:-1]
@@ -313,6 +301,28 @@ def play(u_open, u_close, status_open, status_close, starts, u_start, smoothing=
     source[0, stays] = np.where(opened[mover], STATE_LOW, high_kind[mover])
     source[1, stays] = mover
     return u, moving, status, source
+
+
+def play_bounds(u_open, u_close, status_open, status_close, starts, smoothing=1):
+    """What the play clamps each sample's state into: (status, low, high, state_low,
+    state_high, high_kind), the band's edges as they are and as the state sees them (smoothed
+    over ``smoothing`` samples), and which edge the state's upper bound is."""
+    status = np.where(status_open < 0, status_open, np.where(status_close < 0, status_close,
+                                                             Status.OK)).astype(np.int8)
+    low = np.fmin(u_open, u_close)
+    high = np.fmax(u_open, u_close)
+    if smoothing > 1:
+        solved = status >= 0
+        state_low = smoothed_edge(low, starts, solved, smoothing)
+        smoothed_high = smoothed_edge(high, starts, solved, smoothing)
+        state_high = np.fmax(smoothed_high, state_low)
+        # where the smoothed upper edge falls below the lower one, the state's upper bound is
+        # the lower edge
+        high_kind = np.where(smoothed_high >= state_low, STATE_HIGH, STATE_LOW)
+    else:
+        state_low, state_high = low, high
+        high_kind = np.full(len(u_open), STATE_HIGH)
+    return status, low, high, state_low, state_high, high_kind
 
 
 def _play_states(state_low, state_high, solved, starts, u_start) -> np.ndarray:

@@ -16,9 +16,8 @@ from surrogate.modelfile import load_model
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.map_tables import FINE, MapTables, _Locator
-from surrogate.solver.replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_HIGH, STATE_LOW, play,
-                                     smoothed_edge)
-from surrogate.solver.steady import Status
+from surrogate.solver.replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_LOW, play,
+                                     play_bounds)
 from surrogate.units import BAR
 
 
@@ -135,18 +134,9 @@ def _looped_play(u_open, u_close, status_open, status_close, starts, u_start, sm
     u = np.empty(count)
     moving = np.zeros(count, dtype=bool)
     source = np.full((2, count), -1, dtype=np.int64)
-    status = np.where(status_open < 0, status_open, np.where(status_close < 0, status_close,
-                                                             Status.OK)).astype(np.int8)
-    low, high = np.fmin(u_open, u_close), np.fmax(u_open, u_close)
+    status, low, high, state_low, state_high, high_kind = play_bounds(
+        u_open, u_close, status_open, status_close, starts, smoothing)
     solved = status >= 0
-    if smoothing > 1:
-        state_low = smoothed_edge(low, starts, solved, smoothing)
-        smoothed_high = smoothed_edge(high, starts, solved, smoothing)
-        state_high = np.fmax(smoothed_high, state_low)
-        high_kind = np.where(smoothed_high >= state_low, STATE_HIGH, STATE_LOW)
-    else:
-        state_low, state_high = low, high
-        high_kind = np.full(count, STATE_HIGH)
     previous, state_from = u_start, (FROM_START, -1)
     for k in range(count):
         if starts[k]:
