@@ -474,6 +474,30 @@ def fit(model: ValveModel, problem: FitProblem | object, names: Sequence[str] | 
                                                           tolerance=tolerance)
 
 
+def bounded_linear_fit(tall: np.ndarray, target: np.ndarray, bounds: tuple,
+                       rows: np.ndarray | None = None, row_target: np.ndarray | None = None,
+                       compressed: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """x minimising ‖tall·x − target‖² + ‖rows·x − row_target‖² within ``bounds``.
+
+    ``tall`` (a residual's Jacobian: thousands of samples by a few columns) is first reduced to
+    its triangular factor R of ``tall = Q·R``, whose least squares differ from the tall one's
+    by a constant (‖tall·x − target‖² = ‖R·x − Qᵀ·target‖² + ‖(1 − QQᵀ)·target‖²), so that
+    the bounded solver iterates on a few rows instead of thousands. ``compressed``: (R, Qᵀ·target)
+    from :func:`compress` when one tall problem is solved with several sets of ``rows``.
+    """
+    factor, projected = compress(tall, target) if compressed is None else compressed
+    if rows is not None and len(rows):
+        factor, projected = np.vstack([factor, rows]), np.r_[projected, row_target]
+    return lsq_linear(factor, projected, bounds=bounds).x
+
+
+def compress(tall: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R, Qᵀ·target) of ``tall = Q·R`` (economic QR): the few rows that carry all of a tall
+    linear least-squares problem's dependence on x (:func:`bounded_linear_fit`)."""
+    q, r = np.linalg.qr(tall)
+    return r, q.T @ target
+
+
 def _forward_steps(x: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Finite-difference steps: :data:`DIFF_STEP` relative to max(1, |x|), away from the upper
     bound when a step up would cross it (scipy's rule for '2-point' with bounds)."""
@@ -527,11 +551,10 @@ class _Refinement:
         return float(np.sum((matrix @ z + offset) ** 2))
 
     def _step(self) -> None:
-        matrix, target_values = self.jacobian, -self.r + self.jacobian @ self.z
-        if self.penalty is not None:
-            matrix = np.vstack([matrix, self.penalty[0]])
-            target_values = np.r_[target_values, -self.penalty[1]]
-        target = lsq_linear(matrix, target_values, bounds=(self.lower, self.upper)).x
+        rows, row_target = (None, None) if self.penalty is None else (self.penalty[0],
+                                                                     -self.penalty[1])
+        target = bounded_linear_fit(self.jacobian, -self.r + self.jacobian @ self.z,
+                                    (self.lower, self.upper), rows, row_target)
         if np.allclose(target, self.z, rtol=0, atol=1e-4):
             self.settled = True
             return

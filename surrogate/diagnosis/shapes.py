@@ -23,14 +23,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import lsq_linear
 
 from ..effects import BalanceState, Effect, FlowState, Parameter
 from ..effects.shapes import NU_REFERENCE, PRESSURE_DROP, SHAPE_FREE, ShapeFreeEffect
 from ..fitting.heldout import HEADLINE, POOLED, Linearised, RunBlocks
 from ..fitting.logfit import probe_change
 from ..fitting.residuals import LogReplay
-from ..leastsquares import Minimizer
+from ..leastsquares import Minimizer, bounded_linear_fit, compress
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..progress import Stage
@@ -252,15 +251,15 @@ def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
     kept_rows, kept_offset = ((np.zeros((0, p + k)), np.zeros(0)) if own_roughness is None else
                               (np.hstack([own_roughness[0], np.zeros((len(own_roughness[1]), k))]),
                                own_roughness[1]))
+    ridge = 1e-8 * np.sqrt(shape.scale) * np.eye(p + k)  # keeps collinear columns defined
+    compressed = compress(jacobian, -residual)  # the samples' rows, shared by every weight
     best = None
     for weight in weights:
         rough = np.vstack([kept_rows, np.hstack([np.zeros((shape.roughness.shape[0], p)),
                                                  np.sqrt(weight * shape.scale) * shape.roughness])])
         offset = np.r_[kept_offset, np.zeros(shape.roughness.shape[0])]
-        ridge = 1e-8 * np.sqrt(shape.scale) * np.eye(p + k)  # keeps collinear columns defined
-        theta = lsq_linear(np.vstack([jacobian, rough, ridge]),
-                           np.r_[-residual, -offset, np.zeros(p + k)],
-                           bounds=(lower, upper)).x
+        theta = bounded_linear_fit(jacobian, -residual, (lower, upper), np.vstack([rough, ridge]),
+                                   np.r_[-offset, np.zeros(p + k)], compressed)
         fitted = residual + jacobian @ theta
         # held out: refits of the shape's linearisation at this fit, its inactive bounds free
         active = np.r_[np.ones(p, bool), (theta[p:] > lower[p:] + 1e-9) | ~np.isfinite(lower[p:])]
