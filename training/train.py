@@ -1,6 +1,6 @@
 """Train every learned surrogate (NN and GP, flow and force maps) on CPU and save them.
 
-    python training/train.py [--kinds nn gp] [--out surrogate/trained] [--cfd PATH]
+    python training/train.py [--kinds nn gp grid] [--out surrogate/trained] [--cfd PATH]
                              [--workers 2]
 
 Each kind is trained on **every** CFD sample: a user's CFD runs are too expensive to hold any
@@ -10,6 +10,9 @@ and asked about what it did not see. Those errors calibrate the maps' standard d
 into each folder: the summary per scheme in ``surrogate.json`` (with the SHA-256 of the sample
 file, so a test can tell when the committed surrogates no longer match the shipped samples), the
 errors per left-out sample in ``cross_validation.csv``.
+
+The grid maps are not trained, but their calibration (from their own cross-validation) is
+stored for the shipped samples too (``--kinds grid``, a few seconds).
 
 Training the deployed maps takes under a minute on 2 cores (40 s on a quiet machine); the
 cross-validation retrains each kind once per fold (14 folds on the shipped samples), about five
@@ -29,6 +32,8 @@ from surrogate.data import load_cfd_samples
 from surrogate.learn.reproducibility import environment
 from surrogate.learn.training import KINDS, learned_maps_on, train_surrogate
 from surrogate.maps.crossval import calibrate, cross_validate, summary
+from surrogate.maps.grid import GridUncertainty
+from surrogate.maps.grid_calibration import SHIPPED_GRID_CALIBRATION, write_calibrations
 from surrogate.maps.package import file_hash
 from surrogate.errors import InputError
 from surrogate.outputs import Output, check_outputs
@@ -39,7 +44,9 @@ from surrogate.progress import Progress
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--kinds", nargs="+", choices=KINDS, default=list(KINDS))
+    parser.add_argument("--kinds", nargs="+", choices=[*KINDS, "grid"], default=[*KINDS, "grid"],
+                        help="learned kinds to train; grid: only the grid maps' calibration "
+                        "(surrogate.maps.grid_calibration)")
     parser.add_argument("--out", type=Path, default=SHIPPED_SURROGATES,
                         help="parent folder of the surrogates")
     parser.add_argument("--cfd", type=Path, default=SHIPPED_CFD_SAMPLES, help="CFD-sample file")
@@ -74,6 +81,12 @@ def main() -> int:
     }
     progress(f"{len(samples)} CFD samples from {args.cfd}; training on all of them")
     for kind in args.kinds:
+        if kind == "grid":
+            path = args.out / "grid" / SHIPPED_GRID_CALIBRATION.name
+            calibrations = GridUncertainty(samples, valve).fitted_calibrations()
+            write_calibrations(path, samples, valve, calibrations)
+            progress(f"GRID: calibration written to {path}")
+            continue
         progress(f"training {kind.upper()} maps")
         trained = train_surrogate(kind, samples, valve, None, progress)
         progress(f"{kind.upper()}: trained in {trained.seconds:.1f} s; cross-validating with "

@@ -59,6 +59,7 @@ from .base import FlowMap, ForceMap
 from .coverage import DP_OUTSIDE, Coverage
 from .crossval import calibrate, cross_validate, summary
 from .curves import CurveSet
+from .grid_calibration import shipped_calibrations
 from .package import file_hash
 from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register,
                        resolve_file, sha256_hex)
@@ -434,11 +435,20 @@ class GridUncertainty:
 
     @property
     def calibrations(self) -> dict:
-        """{"flow": ..., "force": ...} :class:`~.calibration.Calibration`, fitted on first use."""
+        """{"flow": ..., "force": ...} :class:`~.calibration.Calibration`: the shipped one for
+        the shipped samples and valve (:mod:`.grid_calibration`), otherwise fitted on first
+        use."""
         if self._calibrations is None:
-            flow, force = calibrate(self.errors, use_spread=False)
-            self._calibrations = {"flow": flow, "force": force}
+            self._calibrations = shipped_calibrations(self.samples, self.valve)
+        if self._calibrations is None:
+            self._calibrations = self.fitted_calibrations()
         return self._calibrations
+
+    def fitted_calibrations(self) -> dict:
+        """The calibrations fitted to this grid's cross-validated errors, never the shipped
+        ones."""
+        flow, force = calibrate(self.errors, use_spread=False)
+        return {"flow": flow, "force": force}
 
     def summary(self) -> dict:
         """The cross-validation summary per scheme (:func:`.crossval.summary`)."""

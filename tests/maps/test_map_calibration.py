@@ -118,3 +118,31 @@ def test_a_network_map_reads_the_opening_distance_of_its_own_samples_and_a_gp_it
                 continue
             assert np.allclose(distances["opening"], force_map.coverage.opening_distance(u))
             assert distances["opening"][1] == 1.0 and distances["opening"][0] < 0.01
+
+
+def test_the_shipped_grid_calibration_is_what_the_shipped_samples_give(tmp_path):
+    """The grid's calibration is stored for the shipped samples and valve
+    (surrogate/trained/grid/calibration.json) so that no command fits it again: it must be what
+    fitting it to the grid's own cross-validated errors gives today, and be used for exactly
+    those samples and that valve."""
+    from dataclasses import replace
+
+    from surrogate import load_valve
+    from surrogate.data import load_cfd_samples
+    from surrogate.maps.grid import GridUncertainty
+    from surrogate.maps.grid_calibration import shipped_calibrations, write_calibrations
+    from surrogate.paths import SHIPPED_CFD_SAMPLES
+
+    samples, valve = load_cfd_samples(SHIPPED_CFD_SAMPLES), load_valve(None)
+    shipped = shipped_calibrations(samples, valve)
+    assert shipped is not None, "no shipped grid calibration: python training/train.py --kinds grid"
+    assert shipped == GridUncertainty(samples, valve).fitted_calibrations()
+    assert GridUncertainty(samples, valve).calibrations == shipped
+    fewer = samples.subset(np.arange(len(samples)) > 0)
+    assert shipped_calibrations(fewer, valve) is None
+    assert shipped_calibrations(samples, replace(valve, A_L=valve.A_L * 1.01)) is None
+    # a file written for other samples is not taken for these
+    other = tmp_path / "calibration.json"
+    write_calibrations(other, fewer, valve, shipped)
+    assert shipped_calibrations(samples, valve, other) is None
+    assert shipped_calibrations(fewer, valve, other) == shipped

@@ -1,0 +1,68 @@
+"""The grid maps' calibration, shipped for the shipped CFD samples as the learned kinds' is.
+
+A grid's σ comes from its own errors on samples left out of it (:class:`.grid.GridUncertainty`):
+rebuilding the grid for every cross-validation fold and fitting the calibration's constants
+takes about 3 CPU seconds, which every command on grid maps paid again (a tenth of a diagnosis).
+The learned kinds ship their calibration with their weights (``surrogate/trained/<kind>``); the
+grid ships its own here, for the samples and valve it was computed from, recognised by a
+fingerprint of their values. Any other sample set or valve is calibrated on first use, as before.
+
+``python training/train.py --kinds grid`` writes it; a test recomputes it and compares, so it
+cannot drift from what the samples give.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..data.loaders import CfdSamples
+from ..paths import SHIPPED_SURROGATES
+from ..valve import ValveParameters
+from .calibration import Calibration
+
+#: where the shipped grid calibration lives
+SHIPPED_GRID_CALIBRATION = SHIPPED_SURROGATES / "grid" / "calibration.json"
+FORMAT_VERSION = 1
+
+
+def fingerprint(samples: CfdSamples, valve: ValveParameters) -> str:
+    """SHA-256 of the samples' values (columns and rows in order) and of the valve's parameters:
+    what a grid's cross-validated errors, and so its calibration, are computed from."""
+    digest = hashlib.sha256()
+    frame = samples.frame
+    for column in frame.columns:
+        digest.update(str(column).encode())
+        values = frame[column].to_numpy()
+        digest.update(np.ascontiguousarray(values, float).tobytes() if values.dtype.kind in "fiub"
+                      else "\x1f".join(map(str, values)).encode())
+    digest.update(json.dumps(dataclasses.asdict(valve), sort_keys=True, default=str).encode())
+    return digest.hexdigest()
+
+
+def shipped_calibrations(samples: CfdSamples, valve: ValveParameters,
+                         path: Path = SHIPPED_GRID_CALIBRATION) -> dict | None:
+    """{"flow": ..., "force": ...} :class:`~.calibration.Calibration` stored at ``path`` for
+    exactly these samples and valve, or None (no file, another format, other data)."""
+    try:
+        stored = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    if (stored.get("format_version") != FORMAT_VERSION
+            or stored.get("fingerprint") != fingerprint(samples, valve)):
+        return None
+    return {name: Calibration.from_dict(stored[name]) for name in ("flow", "force")}
+
+
+def write_calibrations(path: Path, samples: CfdSamples, valve: ValveParameters,
+                       calibrations: dict) -> None:
+    """Store ``calibrations`` for ``samples`` and ``valve`` at ``path`` (its folder made)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = {"format_version": FORMAT_VERSION, "fingerprint": fingerprint(samples, valve),
+            **{name: calibrations[name].to_dict() for name in ("flow", "force")}}
+    path.write_text(json.dumps(data, indent=2) + "\n")
