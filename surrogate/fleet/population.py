@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy.stats import f as f_distribution
+from scipy.special import fdtri  # F's quantile, without importing scipy.stats (0.5 s)
 
 #: 1.4826 × MAD is the standard deviation of a Gaussian population
 MAD_TO_SIGMA = 1.4826
@@ -244,7 +244,7 @@ def squared_cutoff(level: float, dimensions: int, valves: int) -> float:
     population of ``valves`` valves whose mean and covariance were estimated from them, in
     ``dimensions`` figures: p(n−1)(n+1)/(n(n−p))·F(p, n−p) (module docstring)."""
     p, n = dimensions, valves
-    return p * (n - 1) * (n + 1) / (n * (n - p)) * float(f_distribution.ppf(level, p, n - p))
+    return p * (n - 1) * (n + 1) / (n * (n - p)) * float(fdtri(p, n - p, level))
 
 
 def _rank_correlation(z: np.ndarray) -> np.ndarray:
