@@ -126,9 +126,9 @@ class Judge:
         size = self.discrepancy.size
         fit = (self.fit if fit is None else fit).beside(
             self.discrepancy.columns, np.sqrt(self.penalty) * np.eye(size), np.zeros(size))
+        blocks = RunBlocks(fit, None, self.runs, 0.0)
         # about the whole log's optimum, as a candidate's refit is
-        fit = fit.moved(RunBlocks(fit, None, self.runs, 0.0).step(self.ones))
-        return RunBlocks(fit, None, self.runs, 0.0).heldout_rms(self.schemes)
+        return blocks.moved(blocks.step(self.ones)).heldout_rms(self.schemes)
 
     def expected_rms(self, base: LogReplay) -> float:
         """The RMS that noise and the maps' uncertainty (with the CFD's own error) allow

@@ -42,6 +42,7 @@ so that condition cannot judge an effect that acts there, true or not.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -208,6 +209,19 @@ class RunBlocks:
         if roughness is not None:
             matrix, offset = roughness
             self.rough = (matrix.T @ matrix, matrix.T @ offset)
+
+    def moved(self, theta: np.ndarray) -> "RunBlocks":
+        """The same blocks about the point ``theta`` away (a parameter step, in the columns'
+        scaling): the residual r + J·θ and the roughness penalty's about L·θ + b, from the
+        products already formed (the fit's :meth:`Linearised.moved`, without forming
+        [J, N]ᵀ[J, N] again, which is most of the cost)."""
+        p, moved = self.p, copy.copy(self)
+        moved.cross = self.cross + self.gram[:, :, :p] @ theta
+        moved.squares = (self.squares + 2.0 * self.cross[:, :p] @ theta
+                         + np.einsum("i,kij,j->k", theta, self.gram[:, :p, :p], theta))
+        if self.rough is not None:
+            moved.rough = (self.rough[0], self.rough[1] + self.rough[0] @ theta)
+        return moved
 
     def step(self, weights: np.ndarray) -> np.ndarray:
         """The linear refit's parameter step θ with each run weighted by ``weights``."""

@@ -54,6 +54,23 @@ def test_a_held_out_run_is_predicted_as_an_explicit_refit_without_it_would():
     assert got == pytest.approx(np.sqrt(squares / len(labels)), rel=1e-9)
 
 
+@pytest.mark.parametrize("rough", [False, True])
+def test_blocks_moved_to_a_point_are_the_blocks_formed_there(rough):
+    """RunBlocks.moved forms the blocks about another point from the products it has: they must
+    be what forming them about the moved linearisation gives (refits, objective, held-out)."""
+    labels, raw, jacobian = _linear_problem(seed=3, parameters=3)
+    roughness = (np.array([[1.0, -2.0, 1.0]]), np.array([0.4])) if rough else None
+    fit = Linearised(raw, jacobian, roughness)
+    theta = np.array([0.3, -1.2, 0.7])
+    schemes = {"run": {run: [run] for run in dict.fromkeys(labels)}}
+    moved = RunBlocks(fit, None, labels, 0.0).moved(theta)
+    formed = RunBlocks(fit.moved(theta), None, labels, 0.0)
+    ones = np.ones(len(formed.labels))
+    assert moved.step(ones) == pytest.approx(formed.step(ones), rel=1e-10, abs=1e-12)
+    assert moved.objective(ones) == pytest.approx(formed.objective(ones), rel=1e-10)
+    assert moved.heldout_rms(schemes) == pytest.approx(formed.heldout_rms(schemes), rel=1e-10)
+
+
 @pytest.mark.parametrize("after, expected", [
     ({"run": 0.90, "temperature": 0.90, "pilot pressure": 0.90}, True),
     ({"run": 0.90, "temperature": 0.90, "pilot pressure": 1.50}, True),  # one condition is enough
