@@ -29,9 +29,10 @@ sample holds a contiguous window of it. Per node the tables keep ln Δp and r (s
 itself varies like Δp, as u⁻²) and their slopes in ln u, from the node values by three-point
 differences, one-sided at a window's ends and at kinks: between two nodes both are cubic
 Hermite interpolants, C¹ between kinks, third order in the step; the expansions' coefficients
-are linear between nodes. ``python eval/map_tables_accuracy.py`` compares the tables with the
-maps over the shipped log's bands (a grid map's Δp, linear in ln u between kinks that are nodes,
-is exact) and a replay read from them with one that asks the maps.
+are made at every :data:`EXPANSION_EVERY`-th node and linear in ln u between. ``python
+eval/map_tables_accuracy.py`` compares the tables with the maps over the shipped log's bands (a
+grid map's Δp, linear in ln u between kinks that are nodes, is exact) and a replay read from
+them with one that asks the maps.
 
 Who reads them: the replays of a fit's inner loop (a guess, no diagnostics) and their
 sensitivities (:mod:`.replay`, :mod:`.sensitivities`); what is reported (a replay without a
@@ -70,6 +71,10 @@ MAX_NODES = 1_000_000
 EXPANSION_REACH = 0.15
 #: the spacing of the five flows and pressure drops an expansion passes through [1]
 _EXPANSION_STEP = 0.05
+#: expansions are made at every this many nodes of a window (and its ends and kinks), linear
+#: in ln u between: they multiply steps of at most EXPANSION_REACH, so their own error counts
+#: that much less
+EXPANSION_EVERY = 4
 #: sets of points whose rows a store remembers (a fit's log, its held-out subsets)
 _KNOWN_VIEWS = 64
 #: nodes tabulated in one call of the maps: their temporaries then stay in the processor's cache
@@ -349,10 +354,51 @@ def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, 
     and their expansions (count.sum(), :data:`_EXPANSIONS`; NaN without ``expansions``)."""
     which = np.repeat(np.arange(len(points)), count)
     position = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    u = np.exp(level.nodes[np.repeat(begin, count) + position])
-    steps = _EXPANSION_STEP * np.arange(-2, 3) if expansions else np.zeros(1)
-    log_dp = np.empty((len(steps), u.size))  # at the flows e^step·q
-    ratio = np.empty((len(steps), u.size))  # at the Δp's e^step·Δp(q)
+    node = np.repeat(begin, count) + position
+    u = np.exp(level.nodes[node])
+    log_dp, ratio = _maps_at(model, points, which, u, np.zeros(1))
+    values = np.vstack([log_dp[0], ratio[0]])
+    values = np.ascontiguousarray(
+        np.vstack([values, _slopes(level.nodes, level.kink, values, begin, count)]).T)
+    if not expansions:
+        return values, np.full((u.size, _EXPANSIONS), np.nan, np.float32)
+    # the expansions at every EXPANSION_EVERY-th node of a window, its ends and kinks, linear in
+    # ln u between (as they are read): four in five of the maps' calls were theirs
+    sub = ((position % EXPANSION_EVERY == 0) | (position == np.repeat(count, count) - 1)
+           | level.kink[node])
+    at = np.flatnonzero(sub)
+    shifted_dp, shifted_ratio = _maps_at(model, points, which[at], u[at],
+                                         _EXPANSION_STEP * np.array([-2.0, -1.0, 1.0, 2.0]),
+                                         np.exp(log_dp[0, at]))
+    around = np.vstack([shifted_dp[:2], log_dp[:, at], shifted_dp[2:]])
+    ratios = np.vstack([shifted_ratio[:2], ratio[:, at], shifted_ratio[2:]])
+    # the quartic through the five: its derivatives at the centre, by five-point differences
+    h = _EXPANSION_STEP
+    differences = np.array([[1, -8, 0, 8, -1], [-1, 16, -30, 16, -1], [-1, 2, 0, -2, 1],
+                            [1, -4, 6, -4, 1]]) / np.array([[12 * h], [12 * h**2], [2 * h**3],
+                                                            [h**4]])
+    expanded = np.vstack([differences @ around, differences @ ratios]).T
+    # each node between the sub-grid's nodes before and after it, both in its own window
+    # (a window's ends are on the sub-grid)
+    index = np.arange(u.size)
+    before = np.maximum.accumulate(np.where(sub, index, 0))
+    after = np.minimum.accumulate(np.where(sub, index, u.size)[::-1])[::-1]
+    slot = np.cumsum(sub) - 1  # a sub-grid node's row in ``expanded``
+    x = level.nodes[node]
+    span = x[after] - x[before]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(span > 0, (x - x[before]) / span, 0.0)[:, None]
+    result = (1.0 - t) * expanded[slot[before]] + t * expanded[slot[after]]
+    return values, np.ascontiguousarray(result, np.float32)
+
+
+def _maps_at(model: ValveModel, points: OperatingPoints, which: np.ndarray, u: np.ndarray,
+             steps: np.ndarray, dp: np.ndarray | None = None):
+    """(len(steps), len(u)) ln Δp at the flows e^step·q of the samples ``which`` of
+    ``points``, and r = f_ff/Δp at the pressure drops e^step·Δp, where Δp is given (``dp``
+    [Pa]) or that of step 0 (``steps`` then holds 0 alone)."""
+    log_dp = np.empty((len(steps), u.size))
+    ratio = np.empty((len(steps), u.size))
     for block in range(0, u.size, _BLOCK):
         part = slice(block, block + _BLOCK)
         at = points[which[part]]
@@ -360,24 +406,11 @@ def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, 
         for row, step in enumerate(steps):
             log_dp[row, part] = np.log(model.flow_map.pressure_drop(
                 at.q * np.exp(step), at.p_B, u[part], fluid))
-        centre = len(steps) // 2
-        dp = np.exp(log_dp[centre, part])
+        centre = np.exp(log_dp[0, part]) if dp is None else dp[part]
         for row, step in enumerate(steps):
-            shifted = dp * np.exp(step)
+            shifted = centre * np.exp(step)
             ratio[row, part] = model.flow_force(u[part], shifted, at, fluid) / shifted
-    centre = len(steps) // 2
-    values = np.vstack([log_dp[centre], ratio[centre]])
-    values = np.ascontiguousarray(
-        np.vstack([values, _slopes(level.nodes, level.kink, values, begin, count)]).T)
-    if not expansions:
-        return values, np.full((u.size, _EXPANSIONS), np.nan, np.float32)
-    # the quartic through the five: its derivatives at the centre, by five-point differences
-    h = _EXPANSION_STEP
-    differences = np.array([[1, -8, 0, 8, -1], [-1, 16, -30, 16, -1], [-1, 2, 0, -2, 1],
-                            [1, -4, 6, -4, 1]]) / np.array([[12 * h], [12 * h**2], [2 * h**3],
-                                                            [h**4]])
-    expanded = np.vstack([differences @ log_dp, differences @ ratio])
-    return values, np.ascontiguousarray(expanded.T, np.float32)
+    return log_dp, ratio
 
 
 class TableView:

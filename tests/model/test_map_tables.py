@@ -115,9 +115,11 @@ def test_effects_that_change_the_flow_read_smooth_maps_expansions(setting, gp_mo
     both = np.isfinite(tabulated.replay.dp) & np.isfinite(asked.replay.dp)
     assert both.mean() > 0.9
     difference = np.abs(tabulated.replay.dp[both] - asked.replay.dp[both])
-    # a sample can still flip between sticking and sliding on a hair's difference
-    assert np.mean(difference > 1e-2 * BAR) < 0.01, name
-    assert np.median(difference) < 1e-4 * BAR, name
+    # a sample can still flip between sticking and sliding on a hair's difference; the
+    # expansions, made at every fourth node and linear between, are good to tens of pascals
+    # (a wrong one is off by the whole change of the flow: kilopascals)
+    assert np.mean(difference > 1e-2 * BAR) < 0.02, name
+    assert np.median(difference) < 5e-4 * BAR, name
 
 
 @pytest.mark.parametrize("name", FLOW_CHANGING)
