@@ -1,16 +1,19 @@
 """Speed of diagnose and the workflow against an earlier version of the package, in one run.
 
-Issue 26 (shape-free terms beside the library) must keep diagnose and the workflow within 1.5x
-of the version before it, on 2 cores, for the shipped log's 11,000 samples. This script checks
+Issue 43 asks for the main job and ``diagnose --model cfda`` on the shipped log's 11,000 samples
+at least 5x less CPU than before it, the default workflow on the off-library suite's logs 8x
+(median over the logs), peak memory no higher (issue 26 before it: within 1.5x). This script checks
 that version out into a temporary folder (``git worktree``), then runs each command as its own
 process from the current checkout (A) and from the baseline (B) in turn — A B A B ... — so that
 a machine whose speed drifts moves both alike, and reports the median of the pairwise ratios
 A/B with the medians of each, in CPU seconds (user + system of the command's process and its
-threads: a machine that other work shares cannot hide or fake a gain in them), wall time
-beside. Both processes read the same shipped files.
+threads: a machine that other work shares cannot hide or fake a gain in them), wall time and
+peak resident memory beside. Both processes read the same files: the shipped log, or for
+``offlibrary`` the first ``--logs`` logs of ``eval/offlibrary.py``'s suite written as bench-log
+files (``workflow --kinds`` on each, its main kind alone).
 
-Run: ``python eval/speed_vs_baseline.py [--baseline 42ba9e0] [--runs 3] [--commands diagnose
-workflow]`` (the workflow takes a few minutes a run: about 40 minutes for three pairs of each).
+Run: ``python eval/speed_vs_baseline.py [--baseline 6de8049] [--runs 3] [--commands diagnose
+workflow offlibrary] [--logs 5]`` (the workflow takes minutes a run at the baseline).
 Writes results/speed_vs_baseline.json.
 """
 
@@ -19,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
@@ -28,35 +30,65 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-#: the last commit before issue 26's work: seals merged, no shape-free terms
-BASELINE = "42ba9e0"
+#: main when issue 43 (speed) was filed, before any of its work
+BASELINE = "6de8049"
 
 COMMANDS = {
     "diagnose": ["diagnose", "--model", "cfda", "--data", "measurements/bench_measurements.csv",
                  "--json"],
     "workflow": ["workflow", "--data", "measurements/bench_measurements.csv", "--maps", "gp",
                  "--out", "{out}"],
+    # the default workflow on its main kind alone (GP), on each of the off-library logs
+    "offlibrary": ["workflow", "--data", "{log}", "--kinds", "--out", "{out}"],
 }
 
 
-def timed_run(checkout: Path, arguments: list[str], scratch: Path) -> tuple[float, float]:
-    """CPU seconds and wall seconds of one ``python -m surrogate ARGUMENTS`` run from
-    ``checkout`` (its package first on the path, whatever is installed)."""
+def timed_run(checkout: Path, arguments: list[str], scratch: Path, log: Path | None = None
+              ) -> tuple[float, float, float]:
+    """CPU seconds, wall seconds and peak memory [MB] of one ``python -m surrogate ARGUMENTS``
+    run from ``checkout`` (its package first on the path, whatever is installed); ``{log}`` in
+    the arguments stands for ``log``."""
     out = scratch / f"out-{time.monotonic_ns()}"
     command = [sys.executable, "-c", "import sys, runpy; sys.path.insert(0, sys.argv.pop(1)); "
                "runpy.run_module('surrogate', run_name='__main__')", str(checkout),
-               *[argument.format(out=out) for argument in arguments]]
+               *[argument.format(out=out, log=log) for argument in arguments]]
     environment = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    errors = scratch / f"stderr-{time.monotonic_ns()}"
     began = time.perf_counter()
-    done = subprocess.run(command, cwd=ROOT, env=environment, stdout=subprocess.DEVNULL,
-                          stderr=subprocess.PIPE, text=True)
+    with errors.open("w") as stderr:
+        process = subprocess.Popen(command, cwd=ROOT, env=environment,
+                                   stdout=subprocess.DEVNULL, stderr=stderr)
+        # this process's own resource use (its threads' CPU time, its peak resident memory)
+        _, status, usage = os.wait4(process.pid, 0)
     seconds = time.perf_counter() - began
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if done.returncode != 0:
-        raise SystemExit(f"{' '.join(arguments)} from {checkout} failed:\n{done.stderr[-2000:]}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return cpu, seconds
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"{' '.join(arguments)} from {checkout} failed:\n"
+                         f"{errors.read_text()[-2000:]}")
+    return usage.ru_utime + usage.ru_stime, seconds, usage.ru_maxrss / 1024.0
+
+
+def off_library_logs(count: int, scratch: Path) -> list[Path]:
+    """The first ``count`` logs of the off-library suite (``eval/offlibrary.py``: one hidden
+    effect per case, in the suite's order, every 8th sample, the virtual valve's CFD erring as
+    a real one's), written as bench-log files that either checkout reads."""
+    sys.path.insert(0, str(ROOT))  # the logs are made by the current checkout
+    from surrogate.data import load_bench_log
+    from surrogate.data.writer import write_bench_log
+    from surrogate.effects import LIBRARY
+    from surrogate.paths import SHIPPED_BENCH_LOG
+    from surrogate.presets import maps
+    from surrogate.synthetic.mismatch import MapMismatch
+    from surrogate.synthetic.offlibrary import OFF_LIBRARY, off_library_suite
+    from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
+
+    sequence = noise_free_sequence(load_bench_log(SHIPPED_BENCH_LOG), every=8)
+    paths = []
+    for case in off_library_suite(count, 0, 4242)[:count]:
+        made = hidden_effect_case(case.hidden, case.values, sequence=sequence, seed=case.seed,
+                                  library=LIBRARY + OFF_LIBRARY, mismatch=MapMismatch(),
+                                  maps_under_test=maps("gp"))
+        paths.append(write_bench_log(made.log, scratch / f"{case.hidden}-{case.seed}.csv"))
+    return paths
 
 
 def which_package(checkout: Path) -> str:
@@ -72,6 +104,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--baseline", default=BASELINE, help="git revision to compare against")
     parser.add_argument("--runs", type=int, default=3, help="pairs of runs per command")
+    parser.add_argument("--logs", type=int, default=5,
+                        help="off-library logs for the offlibrary command (the suite's first)")
     parser.add_argument("--commands", nargs="+", default=list(COMMANDS), choices=list(COMMANDS))
     parser.add_argument("--out", default="results/speed_vs_baseline.json")
     args = parser.parse_args()
@@ -88,13 +122,18 @@ def main() -> None:
             record = {"baseline": args.baseline, "cores": os.cpu_count(), "commands": {}}
             for name in args.commands:
                 pairs = []
+                logs = (off_library_logs(args.logs, scratch) if name == "offlibrary"
+                        else [None])
                 for number in range(args.runs):
-                    now = timed_run(ROOT, COMMANDS[name], scratch)
-                    then = timed_run(baseline, COMMANDS[name], scratch)
-                    pairs.append((now, then))
-                    print(f"  {name} pair {number + 1}: now {now[0]:.1f} s CPU ({now[1]:.1f} s "
-                          f"wall), baseline {then[0]:.1f} s CPU ({then[1]:.1f} s wall) "
-                          f"(x{now[0] / then[0]:.2f} CPU)", flush=True)
+                    for log in logs:
+                        now = timed_run(ROOT, COMMANDS[name], scratch, log)
+                        then = timed_run(baseline, COMMANDS[name], scratch, log)
+                        pairs.append((now, then))
+                        print(f"  {name}{'' if log is None else ' ' + log.stem} run "
+                              f"{number + 1}: now {now[0]:.1f} s CPU ({now[1]:.1f} s wall, "
+                              f"{now[2]:.0f} MB), baseline {then[0]:.1f} s CPU ({then[1]:.1f} "
+                              f"s wall, {then[2]:.0f} MB) (x{now[0] / then[0]:.2f} CPU)",
+                              flush=True)
                 ratio = statistics.median(now[0] / then[0] for now, then in pairs)
                 record["commands"][name] = {
                     "now_cpu_s": round(statistics.median(p[0][0] for p in pairs), 1),
@@ -104,9 +143,12 @@ def main() -> None:
                     "cpu_ratio": round(ratio, 3),
                     "wall_ratio": round(statistics.median(now[1] / then[1]
                                                           for now, then in pairs), 3),
+                    "now_peak_mb": round(max(p[0][2] for p in pairs)),
+                    "baseline_peak_mb": round(max(p[1][2] for p in pairs)),
                     "pairs_cpu_wall_s": pairs}
                 print(f"{name}: x{ratio:.2f} the baseline's CPU time (median of {len(pairs)} "
-                      "pairs)")
+                      f"pairs); peak memory {record['commands'][name]['now_peak_mb']} MB "
+                      f"against {record['commands'][name]['baseline_peak_mb']} MB")
         finally:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
                             str(baseline)], check=False, capture_output=True)
