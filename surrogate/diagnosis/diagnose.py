@@ -192,7 +192,8 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
         found, linear_rivals = shape_free_candidates(model, problem, own_columns, judge,
                                                      shaped, steps=steps, workers=workers,
                                                      say=say, must_beat=must_beat,
-                                                     heldout_to_beat=heldout_to_beat)
+                                                     heldout_to_beat=heldout_to_beat,
+                                                     finding_kind=finding and finding.kind)
         found = with_views(found)
         # a shape refitted for real stands as its refit, not its linear fit
         rivals += [r for r in linear_rivals if r.name not in {c.name for c in found}]

@@ -123,9 +123,13 @@ class SignificanceRule:
 
     def ties(self, shape, finding) -> bool:
         """Whether shape-free term ``shape`` and the library ``finding`` fit the log equally
-        well: their ΔBICs, the shape's with its handicap, within the threshold of each other.
-        Neither is then the better explanation (:func:`.lookalikes.alike_shapes`)."""
-        return abs(shape.delta_bic + self.handicap(shape) - finding.delta_bic) < -self.bic
+        well: their ΔBICs within the threshold of each other. Neither is then the better
+        explanation (:func:`.lookalikes.alike_shapes`). The shape's handicap, the price of
+        choosing it from many families, decides which of two is added (:meth:`rank`), not
+        whether the log can tell them apart: a friction of p_L of free shape fitted a seal
+        friction setting in above a load pressure as well as the library's friction of
+        |p_L − p_P| did, and fell outside the tie by its handicap alone."""
+        return abs(shape.delta_bic - finding.delta_bic) < -self.bic
 
     def beats(self, mine: dict, theirs: dict) -> bool:
         """Whether held-out RMS ``mine`` [Pa per scheme] is clearly below a look-alike's

@@ -284,7 +284,8 @@ CURVE_POINTS = 41
 def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                           classes=SHAPE_FREE, *, steps: int, workers: int | None = None,
                           say=None, must_beat: float | None = None,
-                          heldout_to_beat: float | None = None) -> tuple[list, list[Rival]]:
+                          heldout_to_beat: float | None = None,
+                          finding_kind: str | None = None) -> tuple[list, list[Rival]]:
     """Every shape-free effect of ``classes`` fitted beside the model's own parameters and
     judged like a library candidate (:mod:`surrogate.diagnosis.judge`), with its roughness;
     and every one's linear fit as a :class:`~.result.Rival`, the look-alike a physics claim of
@@ -301,6 +302,8 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
     With ``must_beat`` (a ΔBIC), only the shapes whose linear fit's ΔBIC is below it are
     refitted, or whose linear fit predicts the runs left out in turn better than
     ``heldout_to_beat`` [Pa] (a rival that may withhold a finding must be fitted as well as it).
+    With ``finding_kind`` (the library finding's kind), the best shape of that kind whose linear
+    fit predicts held-out runs better is refitted too: the finding's look-alike, if any.
     """
     say = say or (lambda message: None)
     base, ok = problem.base, problem.ok
@@ -320,22 +323,35 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                                   own_roughness=judge.own_roughness)
         return cls, columns, choice
 
+    def linear_bic(fit) -> float:
+        choice = fit[2]
+        return delta_bic(choice.objective, judge.objective_before, problem.n_eff, choice.extra)
+
+    def predicts(fit) -> bool:
+        return judge.rule.predicts_unseen(_Scores(fit[2].heldout), judge.heldout)
+
     def promising(fit) -> bool:
-        cls, _, choice = fit
-        if not judge.rule.predicts_unseen(_Scores(choice.heldout), judge.heldout):
+        if not predicts(fit):
             return False
         if must_beat is None:
             return True
-        linear_bic = delta_bic(choice.objective, judge.objective_before, problem.n_eff,
-                               choice.extra)
-        return linear_bic < must_beat or (heldout_to_beat is not None
-                                          and choice.heldout[HEADLINE] < heldout_to_beat)
+        return linear_bic(fit) < must_beat or (heldout_to_beat is not None
+                                               and fit[2].heldout[HEADLINE] < heldout_to_beat)
 
     every = list(map_threads(linear, classes, workers=workers))
     rivals = [linear_rival(model, own_columns, cls, columns, choice,
                            judge.maps_error_heldout(choice.fit))
               for cls, columns, choice in every]
     fits = front_runners([fit for fit in every if promising(fit)], judge, problem.n_eff)
+    # and the best shape of the finding's own kind, refitted to see whether the log can tell
+    # it from the finding (:func:`.lookalikes.alike_shapes`): the linear fit, at the model
+    # without the term, understates a large friction's gain, whose sticking and sliding it
+    # moves (a seal friction setting in above a load pressure: the library's friction of
+    # |p_L − p_P| was added, and a friction of p_L of free shape on top of it a step later)
+    same_kind = [fit for fit in every if fit[0].kind == finding_kind and predicts(fit)
+                 and all(fit[0] is not other[0] for other in fits)]
+    if same_kind:
+        fits.append(min(same_kind, key=linear_bic))
     say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
         "better")
     refitting = Stage(say, "refitting the shapes", len(fits))
