@@ -63,7 +63,7 @@ from ..points import OperatingPoints
 LEVELS = ((0.01, 0.12), (0.2, np.log(3.0) + 0.2))
 #: the level every balance reads, and the one the sign checks may read too
 FINE, COARSE = 0, 1
-#: nodes a store holds at most over its levels (48 bytes each, 64 with expansions): one that
+#: nodes a store holds at most over its levels (about 40 bytes each with expansions): one that
 #: would outgrow it starts afresh
 MAX_NODES = 1_000_000
 #: how far from the sample's own flow (in ln q_r) and pressure drop (in ln Δp) an expansion is
@@ -83,10 +83,10 @@ _BLOCK = 4096
 _SAMPLES_AT_A_TIME = 2048
 #: nodes closer than this fraction of a step to a kink are dropped, so that no segment is tiny
 _KINK_CLEARANCE = 0.25
-#: columns of a level's values: ln Δp and r = f_ff/Δp, their slopes in ln u to the right of
-#: the node, then to its left (the two differ at kinks); a node's values lie side by side, as
-#: the interpolation gathers them
-_QUANTITIES = 6
+#: a node's record: ln Δp and r = f_ff/Δp, and their slopes in ln u to the right of the node,
+#: then to its left (the two differ at kinks), side by side as the interpolation gathers them;
+#: the slopes in single precision (they multiply a step of at most 0.01 in ln u)
+_NODE = np.dtype([("value", np.float64, 2), ("right", np.float32, 2), ("left", np.float32, 2)])
 #: columns of a level's expansions: the first to fourth derivatives of ln Δp in ln q_r, then of
 #: r in ln Δp, at the sample's own flow and Δp (single precision: they multiply small steps)
 _EXPANSIONS = 8
@@ -116,12 +116,13 @@ class _Level:
     def clear(self) -> None:
         # per row: first node, node count, offset into the flat values; buffers that grow in
         # place (amortised), their rows never rewritten: what a reader found there stays true
-        self.rows = self.nodes_used = 0
+        self.rows = self.nodes_used = self.expansions_used = 0
         self.first = np.empty(0, np.intp)
         self.count = np.empty(0, np.intp)
         self.offset = np.empty(0, np.intp)
-        self.values = np.empty((0, _QUANTITIES))
-        self.expansions = np.empty((0, _EXPANSIONS), np.float32)
+        self.expansion_offset = np.empty(0, np.intp)  # a row's first entry in expansions
+        self.values = np.empty(0, _NODE)
+        self.expansions = np.empty((0, _EXPANSIONS), np.float32)  # at expansion_nodes only
 
     def windows(self, x_low: np.ndarray, x_high: np.ndarray):
         """(first node, node count) of windows reaching :attr:`reach` beyond [x_low, x_high]
@@ -147,22 +148,38 @@ class _Level:
             (stop >= x_high + room) | (stop >= self.top))
 
     def append(self, begin, count, values, expansions) -> None:
-        rows, nodes = len(begin), len(values)
-        self.first, self.count, self.offset = (
-            _room(array, self.rows + rows) for array in (self.first, self.count, self.offset))
+        rows, nodes, entries = len(begin), len(values), len(expansions)
+        self.first, self.count, self.offset, self.expansion_offset = (
+            _room(array, self.rows + rows)
+            for array in (self.first, self.count, self.offset, self.expansion_offset))
         self.values = _room(self.values, self.nodes_used + nodes)
-        self.expansions = _room(self.expansions, self.nodes_used + nodes)
+        self.expansions = _room(self.expansions, self.expansions_used + entries)
         new = slice(self.rows, self.rows + rows)
         self.first[new], self.count[new] = begin, count
         self.offset[new] = self.nodes_used + np.cumsum(count) - count
+        held = expansion_nodes(count)
+        self.expansion_offset[new] = self.expansions_used + np.cumsum(held) - held
         self.values[self.nodes_used:self.nodes_used + nodes] = values
-        self.expansions[self.nodes_used:self.nodes_used + nodes] = expansions
+        self.expansions[self.expansions_used:self.expansions_used + entries] = expansions
         self.rows += rows
         self.nodes_used += nodes
+        self.expansions_used += entries
 
     def snapshot(self) -> "_Snapshot":
         return _Snapshot(self.nodes, self.first, self.count, self.offset, self.values,
-                         self.expansions, self.locate)
+                         self.expansion_offset, self.expansions, self.locate)
+
+
+def expansion_nodes(count: np.ndarray) -> np.ndarray:
+    """How many of a window's ``count`` nodes hold expansions: every
+    :data:`EXPANSION_EVERY`-th from its first, and its last."""
+    return (count - 2) // EXPANSION_EVERY + 2
+
+
+def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The indices start, start + 1, ..., start + length − 1 of every range, end to end."""
+    return np.repeat(starts, lengths) + np.arange(lengths.sum()) - np.repeat(
+        np.cumsum(lengths) - lengths, lengths)
 
 
 def _room(array: np.ndarray, length: int) -> np.ndarray:
@@ -183,6 +200,7 @@ class _Snapshot(NamedTuple):
     count: np.ndarray
     offset: np.ndarray
     values: np.ndarray
+    expansion_offset: np.ndarray
     expansions: np.ndarray
     locate: "_Locator"
 
@@ -330,10 +348,10 @@ class MapTables:
             return
         renumber = {row: new for new, row in enumerate(live.tolist())}
         for level in self.levels:
-            first, count, offset = level.first[live], level.count[live], level.offset[live]
-            nodes = np.repeat(offset, count) + np.arange(count.sum()) - np.repeat(
-                np.cumsum(count) - count, count)
-            values, expansions = level.values[nodes], level.expansions[nodes]
+            first, count = level.first[live], level.count[live]
+            values = level.values[_ranges(level.offset[live], count)]
+            expansions = level.expansions[_ranges(level.expansion_offset[live],
+                                                  expansion_nodes(count))]
             level.clear()
             level.append(first, count, values, expansions)
         self._keys = {key: renumber[row] for key, row in self._keys.items()}
@@ -350,23 +368,24 @@ class MapTables:
 
 def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, count,
               expansions: bool):
-    """The values (count.sum(), :data:`_QUANTITIES`) of ``points``' windows of ``level``,
-    and their expansions (count.sum(), :data:`_EXPANSIONS`; NaN without ``expansions``)."""
+    """The node records (count.sum(), :data:`_NODE`) of ``points``' windows of ``level``, and
+    the expansions (expansion_nodes(count).sum(), :data:`_EXPANSIONS`; NaN without
+    ``expansions``) at every :data:`EXPANSION_EVERY`-th node of a window and its last."""
     which = np.repeat(np.arange(len(points)), count)
     position = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     node = np.repeat(begin, count) + position
     u = np.exp(level.nodes[node])
     log_dp, ratio = _maps_at(model, points, which, u, np.zeros(1))
     values = np.vstack([log_dp[0], ratio[0]])
-    values = np.ascontiguousarray(
-        np.vstack([values, _slopes(level.nodes, level.kink, values, begin, count)]).T)
+    slopes = _slopes(level.nodes, level.kink, values, begin, count)
+    records = np.empty(u.size, _NODE)
+    records["value"], records["right"], records["left"] = values.T, slopes[:2].T, slopes[2:].T
+    # expansions on a sub-grid, linear in ln u between (as they are read): four in five of the
+    # maps' calls were theirs, and their storage most of the tables'
+    at = np.flatnonzero((position % EXPANSION_EVERY == 0)
+                        | (position == np.repeat(count, count) - 1))
     if not expansions:
-        return values, np.full((u.size, _EXPANSIONS), np.nan, np.float32)
-    # the expansions at every EXPANSION_EVERY-th node of a window, its ends and kinks, linear in
-    # ln u between (as they are read): four in five of the maps' calls were theirs
-    sub = ((position % EXPANSION_EVERY == 0) | (position == np.repeat(count, count) - 1)
-           | level.kink[node])
-    at = np.flatnonzero(sub)
+        return records, np.full((at.size, _EXPANSIONS), np.nan, np.float32)
     shifted_dp, shifted_ratio = _maps_at(model, points, which[at], u[at],
                                          _EXPANSION_STEP * np.array([-2.0, -1.0, 1.0, 2.0]),
                                          np.exp(log_dp[0, at]))
@@ -378,18 +397,7 @@ def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, 
                             [1, -4, 6, -4, 1]]) / np.array([[12 * h], [12 * h**2], [2 * h**3],
                                                             [h**4]])
     expanded = np.vstack([differences @ around, differences @ ratios]).T
-    # each node between the sub-grid's nodes before and after it, both in its own window
-    # (a window's ends are on the sub-grid)
-    index = np.arange(u.size)
-    before = np.maximum.accumulate(np.where(sub, index, 0))
-    after = np.minimum.accumulate(np.where(sub, index, u.size)[::-1])[::-1]
-    slot = np.cumsum(sub) - 1  # a sub-grid node's row in ``expanded``
-    x = level.nodes[node]
-    span = x[after] - x[before]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(span > 0, (x - x[before]) / span, 0.0)[:, None]
-    result = (1.0 - t) * expanded[slot[before]] + t * expanded[slot[after]]
-    return values, np.ascontiguousarray(result, np.float32)
+    return records, np.ascontiguousarray(expanded, np.float32)
 
 
 def _maps_at(model: ValveModel, points: OperatingPoints, which: np.ndarray, u: np.ndarray,
@@ -487,13 +495,23 @@ def _interpolate(level: _Snapshot, rows: np.ndarray, x: np.ndarray, expansions: 
     h00 = 1.0 - h01
     h10 = width * t * (1.0 - t) ** 2
     h11 = width * t2 * (t - 1.0)
-    start = np.take(level.values, flat, axis=0).T  # np.take: a third of fancy indexing's time
-    end = np.take(level.values, flat + 1, axis=0).T
-    main = h00 * start[:2] + h01 * end[:2] + h10 * start[2:4] + h11 * end[4:6]
+    start = np.take(level.values, flat)  # np.take: a third of fancy indexing's time
+    end = np.take(level.values, flat + 1)
+    main = (h00 * start["value"].T + h01 * end["value"].T + h10 * start["right"].T
+            + h11 * end["left"].T)
     if not expansions:
         return found, main, None
-    extra = ((1.0 - t) * np.take(level.expansions, flat, axis=0).T
-             + t * np.take(level.expansions, flat + 1, axis=0).T)
+    # linear between the window's expansion nodes around x (expansion_nodes)
+    if not found.all():
+        rows, local = rows[found], local[found]
+    below = np.minimum(local // EXPANSION_EVERY, expansion_nodes(level.count[rows]) - 2)
+    low = below * EXPANSION_EVERY
+    high = np.minimum(low + EXPANSION_EVERY, level.count[rows] - 1)
+    x0 = level.nodes[level.first[rows] + low]
+    s = (x - x0) / (level.nodes[level.first[rows] + high] - x0)
+    entry = level.expansion_offset[rows] + below
+    extra = ((1.0 - s) * np.take(level.expansions, entry, axis=0).T
+             + s * np.take(level.expansions, entry + 1, axis=0).T)
     return found, main, extra
 
 

@@ -32,7 +32,8 @@ def setting():
 
 def test_a_grid_maps_pressure_drop_is_tabulated_exactly_and_its_flow_force_closely(setting):
     """Between the grid's sampled openings (nodes of the table) ln Δp is linear in ln u: the
-    table holds it to rounding. The flow force bends along u; its cubic is third order."""
+    table holds it to the rounding of its single-precision slopes. The flow force bends along
+    u; its cubic is third order."""
     log, model, played = setting
     points = OperatingPoints.from_bench(log.frame)
     tables = MapTables(model)
@@ -49,7 +50,8 @@ def test_a_grid_maps_pressure_drop_is_tabulated_exactly_and_its_flow_force_close
     assert inside.all()
     sub = points[held]
     dp_maps, force_maps = model.map_part(u, sub, model.fluid(sub))
-    np.testing.assert_allclose(dp, dp_maps, rtol=1e-11)
+    # exact but for the slopes' single precision (they multiply a hundredth in ln u)
+    np.testing.assert_allclose(dp, dp_maps, rtol=1e-9)
     force_error = np.abs(flow_force - force_maps) / model.valve.A_L
     assert np.median(force_error) < 1e-5 * BAR
     assert np.quantile(force_error, 0.99) < 5e-3 * BAR
@@ -216,4 +218,4 @@ def test_a_full_store_keeps_each_samples_latest_row(setting, monkeypatch):
     dp, _, inside = view[held].lookup(u)
     assert inside.all()
     dp_maps, _ = model.map_part(u, points[held], model.fluid(points[held]))
-    np.testing.assert_allclose(dp, dp_maps, rtol=1e-11)
+    np.testing.assert_allclose(dp, dp_maps, rtol=1e-9)
