@@ -67,10 +67,11 @@ def timed_run(checkout: Path, arguments: list[str], scratch: Path, log: Path | N
     return usage.ru_utime + usage.ru_stime, seconds, usage.ru_maxrss / 1024.0
 
 
-def off_library_logs(count: int, scratch: Path) -> list[Path]:
+def off_library_logs(count: int, scratch: Path, every: int = 8) -> list[Path]:
     """The first ``count`` logs of the off-library suite (``eval/offlibrary.py``: one hidden
-    effect per case, in the suite's order, every 8th sample, the virtual valve's CFD erring as
-    a real one's), written as bench-log files that either checkout reads."""
+    effect per case, in the suite's order, every ``every``-th sample of the shipped sequence as
+    the suite keeps, the virtual valve's CFD erring as a real one's), written as bench-log files
+    that either checkout reads."""
     sys.path.insert(0, str(ROOT))  # the logs are made by the current checkout
     from surrogate.data import load_bench_log
     from surrogate.data.writer import write_bench_log
@@ -81,7 +82,7 @@ def off_library_logs(count: int, scratch: Path) -> list[Path]:
     from surrogate.synthetic.offlibrary import OFF_LIBRARY, off_library_suite
     from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 
-    sequence = noise_free_sequence(load_bench_log(SHIPPED_BENCH_LOG), every=8)
+    sequence = noise_free_sequence(load_bench_log(SHIPPED_BENCH_LOG), every=every)
     paths = []
     for case in off_library_suite(count, 0, 4242)[:count]:
         made = hidden_effect_case(case.hidden, case.values, sequence=sequence, seed=case.seed,
@@ -106,6 +107,9 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3, help="pairs of runs per command")
     parser.add_argument("--logs", type=int, default=5,
                         help="off-library logs for the offlibrary command (the suite's first)")
+    parser.add_argument("--every", type=int, default=8,
+                        help="keep every n-th sample of the off-library logs (the suite's 8; 1: "
+                        "the shipped log's length)")
     parser.add_argument("--commands", nargs="+", default=list(COMMANDS), choices=list(COMMANDS))
     parser.add_argument("--out", default="results/speed_vs_baseline.json")
     args = parser.parse_args()
@@ -122,8 +126,8 @@ def main() -> None:
             record = {"baseline": args.baseline, "cores": os.cpu_count(), "commands": {}}
             for name in args.commands:
                 pairs = []
-                logs = (off_library_logs(args.logs, scratch) if name == "offlibrary"
-                        else [None])
+                logs = (off_library_logs(args.logs, scratch, args.every)
+                        if name == "offlibrary" else [None])
                 for number in range(args.runs):
                     for log in logs:
                         now = timed_run(ROOT, COMMANDS[name], scratch, log)
