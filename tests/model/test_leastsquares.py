@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.optimize import lsq_linear
 
 from surrogate.effects import Effect, Parameter
-from surrogate.leastsquares import FunctionProblem, Minimizer, covariance, fit
+from surrogate.leastsquares import (FunctionProblem, Minimizer, bounded_linear_fit, compress,
+                                    covariance, fit)
 from surrogate.model import ValveModel
 
 X = np.linspace(0.0, 1.0, 40)
@@ -91,3 +93,22 @@ def test_a_penalty_in_the_covariance_narrows_what_the_data_leave_free():
     variance = float(residuals @ residuals) / (X.size - 2)
     assert penalised[1, 1] == pytest.approx(variance / 100.0)
     assert penalised[0, 0] == pytest.approx(free[0, 0])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_bounded_linear_fit_on_the_triangular_factor_is_the_tall_fit(seed):
+    """bounded_linear_fit solves a tall problem (samples by a few columns, a penalty's rows
+    beside) on its QR factor: the same minimiser as lsq_linear on all the rows, bounds active
+    or not."""
+    rng = np.random.default_rng(seed)
+    tall, target = rng.standard_normal((3000, 5)), rng.standard_normal(3000)
+    rows, row_target = 0.3 * rng.standard_normal((2, 5)), rng.standard_normal(2)
+    unbounded = lsq_linear(np.vstack([tall, rows]), np.r_[target, row_target]).x
+    bounds = (np.full(5, -np.inf), np.r_[np.inf, np.inf, 0.5 * unbounded[2], np.inf, np.inf])
+    expected = lsq_linear(np.vstack([tall, rows]), np.r_[target, row_target], bounds=bounds,
+                          tol=1e-12).x
+    got = bounded_linear_fit(tall, target, bounds, rows, row_target)
+    assert got[2] == pytest.approx(bounds[1][2]) or unbounded[2] < 0
+    np.testing.assert_allclose(got, expected, atol=1e-8)
+    np.testing.assert_allclose(
+        bounded_linear_fit(tall, target, bounds, rows, row_target, compress(tall, target)), got)
