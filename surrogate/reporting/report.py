@@ -504,7 +504,7 @@ def next_steps_section(workflow) -> str:
 def misfit_section(workflow, pngs: dict[str, bytes]) -> str:
     """Where the misfit lies, before and after each added effect (:func:`misfit_figures`)."""
     parts = ["<h2>Where the misfit lies</h2>",
-             "<p>Each run's residual, measured minus model, split bin by bin along the flow into "
+             "<p>Each run's residual, model minus measured, split bin by bin along the flow into "
              "its <i>median line</i> (the mean of the up and down ramps: a map error moves it) "
              "and its <i>half-width</i> (half their difference: friction changes it), against the "
              "flow, the opening, the pilot pressure and the temperature: one line per model, "

@@ -104,7 +104,7 @@ def residual_views(log, models: list[tuple[str, object]]) -> Figure | None:
             if column == 0:
                 ax.set_ylabel(f"residual's {what} [bar]", fontsize=FONT + 1)
     figure.legend(loc="outside upper center", ncols=min(len(models), 3), fontsize=FONT + 1,
-                  title="measured − model, per run and flow bin; lines: the bins' median",
+                  title="model − measured, per run and flow bin; lines: the bins' median",
                   title_fontsize=FONT + 1)
     return figure
 
