@@ -74,12 +74,15 @@ class Stage:
             line += f", done in {spent:.1f} s"
         elif done > 0 and spent > 0:
             left = spent * (self.total - done) / done
-            line += f", {done / spent:,.0f}{unit}/s, about {_duration(left)} left"
+            line += f", {done / spent:,.0f}{unit}/s, about {duration(left)} left"
         self.progress(line)
 
 
-def _duration(seconds: float) -> str:
-    """``"45 s"``, ``"3 min 20 s"``."""
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    return f"{int(seconds // 60)} min {seconds % 60:.0f} s"
+def duration(seconds: float) -> str:
+    """``"45 s"``, ``"3 min 20 s"``, ``"1 h 2 min"``: a time [s] as people read it."""
+    whole = int(round(seconds))
+    if whole < 90:
+        return f"{whole} s"
+    if whole < 3600:
+        return f"{whole // 60} min {whole % 60} s"
+    return f"{whole // 3600} h {whole % 3600 // 60} min"

@@ -38,6 +38,7 @@ from ..fleet.tasks import ValveTask, file_sha256, find_logs, model_sha256
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, atomic_directory, check_outputs
 from ..parallel import available_cores
+from ..progress import duration
 from .common import (
     EXIT_CODES,
     add_command,
@@ -197,7 +198,7 @@ def _run_pending(executor, pending: list[ValveTask], records: dict, out, progres
             spent = time.perf_counter() - began
             left = spent / done * (len(pending) - done)
             progress(f"{_valve_line(record)} [{done}/{len(pending)}"
-                     + (f", about {_duration(left)} left" if done < len(pending) else "") + "]")
+                     + (f", about {duration(left)} left" if done < len(pending) else "") + "]")
     except KeyboardInterrupt:
         notice(f"{done} valve(s) finished in this run are kept in {Path(out) / VALVES_FOLDER}; "
                "the same command resumes with the others")
@@ -223,10 +224,6 @@ def _located(message: str) -> str:
     what one line of progress can hold (failed.csv holds the whole message)."""
     lines = [line.strip().removeprefix("- ") for line in message.splitlines() if line.strip()]
     return " ".join(lines[:2]) + (f" (and {len(lines) - 2} more lines)" if len(lines) > 2 else "")
-
-
-def _duration(seconds: float) -> str:
-    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.0f} min"
 
 
 def _write_population(args, records: list[dict], model, progress) -> dict:

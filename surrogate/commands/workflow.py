@@ -12,6 +12,7 @@ from ..maps.registry import MAP_KINDS
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
+from ..progress import duration
 from ..reporting.prose import naming_words, shape_words, summarise
 from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
                                 misfit_figures, misfit_section, next_steps_section,
@@ -154,5 +155,5 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
                     next_steps_section(workflow)],
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
                         f"Maps: {main}. Run time "
-                        f"{sum(w.seconds for w in workflows.values()):.0f} s.")
+                        f"{duration(sum(w.seconds for w in workflows.values()))}.")
     return document

@@ -186,3 +186,12 @@ def test_predict_writes_into_its_out_folder(tmp_path):
                  str(tmp_path / "out"), "--quiet"]) == 0
     written = (tmp_path / "out" / "predictions.csv").read_text().splitlines()
     assert len(written) == 3 and "q_lpm_pred" in written[0]
+
+
+@pytest.mark.parametrize("seconds, said", [(5, "5 s"), (89.4, "89 s"), (119.6, "2 min 0 s"),
+                                           (2413, "40 min 13 s"), (3725, "1 h 2 min")])
+def test_times_are_said_as_people_read_them(seconds, said):
+    """Run times and ETAs in minutes and hours, not "2413 s"; rounding never says "60 s"."""
+    from surrogate.progress import duration
+
+    assert duration(seconds) == said
