@@ -13,7 +13,8 @@ from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
 from ..progress import duration
-from ..reporting.prose import naming_words, shape_words, summarise
+from ..reporting.prose import (final_diagnosis_heading, naming_words, shape_words,
+                               workflow_summary)
 from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
                                 misfit_figures, misfit_section, next_steps_section,
                                 staircase_section,
@@ -116,7 +117,7 @@ def run(args) -> int:
             print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
                   f"{from_si(step.rms, 'bar'):7.3f} bar")
         print(f"    noise floor {from_si(workflow.noise_floor, 'bar'):.3f} bar")
-        print(summarise(workflow.final_diagnosis))
+        print(workflow_summary(workflow))
         print(f"report: {out}/report.html")
     return 0
 
@@ -151,7 +152,8 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
         write_html(staging / "report.html", "CBV model against bench data: the workflow",
                    [staircase_section(workflow), misfit_section(workflow, misfit), *others,
                     comparison_section(comparison, "The final model against the data", pngs),
-                    diagnosis_section(workflow.final_diagnosis, "What is left: final diagnosis"),
+                    diagnosis_section(workflow.final_diagnosis,
+                                      final_diagnosis_heading(workflow)),
                     next_steps_section(workflow)],
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
                         f"Maps: {main}. Run time "

@@ -392,6 +392,36 @@ def naming_words(candidate: Candidate) -> str:
             f"{candidate.curve.unit}.")
 
 
+def diagnosed_after_it(workflow) -> list:
+    """The steps added after the one the workflow's final diagnosis diagnosed (the maps'
+    calibration, which follows the last diagnosis): empty when it diagnosed the final model."""
+    model = workflow.final_diagnosis.model
+    at = next((i for i, step in enumerate(workflow.steps) if step.model is model), None)
+    return [] if at is None else workflow.steps[at + 1:]
+
+
+def final_diagnosis_heading(workflow) -> str:
+    """The report's heading for the final diagnosis: what it diagnosed."""
+    return ("What was left before the maps' calibration: final diagnosis"
+            if diagnosed_after_it(workflow) else "What is left: final diagnosis")
+
+
+def workflow_summary(workflow) -> str:
+    """The final diagnosis' :func:`summarise`, said of the model it diagnosed: where steps
+    followed it (the maps calibrated to the bench), its RMS is not the final one, and the
+    sentences say which is which."""
+    text = summarise(workflow.final_diagnosis)
+    after = diagnosed_after_it(workflow)
+    if not after:
+        return text
+    final = workflow.final
+    floor = workflow.noise_floor
+    added = ", ".join(name for step in after for name in step.added)
+    return (f"Before the last step{'s' if len(after) > 1 else ''} ({added}), the last diagnosis "
+            f"said: {text} Then the residual RMS fell to {from_si(final.rms, 'bar'):.3f} bar "
+            f"({final.rms / floor:.2f}× the noise floor of {from_si(floor, 'bar'):.3f} bar).")
+
+
 def next_steps(workflow) -> list[str]:
     """What to do next, from what the workflow found (a :class:`~surrogate.workbench.workflow.
     Workflow`): each line follows from one of its findings, so that the advice never points

@@ -25,7 +25,7 @@ from ..outputs import atomic_file
 from ..units import from_si, label
 from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, all_figures, caption
-from .prose import next_steps, sensor_check_text, summarise
+from .prose import next_steps, sensor_check_text, summarise, workflow_summary
 from ..planning.cfd_runs import operating_points_figure
 from .staircase import staircase_figure, staircases_figure, step_label
 from .views import residual_views, run_loops
@@ -388,7 +388,7 @@ def staircase_section(workflow) -> str:
         f'<p class="summary">From the paper\'s basic model to the final one, the residual RMS '
         f"fell from {from_si(workflow.steps[0].rms, 'bar'):.2f} to {final:.2f} bar "
         f"({final / floor:.2f}× the noise floor of {floor:.2f} bar). "
-        f"{_prose(summarise(workflow.final_diagnosis))}</p>",
+        f"{_prose(workflow_summary(workflow))}</p>",
         "<p>Steps 1–4 are the paper's models (BMBE, BMBEBF, CFD maps, CFDA); later steps add the "
         "effect the diagnosis found most likely. Every step refits all free parameters on every "
         "sample. <i>held out</i> is the RMS on runs the step's fit did not see (each run "
