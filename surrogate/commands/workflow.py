@@ -87,6 +87,9 @@ def run(args) -> int:
                  + ")")
     workflows = {}
     kinds = list(dict.fromkeys([main, *args.kinds]))  # the main kind first
+    if len(kinds) > 1:
+        progress(f"{main} maps first, then {', '.join(kinds[1:])} maps for comparison (the "
+                 f"library's effects alone); --kinds without a kind runs {main} alone")
     for number, kind in enumerate(kinds, start=1):
         progress(f"workflow on {kind} maps ({number} of {len(kinds)})")
         # the kinds beside the main one show what the library's loop makes of their maps: a
@@ -108,16 +111,18 @@ def run(args) -> int:
     if args.json:
         print_json(document)
     else:
-        for kind, other in workflows.items():
-            if kind != main:
-                print(f"    ({kind} maps: {from_si(other.final.rms, 'bar'):.3f} bar after "
-                      f"{len(other.steps)} steps)")
         print(f"on {main} maps:")
         for number, step in enumerate(workflow.steps, start=1):
             print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
                   f"{from_si(step.rms, 'bar'):7.3f} bar")
         print(f"    noise floor {from_si(workflow.noise_floor, 'bar'):.3f} bar")
         print(workflow_summary(workflow))
+        others = [kind for kind in workflows if kind != main]
+        if others:
+            print("for comparison, the library's effects alone on other maps:")
+        for kind in others:
+            print(f"    {kind} maps: {from_si(workflows[kind].final.rms, 'bar'):.3f} bar after "
+                  f"{len(workflows[kind].steps)} steps")
         print(f"report: {out}/report.html")
     return 0
 
