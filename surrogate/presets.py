@@ -1,6 +1,9 @@
 """The package's own models as specs: the presets, the paper's models and their starting values.
 
 * ``bmbe``: the paper's basic model, orifice equation with C_d = 0.4 and a uniform pressure.
+* ``bmbebf``: the same with its discharge coefficient scaled (the paper's best fit of it).
+* ``cfd-maps``: the grid maps replace the orifice and the uniform pressure, with a flow-force
+  scale and no friction. These two and ``cfda`` are the workflow's steps 2-4, by their names.
 * ``cfda``: CFD maps (grid by default), a flow-force scale, and Coulomb friction K1 + K2·p_L with
   one K1 and one K2 for all temperatures, starting from the paper's 0.9, 6.5 N and 0.05 N/bar.
 * ``cfda-<kind>``: the same on the maps of another kind (``cfda-nn``, ``cfda-gp``).
@@ -89,6 +92,8 @@ def cfda_step(previous: ModelSpec) -> ModelSpec:
 
 PRESET_DESCRIPTIONS = {
     "bmbe": "the paper's basic model: orifice equation with C_d = 0.4, uniform pressure",
+    "bmbebf": "bmbe with its discharge coefficient scaled (the workflow's step 2)",
+    "cfd-maps": "grid maps, flow-force scale, no friction (the workflow's step 3)",
     "cfda": "grid maps, flow-force scale, Coulomb friction K1 + K2*p_L",
     **{f"cfda-{name}": f"as cfda on the {name} maps" for name, kind in MAP_KINDS.items()
        if kind.learned},
@@ -107,6 +112,10 @@ def preset(name: str, valve: ValveSource | None = None) -> ModelSpec:
     name = preset_named(name) or name
     if name == "bmbe":
         return bmbe(valve)
+    if name == "bmbebf":
+        return bmbebf_step(bmbe(valve))
+    if name == "cfd-maps":
+        return cfd_maps_step(bmbe(valve), maps("grid"))
     if name == "cfda":
         return cfda(valve)
     if name in PRESET_DESCRIPTIONS and name.startswith("cfda-"):
