@@ -152,8 +152,7 @@ class Comparison:
             f"{len(self.runs)} runs" + (f", {self.samples - self.solved} not solved"
                                         if self.solved < self.samples else ""),
             f"  residual (model − measured Δp) RMS {rms:.3f} bar, noise floor {floor:.3f} bar "
-            f"({self.rms_over_noise:.1f}x); maps extrapolated at "
-            f"{100 * self.extrapolating_fraction:.0f} % of samples",
+            f"({self.rms_over_noise:.1f}x); {self._outside_words()}",
             self._uncertainty_line(),
             "",
         ]
@@ -231,6 +230,22 @@ class Comparison:
             for start in range(0, max(count, 1), chunk):
                 self.sample_table(slice(start, min(start + chunk, count))).to_csv(
                     stream, index=False, header=start == 0, float_format="%.6g")
+
+    def _outside_words(self) -> str:
+        """Where the maps are read outside their CFD samples, said with the main reason: the
+        bench's back pressure alone lies outside a CFD that ran at one, which is not the same as
+        openings or oils the CFD never saw."""
+        share = self.extrapolating_fraction
+        if not share:
+            return "maps read within their CFD samples throughout"
+        reasons = {reason: value for reason, value in self.outside_shares.items()
+                   if reason != "any" and value > 0}
+        words = f"maps read outside their CFD samples at {100 * share:.0f} % of samples"
+        if not reasons:
+            return words
+        main = max(reasons, key=reasons.get)
+        return words + f", most by the {main.replace(' outside the sampled ones', '')} " \
+                       f"({100 * reasons[main]:.0f} %; below)"
 
     def _uncertainty_line(self) -> str:
         """The maps' Δp standard deviation and why samples lie outside the CFD samples."""
