@@ -23,13 +23,17 @@ def register(subparsers) -> None:
         help="the steady characteristic of a model: up and down branches of dp(q)",
         description="Solve the model's force balance at rising flow (piston opening, friction "
                     "holding it back: the up branch) and falling flow (the down branch) at a "
-                    "pilot pressure, back pressure and temperature held, the curve a catalogue "
+                    "pilot set point (or pilot pressure), back pressure and temperature held, "
+                    "the curve a catalogue "
                     "shows. The model's sensor and per-run terms are left out (they belong to "
                     "the bench). Writes steady.csv, steady.json and steady.png into --out.")
     options = required(parser)
     options.add_argument("--model", required=True, type=model_option,
                          help="a preset or a model file (TOML)")
-    options.add_argument("--p-P-bar", type=float, required=True, help="pilot pressure [bar]")
+    pilot = options.add_mutually_exclusive_group(required=True)
+    pilot.add_argument("--p-Pe-bar", type=float,
+                       help="pilot set point p_Pe = p_P − p_B [bar], as bench logs give it")
+    pilot.add_argument("--p-P-bar", type=float, help="pilot pressure p_P (gauge) [bar]")
     options.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--p-B-bar", type=float, default=5.0,
                         help="back pressure [bar] (default 5)")
@@ -53,6 +57,9 @@ def run(args) -> int:
         raise InputError(f"--q-lpm {low:g} {high:g}: expected 0 < LOW < HIGH [L/min]")
     if not 2 <= args.points <= 10_000:
         raise InputError(f"--points {args.points}: expected 2 to 10000 flows per branch")
+    if args.p_P_bar is None:  # the set point: the pilot pressure is p_Pe above the back port
+        PRESSURE_DIFFERENCE.check_option("--p-Pe-bar", args.p_Pe_bar)
+        args.p_P_bar = args.p_Pe_bar + args.p_B_bar
     for option, value, plausible in (("--p-P-bar", args.p_P_bar, PRESSURE),
                                      ("--p-B-bar", args.p_B_bar, PRESSURE),
                                      ("--temperature-C", args.temperature_C, TEMPERATURE),

@@ -9,6 +9,8 @@ the curve users set beside catalogue data.
 
 from __future__ import annotations
 
+import textwrap
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +63,7 @@ class Characteristic:
         """The branches as lists in display units, with the condition they hold."""
         document = {"model": self.model,
                     "p_P_bar": float(from_si(self.p_P, "bar")),
+                    "p_Pe_bar": float(from_si(self.p_P - self.p_B, "bar")),
                     "p_B_bar": float(from_si(self.p_B, "bar")),
                     "temperature_C": float(from_si(self.temperature, "degC")),
                     "branches": {}}
@@ -96,9 +99,12 @@ class Characteristic:
                       label=f"{branch} (flow {'rising' if branch == 'up' else 'falling'})")
         axes.set_xlabel("flow q [L/min]")
         axes.set_ylabel("pressure drop Δp = p_L − p_B [bar]")
-        axes.set_title(f"{self.model}: steady characteristic at p_P = "
-                       f"{from_si(self.p_P, 'bar'):.0f} bar, p_B = {from_si(self.p_B, 'bar'):.0f}"
-                       f" bar, {from_si(self.temperature, 'degC'):.0f} °C", fontsize=10)
+        # the operating point on a line of its own, where a long model name cannot clip it
+        p_P, p_B = from_si(self.p_P, "bar"), from_si(self.p_B, "bar")
+        axes.set_title("\n".join([*textwrap.wrap(self.model, 80),
+                                  f"steady characteristic at p_Pe = {p_P - p_B:.4g} bar "
+                                  f"(p_P {p_P:.4g}, p_B {p_B:.4g} bar), "
+                                  f"{from_si(self.temperature, 'degC'):.4g} °C"]), fontsize=10)
         axes.grid(alpha=0.3)
         axes.legend()
         return figure

@@ -152,6 +152,14 @@ def test_the_steady_characteristic(tmp_path):
     assert np.all(up.dp_bar.to_numpy() > down.dp_bar.to_numpy())
     np.testing.assert_allclose(document["branches"]["up"]["dp_bar"], up.dp_bar, rtol=1e-5)
     assert document["p_P_bar"] == 65 and (out / "steady.png").read_bytes()[:4] == b"\x89PNG"
+    # the set point, as logs and reports give it: p_P = p_Pe + p_B, the same curve
+    by_set_point = tmp_path / "by_set_point"
+    assert main(["steady", "--model", "cfda", "--p-Pe-bar", "60", "--p-B-bar", "5",
+                 "--temperature-C", "40", "--points", "12", "--out", str(by_set_point),
+                 "--quiet"]) == 0
+    again = json.loads((by_set_point / "steady.json").read_text())
+    assert again["p_P_bar"] == 65 and again["p_Pe_bar"] == 60
+    pd.testing.assert_frame_equal(pd.read_csv(by_set_point / "steady.csv"), frame)
 
 
 def test_interpolation_is_exact_for_quadratics_and_at_the_nodes():
