@@ -71,9 +71,9 @@ MAX_NODES = 1_000_000
 EXPANSION_REACH = 0.15
 #: the spacing of the five flows and pressure drops an expansion passes through [1]
 _EXPANSION_STEP = 0.05
-#: expansions are made at every this many nodes of a window (and its ends and kinks), linear
-#: in ln u between: they multiply steps of at most EXPANSION_REACH, so their own error counts
-#: that much less
+#: expansions are made and stored at every this many nodes of a window (and at its last),
+#: linear in ln u between: they multiply steps of at most EXPANSION_REACH, so their own error
+#: counts that much less (smooth maps alone have them, and no kinks)
 EXPANSION_EVERY = 4
 #: sets of points whose rows a store remembers (a fit's log, its held-out subsets)
 _KNOWN_VIEWS = 64
