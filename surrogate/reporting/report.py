@@ -44,6 +44,8 @@ img { max-width: 100%; }
 details { margin: 0.3em 0; } summary { cursor: pointer; }
 .summary { background: #f5f8ff; border-left: 4px solid #4a7bd0; padding: 0.6em 1em; }
 .yes { color: #0a7a2a; font-weight: 600; } .no { color: #888; }
+nav.contents { background: #fafafa; border: 1px solid #ddd; padding: 0.5em 1em; display: inline-block; }
+nav.contents ol { margin: 0.3em 0; padding-left: 1.5em; }
 """
 
 #: longest text in a table cell [characters]: longer lists are summarised (see
@@ -561,12 +563,31 @@ def staircases_section(workflows: dict, main: str, scores: dict | None = None) -
 
 
 def write_html(path: str | Path, title: str, sections: list[str], note: str = "") -> Path:
-    """Write the report (to a temporary name first, then renamed into place)."""
+    """Write the report (to a temporary name first, then renamed into place), its sections'
+    headings linked from a list of contents at the top where there are several."""
     path = Path(path)
-    body = "\n".join(sections)
+    body, contents = with_contents("\n".join(sections))
     document = (f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
                 f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head><body>"
-                f"<h1>{html.escape(title)}</h1><p>{html.escape(note)}</p>{body}</body></html>")
+                f"<h1>{html.escape(title)}</h1><p>{html.escape(note)}</p>{contents}{body}"
+                "</body></html>")
     with atomic_file(path) as stream:
         stream.write(document)
     return path
+
+
+def with_contents(body: str) -> tuple[str, str]:
+    """``body`` with an id on each ``<h2>``, and the list of contents linking them ("" for a
+    page of fewer than three sections)."""
+    headings = []
+
+    def anchored(match) -> str:
+        headings.append(match.group(1))
+        return f'<h2 id="section-{len(headings)}">{match.group(1)}</h2>'
+
+    body = re.sub(r"<h2>(.*?)</h2>", anchored, body)
+    if len(headings) < 3:
+        return body, ""
+    items = "".join(f'<li><a href="#section-{number}">{heading}</a></li>'
+                    for number, heading in enumerate(headings, start=1))
+    return body, f'<nav class="contents"><b>Contents</b><ol>{items}</ol></nav>'

@@ -7,6 +7,7 @@ measured and model told apart by marker and colour, RMS charts zoomed to their r
 
 from __future__ import annotations
 
+import re
 from html.parser import HTMLParser
 
 import numpy as np
@@ -15,7 +16,7 @@ import pytest
 from surrogate.reporting.figures import TITLE_LENGTH, all_figures
 from surrogate.reporting.report import (CELL_LENGTH, comparison_section, diagnosis_figure,
                                         diagnosis_section, parameter_summary, readable,
-                                        staircase_figure, staircase_section)
+                                        staircase_figure, staircase_section, write_html)
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 from surrogate.workbench.compare import compare
 from surrogate.workbench.workflow import run_workflow
@@ -227,3 +228,14 @@ def test_the_report_shows_where_the_bench_operates_over_the_cfds_openings(workfl
     pngs = misfit_figures(workflow)
     assert {"residual_views", "run_loops", "operating_points"} <= set(pngs)
     assert misfit_section(workflow, pngs).count("<figure>") == 3
+
+
+def test_a_long_report_opens_with_contents_linking_every_section(tmp_path, page):
+    """A report of many sections (the workflow's is 12,500 pixels tall) lists them at the top,
+    each a link to its heading."""
+    path = write_html(tmp_path / "report.html", "title", [page, "<h2>Next</h2><p>x</p>"])
+    text = path.read_text()
+    headings = re.findall(r'<h2 id="(section-\d+)">', text)
+    assert len(headings) >= 3
+    assert [f'href="#{anchor}"' in text for anchor in headings] == [True] * len(headings)
+    assert text.index("<nav") < text.index("<h2")
