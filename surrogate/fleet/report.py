@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from ..export.characteristic import steady_characteristic
 from ..export.valve_only import valve_physics
@@ -31,6 +32,9 @@ CURVE_POINTS, CURVE_RANGE = 60, 30.0
 OUTLIER_COLOUR, FLEET_COLOUR = "tab:red", "tab:blue"
 #: legend text [pt]: 10 px or more once a page 1,000 px wide shrinks the widest figure to fit
 LEGEND_SIZE = 13
+#: a fleet smaller than this shows each valve by its serial (a dot per valve, named) instead of
+#: a histogram, which says nothing of three values
+NAMED_VALVES = 20
 
 
 @dataclass
@@ -67,24 +71,39 @@ class FleetSummary:
 
 
 def histograms_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]) -> Figure:
-    """One histogram per figure, the outliers' values marked below the axis."""
+    """One histogram per figure, the outliers' values marked below the axis; for a fleet of
+    fewer than :data:`NAMED_VALVES` valves, a dot per valve against its serial instead."""
     count = len(columns)
     across = min(3, count)
     down = int(np.ceil(count / across))
-    figure = Figure(figsize=(4.2 * across, 3.0 * down), layout="constrained")
+    named = len(table) < NAMED_VALVES
+    height = max(3.0, 0.28 * len(table) + 1.2) if named else 3.0
+    figure = Figure(figsize=(4.2 * across, height * down), layout="constrained")
     axes = figure.subplots(down, across, squeeze=False).ravel()
     outlier = table["serial"].isin(flagged).to_numpy()
+    serials = table["serial"].astype(str).to_numpy()
     for ax, column in zip(axes, columns):
         values = pd.to_numeric(table[column], errors="coerce").to_numpy(float)
         finite = np.isfinite(values)
-        ax.hist(values[finite & ~outlier], bins=min(30, max(5, int(finite.sum() ** 0.5) + 1)),
-                color=FLEET_COLOUR, alpha=0.75)
-        if np.any(finite & outlier):
-            ax.plot(values[finite & outlier], np.zeros(int(np.sum(finite & outlier))), "|",
-                    color=OUTLIER_COLOUR, markersize=18, markeredgewidth=2,
-                    label="the outliers' values", clip_on=False)
+        if named:
+            rows = np.arange(len(values))
+            ax.plot(values[finite & ~outlier], rows[finite & ~outlier], "o", color=FLEET_COLOUR)
+            ax.plot(values[finite & outlier], rows[finite & outlier], "o", color=OUTLIER_COLOUR,
+                    label="outliers")
+            ax.set_yticks(rows, serials, fontsize=8)
+            ax.set_ylim(len(values) - 0.5, -0.5)
+            ax.grid(axis="x", alpha=0.3)
+        else:
+            ax.hist(values[finite & ~outlier],
+                    bins=min(30, max(5, int(finite.sum() ** 0.5) + 1)), color=FLEET_COLOUR,
+                    alpha=0.75)
+            if np.any(finite & outlier):
+                ax.plot(values[finite & outlier], np.zeros(int(np.sum(finite & outlier))), "|",
+                        color=OUTLIER_COLOUR, markersize=18, markeredgewidth=2,
+                        label="the outliers' values", clip_on=False)
+            ax.set_ylabel("valves")
+        ax.xaxis.set_major_locator(MaxNLocator(5))
         ax.set_xlabel(column, fontsize=9)
-        ax.set_ylabel("valves")
     for ax in axes[count:]:
         ax.set_visible(False)
     # one legend for the figure, large enough to read once the page shrinks the image
@@ -104,7 +123,14 @@ def pair_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]) -> F
     for i, row in enumerate(columns):
         for j, column in enumerate(columns):
             ax = axes[i, j]
-            if i == j:
+            if i == j and len(table) < NAMED_VALVES:  # a small fleet: each valve, named
+                rows = np.arange(len(table))
+                ax.plot(values[column], rows, "o", color=FLEET_COLOUR, markersize=4)
+                ax.plot(values[column][outlier], rows[outlier], "o", color=OUTLIER_COLOUR,
+                        markersize=5)
+                ax.set_yticks(rows, table["serial"].astype(str), fontsize=6)
+                ax.set_ylim(len(table) - 0.5, -0.5)
+            elif i == j:
                 finite = np.isfinite(values[column])
                 ax.hist(values[column][finite], bins=20, color=FLEET_COLOUR, alpha=0.75)
             else:
@@ -112,7 +138,18 @@ def pair_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]) -> F
                         color=FLEET_COLOUR, markersize=3, alpha=0.6)
                 ax.plot(values[column][outlier], values[row][outlier], "o",
                         color=OUTLIER_COLOUR, markersize=5)
+                # the outliers by name, and every valve in a small fleet
+                named = np.ones(len(table), bool) if len(table) < NAMED_VALVES else outlier
+                for k in np.flatnonzero(named & np.isfinite(values[column])
+                                        & np.isfinite(values[row])):
+                    ax.annotate(str(table["serial"].iloc[k]), (values[column][k],
+                                                               values[row][k]),
+                                fontsize=6, xytext=(3, 2), textcoords="offset points")
             ax.tick_params(labelsize=7)
+            # few ticks: long values (K2 in N/bar) overlapped at the default count
+            ax.xaxis.set_major_locator(MaxNLocator(3))
+            if i != j or len(table) >= NAMED_VALVES:
+                ax.yaxis.set_major_locator(MaxNLocator(4))
             if i == count - 1:
                 ax.set_xlabel(column, fontsize=8)
             if j == 0:

@@ -465,3 +465,19 @@ def test_the_fleet_reports_legends_stay_readable_on_a_narrow_page():
                 if pixels < 10.0:
                     small[name] = round(pixels, 1)
     assert not small, small
+
+
+def test_a_small_fleets_figures_name_every_valve():
+    """Three valves make no histogram: each is a dot named by its serial, in the figures'
+    panels and in the pair plot, the outlier among them."""
+    from surrogate.fleet.report import histograms_figure, pair_figure
+
+    table = pd.DataFrame({"serial": ["SN1", "SN2", "SN3"], "K1 [N]": [5.1, 6.0, 4.9],
+                          "K2 [N/bar]": [0.0512, 0.0634, 0.0498]})
+    columns = list(table.columns[1:])
+    for figure in (histograms_figure(table, columns, {"SN2"}),
+                   pair_figure(table, columns, {"SN2"})):
+        texts = {label.get_text() for ax in figure.axes for label in ax.get_yticklabels()}
+        texts |= {text.get_text() for ax in figure.axes for text in ax.texts}
+        assert {"SN1", "SN2", "SN3"} <= texts
+        assert not any(patch.get_height() > 0 for ax in figure.axes for patch in ax.patches)
