@@ -25,8 +25,10 @@ OWN_VIEW_SHARE = 0.25
 
 
 def sensor_check_text(check: SensorCheck) -> str:
-    """``run R03: pilot-pressure transducer zero looks +0.40 bar off (± 0.05)``."""
-    return (f"run {check.run}: {check.title} looks {check.value:+.2f} {check.unit} off "
+    """``run R03: the pilot-pressure transducer zero reads +0.40 bar off (± 0.05)``: the
+    sensor of one run, so its title without the per-run qualifier."""
+    sensor = check.title.removesuffix(", different in each run")
+    return (f"run {check.run}: the {sensor} reads {check.value:+.2f} {check.unit} off "
             f"(± {check.stderr:.2f})")
 
 
@@ -272,15 +274,20 @@ def absorbed_sentence(diagnosis: Diagnosis) -> str:
     if not by_parameter:
         return ""
     parameters = diagnosis.model.parameters()
+    titles = {c.name: c.title for c in diagnosis.candidates}
     words = []
     for key, names in by_parameter.items():
         parameter = parameters[key]
-        cosine = max(abs(diagnosis.absorbed[name][1]) for name in names)
-        words.append(f" On this log {' and '.join(names)} would act almost as {key} does "
-                     f"(cosine of their effects up to {cosine:.2f}): {key} = "
-                     f"{parameter.display_value:.4g} {parameter.unit} may carry part of "
-                     f"{'them' if len(names) > 1 else 'it'}, and the log cannot tell how much; "
-                     "runs that move what sets them apart would.")
+        alike = max(abs(diagnosis.absorbed[name][1]) for name in names)
+        effect_name, parameter_name = key.split(".", 1)
+        effect = diagnosis.model.effect(effect_name)
+        own = (f"the model's {effect.title} ({parameter_name} = {parameter.display_value:.3g} "
+               f"{parameter.unit})")
+        said = " and ".join(f"{titles.get(name, name)} ({name})" for name in names)
+        words.append(f" On this log {said} would change the pressure drop almost as "
+                     f"{own} does ({100 * alike:.0f} % alike): that value may already carry "
+                     f"part of {'them' if len(names) > 1 else 'it'}, and the log cannot tell "
+                     "how much; runs that move what sets them apart would.")
     return "".join(words)
 
 
