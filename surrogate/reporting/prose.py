@@ -6,6 +6,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from ..diagnosis.lookalikes import MAPS_ERROR
@@ -281,7 +283,8 @@ def absorbed_sentence(diagnosis: Diagnosis) -> str:
         alike = max(abs(diagnosis.absorbed[name][1]) for name in names)
         effect_name, parameter_name = key.split(".", 1)
         effect = diagnosis.model.effect(effect_name)
-        own = (f"the model's {effect.title} ({parameter_name} = {parameter.display_value:.3g} "
+        title = re.sub(r"^(a|an|the) ", "", effect.title)
+        own = (f"the model's {title} ({parameter_name} = {parameter.display_value:.3g} "
                f"{parameter.unit})")
         said = " and ".join(f"{titles.get(name, name)} ({name})" for name in names)
         words.append(f" On this log {said} would change the pressure drop almost as "

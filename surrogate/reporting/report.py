@@ -481,10 +481,10 @@ def misfit_figures(workflow) -> dict[str, bytes]:
     and half-width against the state before and after each added effect (from CFDA on, or from
     the starting model), and each run's loop with the first and the final model."""
     steps = workflow.steps[3:] if workflow.maps else workflow.steps
-    # legend entries short enough that three fit side by side on a figure 14 inches wide
-    models = [(textwrap.shorten(f"{workflow.steps.index(step) + 1}. "
-                                + step_label(step, 200).replace("\n", " "), 44,
-                                placeholder=" …"), step.played) for step in steps]
+    # legend entries wrapped so that three fit side by side on a figure 14 inches wide
+    models = [("\n".join(textwrap.wrap(f"{workflow.steps.index(step) + 1}. "
+                                       + step_label(step, 200).replace("\n", " "), 44)),
+               step.played) for step in steps]
     pngs = {}
     views = residual_views(workflow.log, models)
     if views is not None:

@@ -23,8 +23,8 @@ STARTS = {"bmbe": "BMBE: orifice, C_d = 0.4"}
 
 def step_label(step, width: int = 22, lines: int = 4) -> str:
     """What a step added, in words: each effect's title (the model's name for the first step),
-    wrapped at ``width`` characters on at most ``lines`` lines; a shape-free term marked *free
-    shape*."""
+    wrapped at ``width`` characters; where that takes more than ``lines`` lines, the effects'
+    names instead (a label is never cut short); a shape-free term marked *free shape*."""
     if not step.added:
         return "\n".join(textwrap.wrap(STARTS.get(step.model.name, step.model.name), width))
     names = step.added
@@ -33,8 +33,10 @@ def step_label(step, width: int = 22, lines: int = 4) -> str:
         effect = step.model.effect(name) if step.model.has_effect(name) else None
         title = getattr(effect, "title", "") or name
         titles.append(title.replace(", of free shape", " (free shape)"))
-    text = " + ".join(titles)
-    return "\n".join(textwrap.wrap(text, width, max_lines=lines, placeholder=" …"))
+    wrapped = textwrap.wrap(" + ".join(titles), width)
+    if len(wrapped) > lines:  # too long in words: the effects' names, shorter, never cut
+        wrapped = textwrap.wrap(" + ".join(names), width, break_on_hyphens=False)
+    return "\n".join(wrapped)
 
 
 def colour(category: str) -> str:

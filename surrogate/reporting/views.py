@@ -29,15 +29,18 @@ VARIABLES = (("q", "flow q", "L/min", 0.0), ("u", "opening u", "mm", 0.0),
              ("temperature", "temperature T", "degC", 5.0))
 #: points of a binned line along a variable (quantiles of the bins' values)
 LINE_POINTS = 10
+#: a binned line breaks where no sample lies over this share of its variable's range
+GAP_SHARE = 0.1
 #: tick text [pt]; legends and labels one more: at least 10 px on a 1,000-pixel page, where a
 #: 14-inch figure at 110 dpi shows at about 0.63 of its size
 FONT = 10
 
 
 def model_colours(count: int) -> list:
-    """One colour per model, from pale (the first) to dark (the last)."""
-    cmap = colormaps["viridis"]
-    return [cmap(0.85 - 0.75 * i / max(count - 1, 1)) for i in range(count)]
+    """One colour per model, hues that tell apart (shades of one map did not, for five
+    models), the last model, the final one, in black."""
+    cycle = colormaps["tab10"].colors
+    return [cycle[i % len(cycle)] for i in range(count - 1)] + ["black"][:count]
 
 
 def _binned_line(x: np.ndarray, y: np.ndarray, level: float = 0.0
@@ -57,11 +60,18 @@ def _binned_line(x: np.ndarray, y: np.ndarray, level: float = 0.0
         return x[order], y[order]
     edges = np.unique(np.quantile(x, np.linspace(0.0, 1.0, LINE_POINTS + 1)))
     which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
-    centres = np.array([np.median(x[which == b]) for b in range(len(edges) - 1)
-                        if np.any(which == b)])
-    medians = np.array([np.median(y[which == b]) for b in range(len(edges) - 1)
-                        if np.any(which == b)])
-    return centres, medians
+    used = [b for b in range(len(edges) - 1) if np.any(which == b)]
+    centres = np.array([np.median(x[which == b]) for b in used])
+    medians = np.array([np.median(y[which == b]) for b in used])
+    # no line across a stretch without data (the openings between 0.3 and 0.63 mm): a break
+    # between two bins' centres wherever the samples between them leave a wide gap
+    ordered = np.sort(x)
+    widest = []
+    for low, high in zip(centres[:-1], centres[1:]):
+        inside = ordered[(ordered >= low) & (ordered <= high)]
+        widest.append(np.max(np.diff(np.r_[low, inside, high])))
+    gaps = np.flatnonzero(np.array(widest) > GAP_SHARE * (x.max() - x.min())) + 1
+    return np.insert(centres, gaps, np.nan), np.insert(medians, gaps, np.nan)
 
 
 def residual_views(log, models: list[tuple[str, object]]) -> Figure | None:
@@ -93,8 +103,10 @@ def residual_views(log, models: list[tuple[str, object]]) -> Figure | None:
                 if played is last:
                     ax.plot(x, values, ".", color=shade, markersize=3, alpha=0.35)
                 centres, medians = _binned_line(x, values, level)
-                ax.plot(centres, medians, "-o" if level else "-", color=shade, linewidth=1.8,
-                        markersize=4,
+                # a variable held at levels (set points, temperatures): its levels' medians as
+                # points on a thin line, which says nothing between them
+                ax.plot(centres, medians, "o:" if level else "-", color=shade,
+                        linewidth=0.8 if level else 1.8, markersize=5,
                         label=title if row == 0 and column == 0 else None)
             ax.axhline(0.0, color="black", linewidth=0.8)
             ax.grid(alpha=0.3)

@@ -239,3 +239,17 @@ def test_a_long_report_opens_with_contents_linking_every_section(tmp_path, page)
     assert len(headings) >= 3
     assert [f'href="#{anchor}"' in text for anchor in headings] == [True] * len(headings)
     assert text.index("<nav") < text.index("<h2")
+
+
+def test_a_binned_line_breaks_where_the_log_has_no_samples():
+    """Openings between 0.25 and 0.63 mm are never reached: the residual's line must not join
+    the bins across them (it drew a trend where there are no data)."""
+    from surrogate.reporting.views import _binned_line
+
+    x = np.r_[np.linspace(0.05, 0.25, 200), np.full(40, 0.63)]
+    centres, medians = _binned_line(x, np.sin(10 * x))
+    gap = np.flatnonzero(np.isnan(centres))
+    assert len(gap) == 1 and centres[gap[0] - 1] < 0.26 and centres[gap[0] + 1] == 0.63
+    assert np.isnan(medians[gap[0]])
+    dense = np.linspace(0.0, 1.0, 300)
+    assert not np.isnan(_binned_line(dense, dense)[0]).any()
