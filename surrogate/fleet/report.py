@@ -88,8 +88,9 @@ def histograms_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]
         if named:
             rows = np.arange(len(values))
             ax.plot(values[finite & ~outlier], rows[finite & ~outlier], "o", color=FLEET_COLOUR)
-            ax.plot(values[finite & outlier], rows[finite & outlier], "o", color=OUTLIER_COLOUR,
-                    label="outliers")
+            if np.any(finite & outlier):
+                ax.plot(values[finite & outlier], rows[finite & outlier], "o",
+                        color=OUTLIER_COLOUR, label="the outliers")
             ax.set_yticks(rows, serials, fontsize=8)
             ax.set_ylim(len(values) - 0.5, -0.5)
             ax.grid(axis="x", alpha=0.3)
@@ -232,6 +233,7 @@ def write_fleet_report(path, summary: FleetSummary, model: ValveModel | None,
                 f"{analysis.cutoff:.2f})" if analysis.method != "none"
                 else " (too few valves to tell)") + ".</p>"]
     if fitted:
+        parts += _valves_section(summary)
         parts += _population_section(summary)
         parts += _outlier_section(summary, model, records)
         if summary.diagnosed:
@@ -241,6 +243,28 @@ def write_fleet_report(path, summary: FleetSummary, model: ValveModel | None,
                   "names its file, line and column. The other valves are not affected.</p>"),
                   table_html(summary.failed, ("serial", "log", "kind", "message"))]
     write_html(path, f"Fleet: {fitted + failed} valves", parts)
+
+
+def _valves_section(summary: FleetSummary) -> list[str]:
+    """Every valve by serial: whether it stands out, its robust distance, its RMS and, when
+    diagnosed, its finding (folded away for a large fleet)."""
+    table, analysis = summary.table, summary.analysis
+    flagged = analysis.flagged()
+    rows = pd.DataFrame({"serial": table["serial"].astype(str)})
+    rows["stands out"] = np.where(rows["serial"].isin(flagged), "yes", "")
+    distances = analysis.distances.reindex(rows["serial"]).to_numpy(float) \
+        if len(analysis.distances) else np.full(len(rows), np.nan)
+    rows["robust distance"] = distances
+    for column in [c for c in table.columns if c.startswith("rms")] + (
+            ["finding"] if "finding" in table.columns else []):
+        rows[column] = table[column].to_numpy()
+    rows = rows.sort_values(["stands out", "robust distance"], ascending=[False, False],
+                            kind="stable")
+    shown = table_html(rows, ("serial", "stands out", "finding"))
+    if len(rows) > NAMED_VALVES:
+        shown = f"<details><summary>all {len(rows)} valves</summary>{shown}</details>"
+    return ["<h2>Valves</h2><p>Each valve by serial, those that stand out first (farthest "
+            "first).</p>", shown]
 
 
 def _population_section(summary: FleetSummary) -> list[str]:
@@ -256,8 +280,10 @@ def _population_section(summary: FleetSummary) -> list[str]:
              "error is the median of the valves' own. Correlations are Spearman's.</p>"),
              table_html(pd.DataFrame(rows), ("figure",)),
              figure_html(figure_png(histograms_figure(summary.table, summary.figures, flagged)),
-                         "histograms", "How each figure scatters across the fleet; the "
-                         "outliers' values are marked in red below the axis.")]
+                         "histograms",
+                         ("Each valve's figures by serial" if len(summary.table) < NAMED_VALVES
+                          else "How each figure scatters across the fleet")
+                         + ("; the outliers in red." if flagged else "."))]
     main = [c for c in summary.parameters if summary.table[c].nunique() > 1][:PAIR_PARAMETERS]
     if len(main) >= 2:
         parts.append(figure_html(figure_png(pair_figure(summary.table, main, flagged)),

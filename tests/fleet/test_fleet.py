@@ -150,6 +150,11 @@ def test_a_bad_log_is_recorded_with_its_located_error_and_the_others_are_written
     assert (out / "outliers.csv").exists()
     report = (out / "report.html").read_text()
     assert "data:image/png;base64," in report and BAD in report
+    # every valve named in a table of its own, with its RMS
+    valves = report[report.index("<h2 id=\"section-1\">Valves</h2>"):]
+    valves = valves[:valves.index("</table>")]
+    assert all(f">{serial}<" in valves for serial in ("V1", "V2", "V3"))
+    assert "rms [bar]" in valves
     assert not [path for path in out.rglob(".*")], "a temporary file stayed behind"
 
 
