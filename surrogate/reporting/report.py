@@ -557,8 +557,12 @@ def staircases_section(workflows: dict, main: str, scores: dict | None = None) -
         table_html(pd.DataFrame(rows), ("maps", "added by diagnosis"),
                    {"flow-force CV error [%]": ".1f", "final rms [bar]": ".3f",
                     "× noise floor": ".2f"}),
-        figure_html(figure_png(staircases_figure(workflows)), "staircases of every map kind",
-                    "Residual RMS after each step, per kind of map, on one axis."),
+        # the main kind's staircase is drawn above: only the others here, on its RMS axis
+        figure_html(figure_png(staircases_figure(
+            {kind: workflow for kind, workflow in workflows.items() if kind != main})),
+            "staircases of the comparison kinds",
+            f"Residual RMS after each step on the other kinds of map (the {html.escape(main)} "
+            "maps' staircase is the first figure of this report)."),
     ])
 
 
