@@ -71,11 +71,18 @@ class Stage:
             line += f" ({100 * done / self.total:.0f} %)"
         spent = now - self.began
         if final:
-            line += f", done in {spent:.1f} s"
+            line += f", done in {duration(spent) if spent >= 90 else f'{spent:.1f} s'}"
         elif done > 0 and spent > 0:
             left = spent * (self.total - done) / done
-            line += f", {done / spent:,.0f}{unit}/s, about {duration(left)} left"
+            line += f", {rate(done / spent, self.unit)}, about {duration(left)} left"
         self.progress(line)
+
+
+def rate(per_second: float, unit: str = "") -> str:
+    """``"12/s"``, or for slow work ``"4 s each"``: never ``"0/s"``."""
+    if per_second >= 1.0:
+        return f"{per_second:,.0f}{' ' + unit if unit else ''}/s"
+    return f"{duration(1.0 / per_second) if per_second > 0 else 'no'} each"
 
 
 def duration(seconds: float) -> str:

@@ -195,3 +195,12 @@ def test_times_are_said_as_people_read_them(seconds, said):
     from surrogate.progress import duration
 
     assert duration(seconds) == said
+
+
+@pytest.mark.parametrize("per_second, said", [(12.4, "12/s"), (0.25, "4 s each"),
+                                              (0.01, "1 min 40 s each")])
+def test_slow_work_is_said_per_item_not_as_zero_per_second(per_second, said):
+    """A refit taking 4 s read "0/s" in the progress line."""
+    from surrogate.progress import rate
+
+    assert rate(per_second) == said
