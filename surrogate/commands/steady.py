@@ -24,9 +24,9 @@ def register(subparsers) -> None:
         description="Solve the model's force balance at rising flow (piston opening, friction "
                     "holding it back: the up branch) and falling flow (the down branch) at a "
                     "pilot set point (or pilot pressure), back pressure and temperature held, "
-                    "the curve a catalogue "
-                    "shows. The model's sensor and per-run terms are left out (they belong to "
-                    "the bench). Writes steady.csv, steady.json and steady.png into --out.")
+                    "the curve a catalogue shows. The model's sensor and per-run terms are left "
+                    "out (they belong to the bench). Writes steady.csv, steady.json and "
+                    "steady.png into --out.")
     options = required(parser)
     options.add_argument("--model", required=True, type=model_option,
                          help="a preset or a model file (TOML)")
