@@ -106,6 +106,9 @@ def run(args) -> int:
             if number < len(kinds):
                 progress(f"wrote the {main} maps' results to {out}; the comparison kinds follow "
                          f"({', '.join(kinds[1:])}), their staircases added to the report after")
+        if number < len(kinds):
+            progress(f"{number} of {len(kinds)} kinds done; "
+                     f"{remaining_words(workflows, main, len(kinds) - number)}")
     progress(f"wrote {out}/report.html")
     workflow = workflows[main]
     if args.json:
@@ -125,6 +128,15 @@ def run(args) -> int:
                   f"{len(workflows[kind].steps)} steps")
         print(f"report: {out}/report.html")
     return 0
+
+
+def remaining_words(workflows: dict, main: str, kinds_left: int) -> str:
+    """The time the ``kinds_left`` comparison kinds still take, roughly: each about as long
+    as the comparison kinds so far, or, before any, as the main kind less its shapes (on the
+    shipped log each took about 0.8 of the main one's time)."""
+    others = [w.seconds for kind, w in workflows.items() if kind != main]
+    each = np.mean(others) if others else 0.8 * workflows[main].seconds
+    return f"about {duration(each * kinds_left)} left"
 
 
 def write_results(out, log, workflows: dict, main: str, scores) -> dict:

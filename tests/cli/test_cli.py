@@ -204,3 +204,16 @@ def test_slow_work_is_said_per_item_not_as_zero_per_second(per_second, said):
     from surrogate.progress import rate
 
     assert rate(per_second) == said
+
+
+def test_the_main_jobs_eta_follows_the_kinds_already_run():
+    """After the main kind, the comparison kinds' time is guessed from it (less its shapes);
+    after one of them, from what they took."""
+    from types import SimpleNamespace
+
+    from surrogate.commands.workflow import remaining_words
+
+    done = {"gp": SimpleNamespace(seconds=100.0)}
+    assert remaining_words(done, "gp", 2) == "about 2 min 40 s left"
+    done["grid"] = SimpleNamespace(seconds=50.0)
+    assert remaining_words(done, "gp", 1) == "about 50 s left"
