@@ -86,13 +86,7 @@ def histograms_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]
         values = pd.to_numeric(table[column], errors="coerce").to_numpy(float)
         finite = np.isfinite(values)
         if named:
-            rows = np.arange(len(values))
-            ax.plot(values[finite & ~outlier], rows[finite & ~outlier], "o", color=FLEET_COLOUR)
-            if np.any(finite & outlier):
-                ax.plot(values[finite & outlier], rows[finite & outlier], "o",
-                        color=OUTLIER_COLOUR, label="the outliers")
-            ax.set_yticks(rows, serials, fontsize=8)
-            ax.set_ylim(len(values) - 0.5, -0.5)
+            _named_dots(ax, values, serials, outlier, fontsize=8)
             ax.grid(axis="x", alpha=0.3)
         else:
             ax.hist(values[finite & ~outlier],
@@ -114,6 +108,20 @@ def histograms_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]
     return figure
 
 
+def _named_dots(ax, values: np.ndarray, serials: np.ndarray, outlier: np.ndarray,
+                fontsize: float) -> None:
+    """Each valve's value as a dot on a row of its own, labelled by its serial, the outliers
+    in red (a fleet too small for a histogram)."""
+    rows = np.arange(len(values))
+    finite = np.isfinite(values)
+    ax.plot(values[finite & ~outlier], rows[finite & ~outlier], "o", color=FLEET_COLOUR)
+    if np.any(finite & outlier):
+        ax.plot(values[finite & outlier], rows[finite & outlier], "o", color=OUTLIER_COLOUR,
+                label="the outliers")
+    ax.set_yticks(rows, serials, fontsize=fontsize)
+    ax.set_ylim(len(values) - 0.5, -0.5)
+
+
 def pair_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]) -> Figure:
     """Every pair of ``columns`` against each other, the outliers in red."""
     count = len(columns)
@@ -125,12 +133,8 @@ def pair_figure(table: pd.DataFrame, columns: list[str], flagged: set[str]) -> F
         for j, column in enumerate(columns):
             ax = axes[i, j]
             if i == j and len(table) < NAMED_VALVES:  # a small fleet: each valve, named
-                rows = np.arange(len(table))
-                ax.plot(values[column], rows, "o", color=FLEET_COLOUR, markersize=4)
-                ax.plot(values[column][outlier], rows[outlier], "o", color=OUTLIER_COLOUR,
-                        markersize=5)
-                ax.set_yticks(rows, table["serial"].astype(str), fontsize=6)
-                ax.set_ylim(len(table) - 0.5, -0.5)
+                _named_dots(ax, values[column], table["serial"].astype(str).to_numpy(),
+                            outlier, fontsize=6)
             elif i == j:
                 finite = np.isfinite(values[column])
                 ax.hist(values[column][finite], bins=20, color=FLEET_COLOUR, alpha=0.75)

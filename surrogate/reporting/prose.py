@@ -15,6 +15,7 @@ from ..diagnosis.naming import WITHIN, library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..diagnosis.rule import RULE
 from ..fitting.heldout import HEADLINE
+from ..leastsquares import split_key
 from ..planning.bench_runs import Separation, search_range
 from ..units import from_si
 
@@ -281,7 +282,7 @@ def absorbed_sentence(diagnosis: Diagnosis) -> str:
     for key, names in by_parameter.items():
         parameter = parameters[key]
         alike = max(abs(diagnosis.absorbed[name][1]) for name in names)
-        effect_name, parameter_name = key.split(".", 1)
+        effect_name, parameter_name = split_key(key)
         effect = diagnosis.model.effect(effect_name)
         title = re.sub(r"^(a|an|the) ", "", effect.title)
         own = (f"the model's {title} ({parameter_name} = {parameter.display_value:.3g} "
