@@ -4,7 +4,8 @@ Times ``python -m surrogate export`` of the final model as FMU + tables (one tab
 both) and as ONNX, each as its own process (what a user waits for), against one replay of the
 shipped log measured in the same run (the baseline: the machine's speed today). Reports the
 tables' resolution error on the shipped log (what the export itself measures: the tables' replay
-against the solver's), the FMU's own error in FMPy against the solver's replay, and the ONNX
+against the solver's), the FMU's own error in FMPy against the solver's replay, on the log and on
+smooth flow ramps across the valve's envelope that no log holds, and the ONNX
 graphs' largest relative difference from the package on 10,000 random states.
 
 The final model is ``results/workflow/final_model.toml`` when the workflow has been run
@@ -14,7 +15,7 @@ plausible values, said so in the output.
 
     python eval/export.py [--model FILE] [--out results/export] [--json]
 
-Writes ``<out>/benchmark.json``; about 2 minutes on 2 cores.
+Writes ``<out>/benchmark.json``; about 3 minutes on 2 cores.
 """
 
 from __future__ import annotations
@@ -86,6 +87,15 @@ def fmu_error(fmu: Path, model, points: OperatingPoints, runs: np.ndarray) -> di
             "max": round(float(np.max(np.abs(error[ok]))), 4), "samples": int(ok.sum())}
 
 
+def envelope_probe(model, points: OperatingPoints) -> tuple[OperatingPoints, np.ndarray]:
+    """Smooth flow ramps at four corners of the valve's envelope, the export's default ranges
+    (:func:`surrogate.export.envelope.probe_runs`): runs no log holds."""
+    from surrogate.export.envelope import probe_runs, valve_envelope
+    from surrogate.export.valve_only import valve_physics
+
+    return probe_runs(valve_envelope(valve_physics(model).model, points))
+
+
 def onnx_parity(kind: str) -> dict:
     """Largest relative difference of the ONNX graphs from the package on 10,000 states."""
     from surrogate.export.onnx_maps import parity, random_states
@@ -142,7 +152,11 @@ def main() -> None:
         "target_seconds": TARGET_SECONDS,
         "table_nodes": tables["table_nodes"],
         "resolution_error_bar": tables["resolution_error_bar"],
+        "envelope_error_bar": tables["envelope_error_bar"],
+        "refinement": tables["refinement"],
         "fmu_against_replay_bar": fmu_error(fmu, model, points, runs),
+        "fmu_on_runs_across_the_envelope_bar": fmu_error(fmu, model, *envelope_probe(model,
+                                                                                     points)),
         "fmu_binary": tables["fmu"]["binary"],
         "onnx_largest_relative_difference": None if onnx is None else onnx_parity(kind),
     }
@@ -162,6 +176,10 @@ def main() -> None:
         fmu_found = result["fmu_against_replay_bar"]
         print(f"FMU (FMPy) against the replay: {fmu_found['rms']:.3f} bar RMS, "
               f"{fmu_found['max']:.3f} bar at most")
+        across = result["fmu_on_runs_across_the_envelope_bar"]
+        print(f"FMU (FMPy) against the solver on flow ramps across the valve's envelope: "
+              f"{across['rms']:.3f} bar RMS, {across['max']:.3f} bar at most")
+        print(f"refinement: {result['refinement']}")
         if onnx is not None:
             print("ONNX against the package, largest relative difference: "
                   + ", ".join(f"{k} {v:.1e}" for k, v in result[

@@ -127,6 +127,13 @@ class Oil:
         z = intercept - slope * np.log10(np.asarray(temperature, float))
         return (10.0 ** (10.0 ** z) - _WALTHER_SHIFT) * CST
 
+    def temperature(self, nu):
+        """The temperature [K] at which the oil has kinematic viscosity ``nu`` [m^2/s]: the
+        inverse of :meth:`viscosity`."""
+        intercept, slope = self._walther
+        z = np.log10(np.log10(np.asarray(nu, float) / CST + _WALTHER_SHIFT))
+        return 10.0 ** ((intercept - z) / slope)
+
     def density(self, temperature):
         """Density [kg/m^3] at ``temperature`` [K]."""
         return self.rho15 * (1.0 - self.expansion * (np.asarray(temperature, float) - _T15))

@@ -29,6 +29,7 @@ import os
 import shutil
 import struct
 import subprocess
+import sys
 import tempfile
 import uuid
 import zipfile
@@ -49,7 +50,7 @@ AXIS_CODES = {"q": 0, "u": 1, "p_B": 2, "p_P": 3, "temperature": 4}
 SOURCE = "fmu_valve.c"
 PLATFORM = "linux64"
 
-#: (name, value reference, causality, unit, display unit, description)
+#: (name, value reference, causality, unit, display unit, description); no unit: an Integer
 VARIABLES = (
     ("q", 0, "input", "m3/s", "L/min", "flow through the valve, load to back port"),
     ("p_B", 1, "input", "Pa", "bar", "back pressure (gauge)"),
@@ -58,6 +59,9 @@ VARIABLES = (
     ("p_L", 4, "output", "Pa", "bar", "load pressure (gauge), p_B + dp"),
     ("dp", 5, "output", "Pa", "bar", "pressure drop p_L - p_B"),
     ("u", 6, "output", "m", "mm", "piston opening (friction play as internal state)"),
+    ("outside", 7, "output", None, None,
+     "inputs beyond the tables' range, held at its edge: 1 q (above the highest tabulated flow "
+     "or negative), 2 p_B, 4 p_P, 8 T, summed; 0 inside"),
 )
 #: unit -> (exponents of kg, m, s, K), display unit, factor, offset (display = factor*SI+offset)
 UNITS = {"m3/s": ({"m": 3, "s": -1}, "L/min", 60000.0, 0.0),
@@ -146,11 +150,14 @@ def model_description(identifier: str, guid: str, tables: ValveTables, descripti
             variability = 'variability="continuous"'
         else:
             attributes = ""
-            variability = 'variability="continuous" initial="calculated"'
+            variability = ('variability="continuous"' if unit else 'variability="discrete"')
+            variability += ' initial="calculated"'
+        kind = (f'<Real unit="{unit}" displayUnit="{display}" {attributes}/>' if unit
+                else "<Integer/>")
         variables.append(
             f'    <ScalarVariable name="{name}" valueReference="{reference}" '
             f'causality="{causality}" {variability} description="{escape(meaning)}">\n'
-            f'      <Real unit="{unit}" displayUnit="{display}" {attributes}/>\n'
+            f'      {kind}\n'
             f'    </ScalarVariable>')
     inputs = " ".join(str(index + 1) for index, v in enumerate(VARIABLES) if v[2] == "input")
     outputs = "\n".join(f'      <Unknown index="{index + 1}" dependencies="{inputs}"/>'
@@ -190,7 +197,8 @@ def model_description(identifier: str, guid: str, tables: ValveTables, descripti
 def _documentation(tables: ValveTables, manifest: dict) -> str:
     left_out = "".join(f"<li><code>{escape(name)}</code>: {escape(why)}</li>"
                        for name, why in tables.left_out.items()) or "<li>nothing</li>"
-    rows = "".join(f"<tr><td>{name}</td><td>{causality}</td><td>{unit} (shown in {display})"
+    rows = "".join(f"<tr><td>{name}</td><td>{causality}</td><td>"
+                   f"{f'{unit} (shown in {display})' if unit else 'integer'}"
                    f"</td><td>{escape(meaning)}</td></tr>"
                    for name, _, causality, unit, display, meaning in VARIABLES)
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{escape(tables.model)}"
@@ -199,7 +207,9 @@ def _documentation(tables: ValveTables, manifest: dict) -> str:
             "as tables over the inputs, interpolated in C, with Coulomb friction as a play "
             "(internal state: the piston's opening). Each communication step is one update of "
             "the play for the inputs set at its start; outputs answer the inputs set now. "
-            "The piston starts closed. Inputs beyond the tables' range are held at its edge.</p>"
+            "The piston starts closed. Inputs beyond the tables' range are held at its edge; "
+            "the output <code>outside</code> says which, and the logger warns when one leaves "
+            "it.</p>"
             f"<table border='1'><tr><th>variable</th><th>causality</th><th>unit</th>"
             f"<th>meaning</th></tr>{rows}</table>"
             f"<h2>Left out</h2><ul>{left_out}</ul>"
@@ -273,12 +283,23 @@ def write_fmu(tables: ValveTables, grid: TableGrid, path: Path, extra: dict | No
 __all__ = ["EDGE_TABLES", "FmuResult", "find_compiler", "model_identifier", "write_fmu"]
 
 
-def simulate_log(fmu, points, runs: np.ndarray, output: str = "dp") -> np.ndarray:
-    """The FMU's ``output`` [SI] at every sample of ``points``, each run simulated in FMPy (the
-    export extra's) from rest. A communication step commits the play for the inputs set at its
-    start, so the output recorded at t_(k+1) answers sample k."""
+def print_log_message(component, instance: bytes, status: int, category: bytes,
+                      message: bytes) -> None:
+    """The FMU's log messages on stderr (FMPy's logger callback signature)."""
+    print(f"{instance.decode(errors='replace')} [{category.decode(errors='replace')}] "
+          f"{message.decode(errors='replace')}", file=sys.stderr)
+
+
+def simulate_log(fmu, points, runs: np.ndarray, output: str = "dp", logger=None) -> np.ndarray:
+    """The FMU's ``output`` [SI; ``outside``: its flags] at every sample of ``points``, each
+    run simulated in FMPy (the export extra's) from rest. A communication step commits the play
+    for the inputs set at its start, so the output recorded at t_(k+1) answers sample k.
+    ``logger``: FMPy's logger callback (component, instance, status, category, message)."""
     from fmpy import extract, read_model_description, simulate_fmu
 
+    # always a logger of our own: FMPy's native proxy keeps pointing at the last logger it was
+    # given, so a caller's logger that has since been collected would crash FMPy's default
+    logger = logger or print_log_message
     description = read_model_description(fmu)
     folder = extract(fmu)
     found = np.full(len(points), np.nan)
@@ -292,6 +313,6 @@ def simulate_log(fmu, points, runs: np.ndarray, output: str = "dp") -> np.ndarra
         signals["p_P"], signals["T"] = points.p_P[index], points.temperature[index]
         result = simulate_fmu(folder, model_description=description, start_time=0.0,
                               stop_time=len(index) * step, output_interval=step,
-                              input=signals, output=[output])
+                              input=signals, output=[output], logger=logger)
         found[index] = result[output][1:len(index) + 1]
     return found

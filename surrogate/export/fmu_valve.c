@@ -18,9 +18,16 @@
  *
  * The piston starts closed (u = 0, r = 1). Outputs answer the inputs set now with the piston
  * where the last step left it; fmi2DoStep(t, h) commits the play for the inputs set at t (one
- * step, one update: the step size does not matter). Tables are interpolated by cubic
- * convolution (Catmull-Rom) in ln(value), along ln q and ln u and the other axes as they are,
+ * step, one update: the step size does not matter). Tables are interpolated by cubic Hermite
+ * with central-difference slopes (Catmull-Rom on even nodes) in ln(value), along ln q and ln u
+ * and the other axes as they are,
  * each input held to its axis' range: the same arithmetic as surrogate.export.tables.
+ *
+ * An input beyond the tables' range is held at its edge. The Integer output "outside" says
+ * which inputs were held at the last step (bit 1 q above the highest tabulated flow or below
+ * zero, 2 p_B, 4 p_P, 8 T: any bit set means the valve is read beyond what was tabulated), and
+ * the logger warns once each time an input leaves the range. A flow between zero and the
+ * lowest tabulated one is the nearly closed valve at its cracking point, held and not flagged.
  */
 
 #include <math.h>
@@ -78,12 +85,20 @@ typedef struct {
     Table table[TABLES];
     double inputs[4];             /* q, p_B, p_P, T */
     double u, ratio;              /* the play's state */
+    int outside;                  /* OUTSIDE_* of the inputs held at the last step */
     int loaded;
-    fmi2String instance;
+    char instance[128];           /* the instance's name, copied: the importer's may not last */
     const fmi2CallbackFunctions *callbacks;
 } Valve;
 
 enum { VR_Q, VR_PB, VR_PP, VR_T, VR_PL, VR_DP, VR_U, VARIABLES };
+#define VR_OUTSIDE 7              /* the Integer output */
+static const char *INPUT_NAMES[4] = {"q", "p_B", "p_P", "T"};
+static const int INPUT_AXES[4] = {AXIS_Q, AXIS_PB, AXIS_PP, AXIS_T};
+/* display unit of each input: factor and offset from SI */
+static const char *INPUT_UNITS[4] = {"L/min", "bar", "bar", "degC"};
+static const double INPUT_FACTORS[4] = {60000.0, 1e-5, 1e-5, 1.0};
+static const double INPUT_OFFSETS[4] = {0.0, 0.0, 0.0, -273.15};
 
 static void say(Valve *valve, fmi2Status status, const char *format, ...) {
     char message[512];
@@ -93,7 +108,9 @@ static void say(Valve *valve, fmi2Status status, const char *format, ...) {
     va_end(arguments);
     if (valve && valve->callbacks && valve->callbacks->logger)
         valve->callbacks->logger(valve->callbacks->componentEnvironment, valve->instance, status,
-                                 status == fmi2OK ? "logStatusOK" : "logStatusError", "%s",
+                                 status == fmi2OK ? "logStatusOK"
+                                 : (status == fmi2Warning ? "logStatusWarning" : "logStatusError"),
+                                 "%s",
                                  message);
 }
 
@@ -164,8 +181,8 @@ broken:
     return 0;
 }
 
-/* the nodes along one axis that make a point's value, and their weights (Catmull-Rom; linear
- * for 2 or 3 nodes; held for 1) */
+/* the nodes along one axis that make a point's value, and their weights (Hermite's cubic with
+ * central-difference slopes, Catmull-Rom's on even nodes; linear for 2 or 3 nodes; held for 1) */
 static int stencil(const double *nodes, int count, double x, int index[4], double weight[4]) {
     if (x < nodes[0]) x = nodes[0];
     if (x > nodes[count - 1]) x = nodes[count - 1];
@@ -177,16 +194,25 @@ static int stencil(const double *nodes, int count, double x, int index[4], doubl
         if (nodes[middle] <= x) low = middle; else high = middle;
     }
     int cell = low > count - 2 ? count - 2 : low;
-    double t = (x - nodes[cell]) / (nodes[cell + 1] - nodes[cell]);
+    double width = nodes[cell + 1] - nodes[cell];
+    double t = (x - nodes[cell]) / width;
     if (count < 4) {
         index[0] = cell; index[1] = cell + 1; weight[0] = 1.0 - t; weight[1] = t;
         return 2;
     }
+    int first = cell == 0, last = cell == count - 2;
+    /* a missing outer node mirrored across the end node */
+    double x_before = first ? nodes[cell] - width : nodes[cell - 1];
+    double x_after = last ? nodes[cell + 1] + width : nodes[cell + 2];
+    double slope_low = width / (nodes[cell + 1] - x_before);
+    double slope_high = width / (x_after - nodes[cell]);
     double t2 = t * t, t3 = t2 * t;
-    double before = -0.5 * t3 + t2 - 0.5 * t, at_low = 1.5 * t3 - 2.5 * t2 + 1.0;
-    double at_high = -1.5 * t3 + 2.0 * t2 + 0.5 * t, after = 0.5 * t3 - 0.5 * t2;
-    if (cell == 0) { at_low += 2 * before; at_high -= before; before = 0.0; }
-    if (cell == count - 2) { at_high += 2 * after; at_low -= after; after = 0.0; }
+    double h00 = 2 * t3 - 3 * t2 + 1.0, h10 = t3 - 2 * t2 + t;
+    double h01 = -2 * t3 + 3 * t2, h11 = t3 - t2;
+    double before = -h10 * slope_low, after = h11 * slope_high;
+    double at_low = h00 - h11 * slope_high, at_high = h01 + h10 * slope_low;
+    if (first) { at_low += 2 * before; at_high -= before; before = 0.0; }
+    if (last) { at_high += 2 * after; at_low -= after; after = 0.0; }
     index[0] = cell > 0 ? cell - 1 : 0; index[1] = cell; index[2] = cell + 1;
     index[3] = cell + 2 < count ? cell + 2 : count - 1;
     weight[0] = before; weight[1] = at_low; weight[2] = at_high; weight[3] = after;
@@ -220,6 +246,46 @@ static double lookup(const Table *table, const double coordinate[AXES]) {
         if (d < 0) break;
     }
     return exp(total);
+}
+
+/* the tabulated range [SI] of input i (0 q, 1 p_B, 2 p_P, 3 T): the edge tables' axis */
+static void input_range(const Valve *valve, int i, double *low, double *high) {
+    const Table *table = &valve->table[U_OPEN];
+    *low = -HUGE_VAL; *high = HUGE_VAL;
+    for (int d = 0; d < table->dimensions; d++) {
+        if (table->axis[d] != INPUT_AXES[i]) continue;
+        *low = table->nodes[d][0]; *high = table->nodes[d][table->count[d] - 1];
+        if (is_log_axis(table->axis[d])) { *low = exp(*low); *high = exp(*high); }
+    }
+    if (i == 0) *low = 0.0;  /* below the lowest flow: the cracking valve, held (see above) */
+}
+
+/* the inputs held at the edge of the tables now: a bit per input (1 << i) */
+static int outside_flags(const Valve *valve) {
+    int flags = 0;
+    for (int i = 0; i < 4; i++) {
+        double low, high;
+        input_range(valve, i, &low, &high);
+        /* a rounding's worth of slack: the range's own edges are inside */
+        double slack = 1e-9 * (fabs(low) + fabs(high));
+        if (valve->inputs[i] < low - slack || valve->inputs[i] > high + slack) flags |= 1 << i;
+    }
+    return flags;
+}
+
+/* a warning for each input that has just left the tables' range */
+static void warn_outside(Valve *valve, int flags) {
+    int entered = flags & ~valve->outside;
+    for (int i = 0; i < 4; i++) {
+        if (!(entered & (1 << i))) continue;
+        double low, high;
+        input_range(valve, i, &low, &high);
+        say(valve, fmi2Warning, "%s = %.4g %s is outside the tables' %.4g to %.4g %s: the valve "
+            "is read at the edge of its tables from here on (output outside = %d)",
+            INPUT_NAMES[i], INPUT_FACTORS[i] * valve->inputs[i] + INPUT_OFFSETS[i],
+            INPUT_UNITS[i], INPUT_FACTORS[i] * low + INPUT_OFFSETS[i],
+            INPUT_FACTORS[i] * high + INPUT_OFFSETS[i], INPUT_UNITS[i], flags);
+    }
 }
 
 /* the play for the inputs set now: the piston's new state and the outputs */
@@ -265,6 +331,7 @@ EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n,
 static void reset_state(Valve *valve) {
     valve->u = 0.0;
     valve->ratio = 1.0;
+    valve->outside = 0;
 }
 
 /* the resources folder of a "file:" URI: file:///a/b, file:/a/b or file://localhost/a/b, with
@@ -296,7 +363,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type type, fmi
     Valve *valve = calloc(1, sizeof(Valve));
     char folder[4096], path[4200];
     if (!valve) return NULL;
-    valve->instance = instanceName;
+    snprintf(valve->instance, sizeof valve->instance, "%s", instanceName ? instanceName : "");
     valve->callbacks = functions;
     if (type != fmi2CoSimulation) {
         say(valve, fmi2Error, "this FMU is for co-simulation only");
@@ -380,8 +447,15 @@ EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], si
 
 EXPORT fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                  fmi2Integer value[]) {
-    (void)c; (void)vr; (void)value;
-    return nvr ? fmi2Error : fmi2OK;
+    Valve *valve = c;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] != VR_OUTSIDE) {
+            say(valve, fmi2Error, "no Integer variable with value reference %u", vr[i]);
+            return fmi2Error;
+        }
+        value[i] = outside_flags(valve);  /* the inputs set now, as the Real outputs */
+    }
+    return fmi2OK;
 }
 EXPORT fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                  fmi2Boolean value[]) {
@@ -455,6 +529,9 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
     }
     valve->u = u;
     valve->ratio = ratio;
+    int flags = outside_flags(valve);
+    warn_outside(valve, flags);
+    valve->outside = flags;
     return fmi2OK;
 }
 

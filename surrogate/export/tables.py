@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import itertools
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -116,10 +116,10 @@ def interpolate(nodes, values: np.ndarray, coordinates, cubic: bool = True) -> n
     axis), each coordinate held to its axis' range; the FMU's C does the same, in the same
     order.
 
-    Along each axis the four nodes around a point are weighted by Catmull-Rom's cubic (Keys'
-    cubic convolution with a = -1/2, which assumes evenly spaced nodes, as every axis here is in
-    its own coordinate): it reproduces quadratics exactly, where linear interpolation only
-    reproduces straight lines, and so needs about half the nodes per axis for the same error
+    Along each axis the four nodes around a point are weighted by Hermite's cubic with
+    central-difference slopes (:func:`stencil`), on evenly spaced nodes Catmull-Rom's (Keys'
+    cubic convolution with a = -1/2): there it reproduces quadratics exactly, where linear
+    interpolation only reproduces straight lines, and so needs about half the nodes per axis for the same error
     (on the shipped log and ``cfda``: 0.08 bar RMS with 0.36 million nodes against 0.13 bar
     with 1 million, linearly). In the outer cells the missing node is extrapolated linearly
     from the two inside it; an axis of two or three nodes is interpolated linearly, one of one
@@ -142,20 +142,33 @@ def interpolate(nodes, values: np.ndarray, coordinates, cubic: bool = True) -> n
 def stencil(axis: np.ndarray, x: np.ndarray, cubic: bool = True
             ) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """The nodes (indices) along one axis that a point's value is made of, and their weights
-    (:func:`interpolate`); ``x`` is held to the axis' range."""
+    (:func:`interpolate`); ``x`` is held to the axis' range.
+
+    The cubic is Hermite's between the cell's two nodes with central-difference slopes,
+    (f[i+1] − f[i−1]) / (x[i+1] − x[i−1]): on evenly spaced nodes exactly Catmull-Rom's, and
+    on uneven nodes (inserted where the valve needs them, :func:`refined_grid`) still
+    continuous in value and slope and exact for straight lines."""
     count = len(axis)
     x = np.clip(x, axis[0], axis[-1])
     if count == 1:
         return [np.zeros(x.size, dtype=np.intp)], [np.ones(x.size)]
     cell = np.clip(np.searchsorted(axis, x, side="right") - 1, 0, count - 2)
-    t = (x - axis[cell]) / (axis[cell + 1] - axis[cell])
+    width = axis[cell + 1] - axis[cell]
+    t = (x - axis[cell]) / width
     if count < 4 or not cubic:
         return [cell, cell + 1], [1.0 - t, t]
-    t2, t3 = t * t, t * t * t
-    before, low = -0.5 * t3 + t2 - 0.5 * t, 1.5 * t3 - 2.5 * t2 + 1.0
-    high, after = -1.5 * t3 + 2.0 * t2 + 0.5 * t, 0.5 * t3 - 0.5 * t2
     first, last = cell == 0, cell == count - 2
-    # a missing outer node, extrapolated linearly: f(-1) = 2 f(0) - f(1), f(n) = 2 f(n-1) - f(n-2)
+    # a missing outer node mirrored across the end node: f(-1) = 2 f(0) - f(1) at the mirrored
+    # position, so the end cell's slope there is the cell's own secant
+    x_before = np.where(first, axis[cell] - width, axis[np.maximum(cell - 1, 0)])
+    x_after = np.where(last, axis[cell + 1] + width, axis[np.minimum(cell + 2, count - 1)])
+    slope_low = width / (axis[cell + 1] - x_before)  # share of Δ in the slope at the low node
+    slope_high = width / (x_after - axis[cell])
+    t2, t3 = t * t, t * t * t
+    h00, h10 = 2 * t3 - 3 * t2 + 1.0, t3 - 2 * t2 + t
+    h01, h11 = -2 * t3 + 3 * t2, t3 - t2
+    before, after = -h10 * slope_low, h11 * slope_high
+    low, high = h00 - h11 * slope_high, h01 + h10 * slope_low
     low, high = np.where(first, low + 2 * before, low), np.where(first, high - before, high)
     before = np.where(first, 0.0, before)
     high, low = np.where(last, high + 2 * after, high), np.where(last, low - after, low)
@@ -170,7 +183,9 @@ class TableGrid:
 
     Flows (and the Δp table's openings) are spaced evenly in ln(x), the other axes evenly;
     ``scale`` divides every spacing of :data:`STEPS` (2 halves them: four times finer in 4-d
-    means about 16 times the nodes, for roughly a quarter of the resolution error).
+    means about 16 times the nodes, for roughly a quarter of the resolution error). Nodes
+    ``inserted`` between them refine an axis only where the valve changes quickly along it
+    (:func:`surrogate.export.refinement.refined_grid`).
 
     Attributes
     ----------
@@ -178,6 +193,8 @@ class TableGrid:
         (low, high) of each input [m^3/s, Pa, Pa, K].
     scale : float
         Refinement of the spacing, in [0.25, 8].
+    inserted : tuple of (str, tuple of float)
+        Extra nodes [SI] by axis name (an axis of :data:`EDGE_AXES` or ``"u"``).
     """
 
     q: tuple[float, float]
@@ -185,6 +202,7 @@ class TableGrid:
     p_P: tuple[float, float]
     temperature: tuple[float, float]
     scale: float = 1.0
+    inserted: tuple[tuple[str, tuple[float, ...]], ...] = ()
 
     def __post_init__(self):
         for name in EDGE_AXES:
@@ -228,9 +246,29 @@ class TableGrid:
         step = STEPS[name] / self.scale
         if name in LOG_AXES:
             count = max(2, int(np.ceil(np.log(high / low) / step)) + 1)
-            return np.geomspace(low, high, count)
-        count = max(2, int(np.ceil((high - low) / step)) + 1)
-        return np.linspace(low, high, count)
+            even = np.geomspace(low, high, count)
+        else:
+            count = max(2, int(np.ceil((high - low) / step)) + 1)
+            even = np.linspace(low, high, count)
+        extra = np.asarray(dict(self.inserted).get(name, ()), float)
+        extra = extra[(extra > low) & (extra < high)]
+        if not extra.size:
+            return even
+        nodes = np.unique(np.r_[even, extra])
+        # nodes closer than a thousandth of a step would make a cell of nothing
+        close = np.diff(np.log(nodes) if name in LOG_AXES else nodes) < 1e-3 * step
+        return np.delete(nodes, np.flatnonzero(close) + 1)
+
+    def with_nodes(self, name: str, nodes) -> "TableGrid":
+        """The grid with ``nodes`` [SI] inserted along axis ``name``."""
+        inserted = dict(self.inserted)
+        inserted[name] = tuple(sorted({*inserted.get(name, ()), *map(float, nodes)}))
+        return replace(self, inserted=tuple(sorted(inserted.items())))
+
+    @property
+    def inserted_count(self) -> dict[str, int]:
+        """How many nodes were inserted along each axis."""
+        return {name: len(nodes) for name, nodes in self.inserted}
 
     def edge_nodes(self) -> tuple[np.ndarray, ...]:
         """The nodes of the band's edges, in :data:`EDGE_AXES` order."""
@@ -247,7 +285,10 @@ class TableGrid:
                             "p_B": f"{from_si(STEPS['p_B'], 'bar') / self.scale:.4g} bar",
                             "p_P": f"{from_si(STEPS['p_P'], 'bar') / self.scale:.4g} bar",
                             "temperature": f"{STEPS['temperature'] / self.scale:.4g} K"},
-                "scale": self.scale}
+                "scale": self.scale,
+                "inserted": {name: [round(float(v), 6) for v in from_si(np.array(nodes),
+                                                                        UNITS[name])]
+                             for name, nodes in self.inserted}}
 
 
 @dataclass(frozen=True)
@@ -330,10 +371,13 @@ class ValveTables:
         """What the tables are, their axes and units, and what they leave out."""
         return {
             "model": self.model,
-            "interpolation": "cubic convolution (Catmull-Rom, Keys a = -1/2) along every "
-                             "axis, linear extrapolation of the missing node in the outer "
-                             "cells; flows and openings along ln(axis), which is evenly "
-                             "spaced; every table (openings and pressure drops, all > 0) "
+            "interpolation": "cubic Hermite along every axis between a cell's two nodes, "
+                             "the slope at a node (f[i+1] - f[i-1]) / (x[i+1] - x[i-1]) "
+                             "(Catmull-Rom where the nodes are evenly spaced; the grid is even "
+                             "but for nodes inserted where the valve changes quickly), the "
+                             "missing node of an outer cell mirrored across the end node "
+                             "with f = 2 f[0] - f[1]; flows and openings along ln(axis); "
+                             "every table (openings and pressure drops, all > 0) "
                              "interpolated as ln(value) and exponentiated; each input held "
                              "to its axis' range (no extrapolation). Linear interpolation "
                              "between the same nodes works too, less accurately "
@@ -363,9 +407,12 @@ def _coordinates(points: OperatingPoints) -> dict[str, np.ndarray]:
             "temperature": points.temperature}
 
 
-def tabulate(model: ValveModel, grid: TableGrid, progress=None) -> ValveTables:
+def tabulate(model: ValveModel, grid: TableGrid, progress=None,
+             previous: ValveTables | None = None) -> ValveTables:
     """Solve the model over the grid: both edges at every (q, p_B, p_P, T) node, then Δp at
     every opening. ``model`` should hold the valve's physics only (:mod:`.valve_only`).
+    ``previous``: tables of the same model on a grid this one refines; their nodes are kept and
+    only the new ones solved.
 
     Raises
     ------
@@ -375,34 +422,43 @@ def tabulate(model: ValveModel, grid: TableGrid, progress=None) -> ValveTables:
     """
     say = progress or (lambda message: None)
     edge_nodes = grid.edge_nodes()
-    mesh = np.meshgrid(*edge_nodes, indexing="ij")
-    shape = mesh[0].shape
-    q, p_B, p_P, temperature = (m.ravel() for m in mesh)
+    known, new = _known(previous and previous.edges["u_open"], EDGE_AXES, edge_nodes)
+    q, p_B, p_P, temperature = (m[new] for m in np.meshgrid(*edge_nodes, indexing="ij"))
     say(f"tabulating {model.name}: the force balance at {q.size:,} grid nodes on each edge of "
-        "the friction band")
-    edges, failed = {}, 0
+        "the friction band" + (f" (the other {int(known.sum()):,} kept)" if known.any() else ""))
+    edges, failed = {}, previous.failed_nodes if previous else 0
     for side, direction in (("open", OPENING), ("close", CLOSING)):
         points = OperatingPoints.create(q, p_P, p_B, temperature, direction)
         state = solve_steady(model, points)
         good = state.status >= 0
         failed += int((~good).sum())
-        u = np.where(good, state.u, np.nan).reshape(shape)
-        dp = np.where(good, state.dp, np.nan).reshape(shape)
-        for name, values in ((f"u_{side}", u), (f"dp_{side}", dp)):
+        for name, solved in ((f"u_{side}", state.u), (f"dp_{side}", state.dp)):
+            values = np.full(new.shape, np.nan)
+            if previous is not None:
+                values[known] = _known_values(previous.edges[name], edge_nodes)
+            values[new] = np.where(good, solved, np.nan)
             edges[name] = Table(name, EDGE_AXES, edge_nodes, _stored(_filled_along_flow(
                 values, name)))
         say(f"{side} edge: {int(good.sum()):,} of {q.size:,} nodes solved")
     lowest = min(float(np.min(edges["u_open"].values)), float(np.min(edges["u_close"].values)))
-    nodes = {"q": edge_nodes[0], "u": grid.axis("u", 0.5 * lowest, model.valve.U_max),
+    u_low = 0.5 * lowest
+    if previous is not None and previous.dp.nodes[previous.dp.axes.index("u")][0] <= u_low:
+        u_low = float(previous.dp.nodes[previous.dp.axes.index("u")][0])  # keep its openings
+    nodes = {"q": edge_nodes[0], "u": grid.axis("u", u_low, model.valve.U_max),
              "p_B": edge_nodes[1], "p_P": edge_nodes[2], "temperature": edge_nodes[3]}
     with_pilot = _flow_side_reads_pilot(model, nodes)
     axes = ("q", "u", "p_B") + (("p_P",) if with_pilot else ()) + ("temperature",)
-    mesh = np.meshgrid(*(nodes[axis] for axis in axes), indexing="ij")
-    values = dict(zip(axes, (m.ravel() for m in mesh)))
-    say(f"tabulating Δp at {mesh[0].size:,} (flow, opening, ...) nodes")
+    axis_nodes = tuple(nodes[axis] for axis in axes)
+    known, new = _known(previous and previous.dp, axes, axis_nodes)
+    values = dict(zip(axes, (m[new] for m in np.meshgrid(*axis_nodes, indexing="ij"))))
+    say(f"tabulating Δp at {int(new.sum()):,} (flow, opening, ...) nodes"
+        + (f" (the other {int(known.sum()):,} kept)" if known.any() else ""))
     points = OperatingPoints.create(values["q"], values.get("p_P", nodes["p_P"][0]),
                                     values["p_B"], values["temperature"])
-    dp = _pressure_drop(model, values["u"], points).reshape(mesh[0].shape)
+    dp = np.full(new.shape, np.nan)
+    if previous is not None and known.any():
+        dp[known] = _known_values(previous.dp, axis_nodes)
+    dp[new] = _pressure_drop(model, values["u"], points)
     for table, array in [*((t.name, t.values) for t in edges.values()), ("dp", dp)]:
         bad = ~(np.isfinite(array) & (array > 0))
         if bad.any():
@@ -410,9 +466,41 @@ def tabulate(model: ValveModel, grid: TableGrid, progress=None) -> ValveTables:
                              f"positive, finite number at {int(bad.sum())} of {array.size} "
                              "grid nodes; narrow the ranges to where the valve passes flow "
                              "(the closed valve is not tabulated)")
-    return ValveTables(model.name, edges,
-                       Table("dp", axes, tuple(nodes[axis] for axis in axes), _stored(dp)),
+    return ValveTables(model.name, edges, Table("dp", axes, axis_nodes, _stored(dp)),
                        failed_nodes=failed)
+
+
+def _shared(previous: Table, nodes: tuple[np.ndarray, ...]
+            ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per axis: where each of ``nodes`` sits in ``previous``' nodes, and whether it is one."""
+    where, hit = [], []
+    for old, axis in zip(previous.nodes, nodes):
+        index = np.clip(np.searchsorted(old, axis), 0, len(old) - 1)
+        where.append(index)
+        hit.append(old[index] == axis)
+    return where, hit
+
+
+def _known(previous: Table | None, axes: tuple[str, ...], nodes: tuple[np.ndarray, ...]
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """Masks over the grid of ``nodes``: the nodes ``previous`` (a table over the same
+    ``axes``, or None) already holds, and the ones to compute."""
+    shape = tuple(len(axis) for axis in nodes)
+    if previous is None or previous.axes != axes:
+        return np.zeros(shape, dtype=bool), np.ones(shape, dtype=bool)
+    _, hit = _shared(previous, nodes)
+    known = np.ones(shape, dtype=bool)
+    for dimension, present in enumerate(hit):
+        known &= present.reshape([-1 if d == dimension else 1 for d in range(len(shape))])
+    return known, ~known
+
+
+def _known_values(previous: Table, nodes: tuple[np.ndarray, ...]) -> np.ndarray:
+    """``previous``' values at the nodes it shares with the grid of ``nodes``, in the order of
+    :func:`_known`'s mask."""
+    where, hit = _shared(previous, nodes)
+    return previous.values[np.ix_(*(index[present] for index, present in zip(where, hit)))
+                           ].ravel()
 
 
 def _stored(values: np.ndarray) -> np.ndarray:

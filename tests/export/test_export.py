@@ -19,6 +19,7 @@ from surrogate.data import load_bench_log
 from surrogate.effects import custom_effect
 from surrogate.errors import InputError
 from surrogate.export.fmu import simulate_log
+from surrogate.export.refinement import refined_grid
 from surrogate.export.tables import TableGrid, interpolate
 from surrogate.export.tabulable import refuse_untabulable
 from surrogate.export.valve_only import valve_physics
@@ -76,11 +77,57 @@ def test_the_fmu_plays_friction_as_state(exported):
     assert np.all(up[5:-5] > down[5:-5] + 5e5)  # cfda's friction: > 5 bar of hysteresis
 
 
-def test_the_fmu_holds_its_inputs_to_the_tables(exported):
-    """Far outside the grid the FMU answers with the edge's values, never NaN."""
-    points = OperatingPoints.create(np.array([1e-9, 1.0]), 1e9, -1e6, 1000.0)
-    dp = simulate_log(str(exported / "cfda.fmu"), points, np.zeros(2))
+def unseen_runs() -> tuple[OperatingPoints, np.ndarray]:
+    """Smooth flow ramps up and down (0.5 to 14 L/min) at states the shipped log never
+    visits: back pressures of 0.5 and 9 bar, oil at 12 and 68 degC, a pilot pressure of 30 and
+    100 bar."""
+    ramp = np.r_[np.geomspace(0.5, 14, 60), np.geomspace(14, 0.5, 60)] / 60_000
+    states = [(30e5, 0.5e5, 285.15), (100e5, 9e5, 341.15), (65e5, 9e5, 285.15),
+              (45e5, 0.5e5, 341.15)]
+    columns = [np.concatenate([np.full(ramp.size, value) for value in column])
+               for column in zip(*states)]
+    runs = np.repeat(np.arange(len(states)), ramp.size)
+    return OperatingPoints.create(np.tile(ramp, len(states)), *columns), runs
+
+
+def test_the_fmu_follows_the_solver_on_runs_outside_the_fitted_log(exported):
+    """The tables span the valve's envelope, not the log's: on smooth runs far from the log
+    the FMU stays within the export's tolerance of the package's replay, and says it is
+    inside its tables."""
+    points, runs = unseen_runs()
+    model = valve_physics(load_model("cfda")).model
+    reference = replay(model, points, runs, diagnostics=False)
+    fmu = str(exported / "cfda.fmu")
+    error = from_si(simulate_log(fmu, points, runs) - reference.dp, "bar")[reference.ok]
+    rms = float(np.sqrt(np.mean(error ** 2)))
+    summary = json.loads((exported / "export.json").read_text())
+    print(f"FMU against the replay on unseen runs: {rms:.4f} bar RMS, "
+          f"{np.max(np.abs(error)):.3f} bar at most")
+    assert reference.ok.mean() > 0.95
+    assert rms < summary["tolerance_bar"]
+    assert np.all(simulate_log(fmu, points, runs, output="outside") == 0)
+
+
+def test_the_fmu_holds_its_inputs_to_the_tables_and_says_so(exported):
+    """Far outside the grid the FMU answers with the edge's values, never NaN, and flags the
+    inputs held (1 q, 2 p_B, 4 p_P, 8 T) on its output and through the logger, once."""
+    points = OperatingPoints.create(np.array([1e-4, 1e-4, 1e-9, 1.0, 1.0]), 65e5,
+                                    np.array([5e5, 5e5, 5e5, -1e6, -1e6]), 313.15)
+    points = points.replace(p_P=np.array([65e5, 65e5, 1e9, 1e9, 1e9]),
+                            temperature=np.array([313.15, 313.15, 313.15, 313.15, 1000.0]))
+    messages = []
+
+    def logger(component, instance, status, category, message):
+        messages.append((category.decode(), message.decode()))
+    fmu = str(exported / "cfda.fmu")
+    dp = simulate_log(fmu, points, np.zeros(5), logger=logger)
     assert np.all(np.isfinite(dp)) and np.all(dp > 0)
+    flags = simulate_log(fmu, points, np.zeros(5), output="outside")
+    # 6 L/min is inside; a near-zero flow (the third) is the cracking valve, held, not flagged
+    assert flags.tolist() == [0, 0, 4, 1 + 2 + 4, 1 + 2 + 4 + 8]
+    warnings = [message for category, message in messages if category == "logStatusWarning"]
+    assert [w.split(" ")[0] for w in warnings] == ["p_P", "q", "p_B", "T"]  # each once
+    assert "outside the tables'" in warnings[0] and "bar" in warnings[0]
 
 
 def test_the_tables_files_say_what_they_hold(exported):
@@ -200,3 +247,28 @@ def test_custom_terms_must_be_functions_of_the_state(effect, refused):
             refuse_untabulable(model, grid, "model.toml")
     else:
         refuse_untabulable(model, grid, "model.toml")
+
+
+@custom_effect("friction", units={"k": "N"})
+def friction_step_below_30C(state, k=10.0):
+    """A friction that rises by k within a few kelvin below 30 degC."""
+    return k / (1.0 + np.exp((state.temperature - 303.15) / 1.0))
+
+
+def test_the_grid_is_refined_only_where_the_valve_changes_quickly():
+    """A friction stepping up within a few kelvin near 30 degC: the even grid (5-6 K apart) misses the
+    solver between its temperature nodes; the refinement inserts temperature nodes there and
+    nowhere else along T until every cell's middle meets the tolerance (grid maps' kinks at
+    the sampled openings may ask for flow nodes too)."""
+    model = load_model("cfda")
+    model = valve_physics(model.with_effects([*model.effects, friction_step_below_30C()])).model
+    grid = TableGrid((2 / 60_000, 10 / 60_000), (4e5, 6e5), (60e5, 70e5), (278.15, 328.15))
+    tolerance = 0.1e5
+    refined = refined_grid(model, grid, tolerance)
+    inserted = dict(refined.grid.inserted)
+    # a cubic's stencil spans two cells either side: the step spoils those and no others
+    assert np.all(np.abs(np.array(inserted["temperature"]) - 303.15) < 2.5 * 6.0)
+    assert refined.met and refined.rounds >= 1
+    assert max(refined.worst.values()) <= tolerance
+    even = refined_grid(model, grid, np.inf)  # no refinement: the even grid's own misses
+    assert even.rounds == 0 and even.worst["temperature"] > 3 * tolerance
