@@ -13,8 +13,7 @@ from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
 from ..progress import duration
-from ..reporting.prose import (final_diagnosis_heading, naming_words, shape_words,
-                               workflow_summary)
+from ..reporting.prose import naming_words, shape_words, workflow_summary
 from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
                                 misfit_figures, misfit_section, next_steps_section,
                                 staircase_section,
@@ -170,7 +169,7 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
                    [staircase_section(workflow), misfit_section(workflow, misfit), *others,
                     comparison_section(comparison, "The final model against the data", pngs),
                     diagnosis_section(workflow.final_diagnosis,
-                                      final_diagnosis_heading(workflow)),
+                                      "What is left: the final model's diagnosis"),
                     next_steps_section(workflow)],
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
                         f"Maps: {main}. Run time "

@@ -403,34 +403,10 @@ def naming_words(candidate: Candidate) -> str:
             f"{candidate.curve.unit}.")
 
 
-def diagnosed_after_it(workflow) -> list:
-    """The steps added after the one the workflow's final diagnosis diagnosed (the maps'
-    calibration, which follows the last diagnosis): empty when it diagnosed the final model."""
-    model = workflow.final_diagnosis.model
-    at = next((i for i, step in enumerate(workflow.steps) if step.model is model), None)
-    return [] if at is None else workflow.steps[at + 1:]
-
-
-def final_diagnosis_heading(workflow) -> str:
-    """The report's heading for the final diagnosis: what it diagnosed."""
-    return ("What was left before the maps' calibration: final diagnosis"
-            if diagnosed_after_it(workflow) else "What is left: final diagnosis")
-
-
 def workflow_summary(workflow) -> str:
-    """The final diagnosis' :func:`summarise`, said of the model it diagnosed: where steps
-    followed it (the maps calibrated to the bench), its RMS is not the final one, and the
-    sentences say which is which."""
-    text = summarise(workflow.final_diagnosis)
-    after = diagnosed_after_it(workflow)
-    if not after:
-        return text
-    final = workflow.final
-    floor = workflow.noise_floor
-    added = ", ".join(name for step in after for name in step.added)
-    return (f"Before the last step{'s' if len(after) > 1 else ''} ({added}), the last diagnosis "
-            f"said: {text} Then the residual RMS fell to {from_si(final.rms, 'bar'):.3f} bar "
-            f"({final.rms / floor:.2f}× the noise floor of {from_si(floor, 'bar'):.3f} bar).")
+    """The final diagnosis' :func:`summarise`: what is left of the final model (the workflow's
+    last step, which its final diagnosis diagnosed), said of its RMS and noise floor."""
+    return summarise(workflow.final_diagnosis)
 
 
 def next_steps(workflow) -> list[str]:
@@ -440,14 +416,22 @@ def next_steps(workflow) -> list[str]:
     final, diagnosis = workflow.final, workflow.final_diagnosis
     steps = []
     if diagnosis.best is not None:
-        steps.append(f"The last diagnosis still finds {diagnosis.best.title} "
-                     f"({diagnosis.best.name}): the loop stopped at its limit of additions; run "
-                     "it again with a larger --max-additions, or fit it with fit --add.")
+        end = workflow.loop_end
+        why = ("it came to light once the maps were calibrated, after the loop's last addition"
+               if end is not None and end.best is None else
+               "the loop stopped before adding it")
+        steps.append(f"The final diagnosis still finds {diagnosis.best.title} "
+                     f"({diagnosis.best.name}): {why}; run the workflow again with a larger "
+                     "--max-additions, or fit it with fit --model final_model.toml --add "
+                     f"{diagnosis.best.name}.")
     if workflow.dropped:
         steps.append(f"{workflow.dropped}: the log does not confirm it on runs it was not "
                      "fitted to. Runs at other temperatures or pilot pressures would.")
     if diagnosis.declined is not None:
         steps.append(withheld_advice(diagnosis.declined))
+    elif workflow.loop_end is not None and workflow.loop_end.declined is not None:
+        steps.append("Before the maps' calibration the loop withheld a claim: "
+                     + withheld_advice(workflow.loop_end.declined))
     for number, step in enumerate(workflow.steps, start=1):
         best = None if step.diagnosis is None else step.diagnosis.best
         if step.diagnosis is not None and best is not None and len(best.group) > 1:

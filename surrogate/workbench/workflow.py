@@ -13,6 +13,9 @@ Steps
 6. ``calibrated maps``: what the maps' own error explains of the rest, fitted as map corrections
    per opening within the maps' uncertainty (:mod:`.calibration`), kept only if it predicts the
    held-out runs better.
+7. The final model diagnosed: when the calibration was kept, the final model is not the one the
+   loop's last diagnosis saw, so it is diagnosed again (the same call, nothing added); that is
+   the workflow's final diagnosis, of the model its report and model file hold.
 
 Every step refits all free parameters against every sample of the log
 (:func:`~surrogate.fitting.logfit.fit_to_log`);
@@ -127,7 +130,9 @@ class Step:
 
 @dataclass
 class Workflow:
-    """The staircase and the final diagnosis."""
+    """The staircase and the final diagnosis: the final model's (the last step's), whether the
+    loop's last diagnosis or one made after a step that followed the loop (the maps'
+    calibration)."""
 
     log: BenchLog
     steps: list[Step]
@@ -136,6 +141,13 @@ class Workflow:
     seconds: float = 0.0
     maps: str = ""  # the kind of the CFD steps' maps ("" when started from a given model)
     dropped: str = ""  # why a diagnosed step was refused after its full refit ("" if none)
+    #: the diagnosis that ended the loop, when a later step followed it (None otherwise)
+    loop_end: Diagnosis | None = None
+
+    def __post_init__(self):
+        if self.final_diagnosis.model is not self.final.model:
+            raise ValueError(f"the final diagnosis is of {self.final_diagnosis.model.name!r}, "
+                             f"not of the final model {self.final.model.name!r}")
 
     @property
     def final(self) -> Step:
@@ -146,7 +158,8 @@ class Workflow:
         """The physics claims its diagnoses withheld for look-alikes of other kinds, in order
         (:class:`~surrogate.diagnosis.result.Declined`; the final diagnosis' last)."""
         diagnoses = [step.diagnosis for step in self.steps if step.diagnosis is not None]
-        return [diagnosis.declined for diagnosis in [*diagnoses, self.final_diagnosis]
+        ends = [self.loop_end] if self.loop_end is not None else []
+        return [diagnosis.declined for diagnosis in [*diagnoses, *ends, self.final_diagnosis]
                 if diagnosis.declined is not None]
 
     def to_json(self) -> dict:
@@ -239,6 +252,20 @@ class _Staircase:
                      f"{moved.after:.4g} {moved.unit}) by {', '.join(moved.by)}")
         return step
 
+    def diagnose_last(self, library: EffectLibrary, candidates: list[str] | None,
+                      shapes: bool = True, refused: list[str] | None = None) -> Diagnosis:
+        """Diagnose the last step's model (:func:`~surrogate.diagnosis.diagnose.diagnose`, from
+        the step's replay and probe columns), without the candidates ``refused``."""
+        current, refused = self.last, refused or []
+        self.say(f"diagnosing {current.model.name} ..."
+                 + (f" (without {', '.join(refused)})" if refused else ""))
+        diagnosis = diagnose(current.model, self.log, library, base=current.played,
+                             candidates=candidates, exclude=refused, shapes=shapes,
+                             own_columns=list(current.columns) or None,
+                             progress=lambda message: self.say(f"  {message}"))
+        self.say(f"  {summarise(diagnosis)}")
+        return diagnosis
+
     def add_diagnosed(self, library: EffectLibrary, candidates: list[str] | None,
                       max_additions: int, shapes: bool = True) -> Diagnosis:
         """Diagnose the last step and add its best significant candidate, until none is left
@@ -250,14 +277,8 @@ class _Staircase:
         additions, refused, dropped, kinds = 0, [], [], set()
         while True:
             current = self.last
-            self.say(f"diagnosing {current.model.name} ..."
-                     + (f" (without {', '.join(refused)})" if refused else ""))
-            diagnosis = diagnose(current.model, self.log, library, base=current.played,
-                                 candidates=candidates, exclude=refused, shapes=shapes,
-                                 own_columns=list(current.columns) or None,
-                                 progress=lambda message: self.say(f"  {message}"))
+            diagnosis = self.diagnose_last(library, candidates, shapes, refused)
             summary = summarise(diagnosis)
-            self.say(f"  {summary}")
             best = diagnosis.best
             if best is None or additions == max_additions or (kinds and best.kind not in kinds):
                 return diagnosis
@@ -287,14 +308,14 @@ class _Staircase:
             additions += 1
             refused, kinds = [], set()
 
-    def calibrate(self) -> None:
+    def calibrate(self) -> bool:
         """Add the maps' calibration (:mod:`.calibration`) unless it predicts the held-out runs
-        no better than the step before."""
+        no better than the step before; return whether it was added."""
         current = self.last
         self.say(f"calibrating the maps of {current.model.name} to the bench ...")
         calibration = calibrate_maps(current.model, self.log, current.played)
         if calibration is None:
-            return
+            return False
         step = self.record(calibration.model.copy(name=f"{current.model.name}+calibrated maps"),
                            calibration.names, "map correction", calibration.describe(),
                            near=calibration.replay, calibration=calibration)
@@ -303,6 +324,8 @@ class _Staircase:
             self.say(f"  the calibration was not kept: it predicts the held-out runs worse "
                      f"({from_si(current.heldout_check, 'bar'):.3f} -> "
                      f"{from_si(step.heldout_check, 'bar'):.3f} bar)")
+            return False
+        return True
 
 
 def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
@@ -350,14 +373,17 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
             staircase.record(spec.build(library), added, category, reason)
     else:
         staircase.record(start, [], "", f"the starting model {start.name!r}")
-    diagnosis = staircase.add_diagnosed(library, candidates, max_additions, shapes)
-    if calibrate:
-        staircase.calibrate()
+    diagnosis = loop_end = staircase.add_diagnosed(library, candidates, max_additions, shapes)
+    if calibrate and staircase.calibrate():
+        # the final diagnosis is the final model's: what is left after the calibration too
+        diagnosis = staircase.diagnose_last(library, candidates, shapes)
+    else:
+        loop_end = None
     steps = staircase.steps
     floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs,
                         source=steps[-1].played.log.source)
     for step in steps:  # the fits are done: their tables go (the steps' replays asked the maps)
         release_tables(step.model)
     return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began,
-                    maps_spec.flow.kind if start is None else "", staircase.dropped)
+                    maps_spec.flow.kind if start is None else "", staircase.dropped, loop_end)
 
