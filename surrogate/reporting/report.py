@@ -195,20 +195,36 @@ def comparison_section(comparison: Comparison, heading: str,
     return "\n".join(parts)
 
 
-#: the diagnosis table's held-out columns, shown as one in the report (the CSV keeps three)
-_HELDOUT_COLUMNS = ("held out [bar]", "T left out [bar]", "p_P left out [bar]")
+#: the diagnosis table's columns shown as one in the report (the CSV keeps each): {shown
+#: heading: the columns, in bar}
+_JOINED_COLUMNS = {
+    "held out: runs / T / p_P [bar]": ("held out [bar]", "T left out [bar]",
+                                       "p_P left out [bar]"),
+    "median line / half-width [bar]": ("median line [bar]", "half-width [bar]"),
+}
 
 
-def _heldout_shown(table: pd.DataFrame) -> pd.DataFrame:
-    """The diagnosis table with its three held-out columns as one, "runs / T / p_P" in bar ("–"
-    where a candidate has none: a per-run one, or a condition the log does not vary), so that
-    the report's table fits a page."""
-    texts = ["\u202f/\u202f".join(  # narrow no-break spaces: one line per cell
-             "–" if not np.isfinite(v) else f"{v:.2f}" for v in row)
-             for row in table[list(_HELDOUT_COLUMNS)].itertuples(index=False)]
-    shown = table.drop(columns=list(_HELDOUT_COLUMNS))
-    shown.insert(table.columns.get_loc(_HELDOUT_COLUMNS[0]), "held out: runs / T / p_P [bar]",
-                 texts)
+def _joined(table: pd.DataFrame, columns: tuple[str, ...]) -> list[str]:
+    """Each row's ``columns`` as one text, "1.23 / 0.98" ("–" where a value is missing: a
+    per-run candidate's held-out RMS, or a condition the log does not vary)."""
+    return ["\u202f/\u202f".join(  # narrow no-break spaces: one line per cell
+            "–" if not np.isfinite(v) else f"{v:.2f}" for v in row)
+            for row in table[list(columns)].itertuples(index=False)]
+
+
+def _diagnosis_shown(table: pd.DataFrame) -> pd.DataFrame:
+    """The diagnosis table as the report shows it, narrow enough for a 1,000-pixel window:
+    each effect as its title with its name after it, and the held-out columns and the two
+    hysteresis views each as one column (:data:`_JOINED_COLUMNS`)."""
+    shown = table.copy()
+    shown["effect"] = [f"{title} ({name})" for title, name in zip(table["what"],
+                                                                    table["effect"])]
+    shown = shown.drop(columns="what")
+    for heading, columns in _JOINED_COLUMNS.items():
+        at = shown.columns.get_loc(columns[0])
+        texts = _joined(table, columns)
+        shown = shown.drop(columns=list(columns))
+        shown.insert(at, heading, texts)
     return shown
 
 
@@ -331,11 +347,9 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
         f'<p class="summary">{_prose(summarise(diagnosis))}</p>',
         f"<p>Each candidate effect was refitted together with the model's free parameters. "
         f"{rule}</p>",
-        table_html(_heldout_shown(diagnosis_table(diagnosis)),
-                   ("effect", "what", "category", "significant", "parameters", "same as"),
-                   {"rms after [bar]": ".3f", "median line [bar]": ".3f",
-                    "half-width [bar]": ".3f", "ΔBIC": ".1f",
-                    "chosen in [%]": ".0f"}),
+        table_html(_diagnosis_shown(diagnosis_table(diagnosis)),
+                   ("effect", "category", "significant", "parameters", "same as"),
+                   {"rms after [bar]": ".3f", "ΔBIC": ".1f", "chosen in [%]": ".0f"}),
         figure_html(figure_png(diagnosis_figure(diagnosis)), "diagnosis",
                     f"Diagnosis of {readable(diagnosis.model.name)}: each candidate's line runs "
                     "from the current RMS to the RMS after refitting with it."),

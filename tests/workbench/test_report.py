@@ -7,7 +7,11 @@ measured and model told apart by marker and colour, RMS charts zoomed to their r
 
 from __future__ import annotations
 
+import json
 import re
+import shutil
+import subprocess
+from html import unescape
 from html.parser import HTMLParser
 
 import numpy as np
@@ -15,8 +19,9 @@ import pytest
 
 from surrogate.reporting.figures import TITLE_LENGTH, all_figures
 from surrogate.reporting.report import (CELL_LENGTH, comparison_section, diagnosis_figure,
-                                        diagnosis_section, parameter_summary, readable,
-                                        staircase_figure, staircase_section, write_html)
+                                        diagnosis_section, next_steps_section,
+                                        parameter_summary, readable, staircase_figure,
+                                        staircase_section, write_html)
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 from surrogate.workbench.compare import compare
 from surrogate.workbench.workflow import run_workflow
@@ -39,7 +44,7 @@ def comparison(workflow):
 @pytest.fixture(scope="module")
 def page(workflow, comparison):
     return "\n".join([staircase_section(workflow), comparison_section(comparison, "Final"),
-                      diagnosis_section(workflow.final_diagnosis)])
+                      diagnosis_section(workflow.final_diagnosis), next_steps_section(workflow)])
 
 
 class _Cells(HTMLParser):
@@ -253,3 +258,55 @@ def test_a_binned_line_breaks_where_the_log_has_no_samples():
     assert np.isnan(medians[gap[0]])
     dense = np.linspace(0.0, 1.0, 300)
     assert not np.isnan(_binned_line(dense, dense)[0]).any()
+
+
+#: the browser the rendered page is measured in
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+#: run in the page once loaded: every folded section opened, then every element whose box
+#: reaches past the body's content box, and every box whose content is wider than the box
+#: itself (a table that scrolls inside its box), written into a <pre> for --dump-dom to carry
+_MEASURE = """<script>
+document.querySelectorAll("details").forEach(function (d) { d.open = true; });
+(function () {
+  var body = document.body.getBoundingClientRect();
+  var right = body.right - parseFloat(getComputedStyle(document.body).paddingRight);
+  var found = {viewport: document.documentElement.clientWidth,
+               page: document.documentElement.scrollWidth, over: []};
+  document.body.querySelectorAll("*").forEach(function (e) {
+    var box = e.getBoundingClientRect();
+    var what = e.tagName + " " + (e.textContent || "").slice(0, 50);
+    if (box.width > 0 && box.right > right + 0.5)
+      found.over.push(what + ": right edge at " + Math.round(box.right) + " of "
+                      + Math.round(right) + " px");
+    if (e.clientWidth > 0 && e.scrollWidth > e.clientWidth + 1)
+      found.over.push(what + ": " + e.scrollWidth + " px wide in " + e.clientWidth);
+  });
+  var out = document.createElement("pre");
+  out.id = "measured";
+  out.textContent = JSON.stringify(found);
+  document.body.appendChild(out);
+})();
+</script>"""
+
+
+def rendered_widths(path, width: int) -> dict:
+    """``path``'s page rendered by headless Chromium in a window ``width`` pixels wide:
+    ``viewport`` and ``page`` widths [px] and what reaches past its box (``over``)."""
+    measured = path.with_name(f"measured_{path.name}")
+    measured.write_text(path.read_text().replace("</body>", _MEASURE + "</body>"))
+    dom = subprocess.run([CHROMIUM, "--headless", "--disable-gpu", "--no-sandbox",
+                          f"--window-size={width},3000", "--dump-dom", measured.as_uri()],
+                         capture_output=True, text=True, timeout=60, check=True).stdout
+    found = re.search(r'<pre id="measured">(.*?)</pre>', dom, re.S)
+    assert found, dom[-2000:]
+    return json.loads(unescape(found.group(1)))
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no chromium: the rendered page cannot be measured")
+def test_nothing_overflows_a_1000_pixel_window(tmp_path, page):
+    """Rendered at 1,000 pixels, with every folded table opened, no element reaches past the
+    page's content box and no table is wider than its own box: nothing to scroll sideways."""
+    path = write_html(tmp_path / "report.html", "title", [page])
+    measured = rendered_widths(path, 1000)
+    assert measured["page"] <= measured["viewport"], measured
+    assert not measured["over"], measured["over"][:5]
