@@ -16,9 +16,10 @@ from ..progress import duration
 from ..reporting.prose import naming_words, shape_words, workflow_summary
 from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
                                 misfit_figures, misfit_section, next_steps_section,
-                                staircase_section,
-                                staircase_table, staircases_section, write_html)
+                                staircase_section, staircase_table, staircases_section,
+                                verdict_html, write_html)
 from ..reporting.staircase import staircase_figure
+from ..reporting.verdict import verdict
 from ..spec import ValveSource
 from ..units import from_si
 from ..workbench.compare import compare
@@ -113,6 +114,7 @@ def run(args) -> int:
     if args.json:
         print_json(document)
     else:
+        print(verdict(workflow).text())
         print(f"on {main} maps:")
         for number, step in enumerate(workflow.steps, start=1):
             print(f"{number:>2}. {', '.join(step.added) or step.model.name:<45} rms "
@@ -171,6 +173,7 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
                     diagnosis_section(workflow.final_diagnosis,
                                       "What is left: the final model's diagnosis"),
                     next_steps_section(workflow)],
+                   opening=verdict_html(workflow),
                    note=f"Data: {log.source} ({len(log)} samples, {len(log.run_ids)} runs). "
                         f"Maps: {main}. Run time "
                         f"{duration(sum(w.seconds for w in workflows.values()))}.")

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..effects.shapes import SHAPE_FREE, VARIABLES
 from .result import ShapeCurve
 
 #: a library shape fits a found one when it stays within this many of its standard deviations
@@ -36,6 +37,68 @@ LIBRARY_SHAPES: dict[str, tuple[tuple[str, tuple], ...]] = {
     "shape_flow_force_of_opening": (("flow_force_scale", (np.ones_like,)),),
     "shape_discharge_of_opening": (("discharge_scale", (np.ones_like,)),),
 }
+
+
+#: library terms no shape-free term generalises, by the variable they change with: a flow force
+#: fading near the seat changes with the opening; a pilot-differential friction is the
+#: pilot-pressure one where the back pressure is small (its validity)
+OTHER_VARIABLES = {"seat_flow_force": "u", "back_pressure_flow_force": "p_B",
+                   "friction_pilot_differential": "p_P"}
+#: what an effect of each kind (:data:`surrogate.effects.KINDS`) is, in words, and how it
+#: changes with its variable (frictions and leakages of free shape only rise)
+KIND_WORDS = {"friction": ("a friction", "growing with"),
+              "leakage": ("a leakage", "growing with"),
+              "force": ("a force on the piston", "changing with"),
+              "flow": ("a discharge coefficient", "changing with"),
+              "sensor": ("a sensor error", "changing with")}
+
+
+@dataclass(frozen=True)
+class Family:
+    """The physics an effect stands for, whatever its shape: its kind (where in the model it
+    acts) and the state variable it changes with. A library friction growing with viscosity and
+    a friction of free shape rising with it are one family; an effect that changes with no
+    variable (a constant friction, a sensor's gain) is a family of its own, named by its title.
+    """
+
+    kind: str
+    variable: str  # the variable's label ("the oil's viscosity ν"), "" for none
+    title: str = ""  # the effect's own title, for a family without a variable
+
+    @property
+    def words(self) -> str:
+        """The family in words: "a friction growing with the oil's viscosity ν"."""
+        if not self.variable:
+            return self.title
+        noun, how = KIND_WORDS.get(self.kind, (f"a {self.kind} term", "changing with"))
+        return f"{noun} {how} {self.variable}"
+
+
+def _shape_variables() -> dict[str, str]:
+    """{effect name: the name of the variable it changes with} for the shape-free terms, the
+    library terms each generalises (:data:`LIBRARY_SHAPES`) and :data:`OTHER_VARIABLES`."""
+    found = {}
+    for cls in SHAPE_FREE:
+        variable = cls.variable.name
+        found[cls.name] = variable
+        for names, _ in LIBRARY_SHAPES.get(cls.name, ()):
+            for name in names.split(" + "):
+                found.setdefault(name, variable)
+    return {**found, **OTHER_VARIABLES}
+
+
+_VARIABLE_OF = _shape_variables()
+_LABELS = {**{name: variable.label for name, variable in VARIABLES.items()},
+           **{cls.variable.name: cls.variable.label for cls in SHAPE_FREE}}
+
+
+def family(effect) -> Family:
+    """The :class:`Family` of an effect, an effect class or a diagnosis candidate (anything
+    with a ``name``, a ``kind`` and a ``title``)."""
+    variable = _VARIABLE_OF.get(effect.name)
+    if variable is None:
+        return Family(effect.kind, "", effect.title)
+    return Family(effect.kind, _LABELS[variable])
 
 
 @dataclass(frozen=True)

@@ -28,6 +28,7 @@ from .figures import DPI, all_figures, caption
 from .prose import next_steps, sensor_check_text, summarise, workflow_summary
 from ..planning.cfd_runs import operating_points_figure
 from .staircase import staircase_figure, staircases_figure, step_label
+from .verdict import verdict
 from .views import residual_views, run_loops
 
 _STYLE = """
@@ -43,6 +44,8 @@ figure { margin: 1em 0; } figcaption { color: #555; font-size: 0.9em; max-width:
 img { max-width: 100%; }
 details { margin: 0.3em 0; } summary { cursor: pointer; }
 .summary { background: #f5f8ff; border-left: 4px solid #4a7bd0; padding: 0.6em 1em; }
+.verdict { background: #fff8e8; border-left: 4px solid #c98a00; padding: 0.3em 1em; }
+.verdict p { margin: 0.4em 0; }
 .yes { color: #0a7a2a; font-weight: 600; } .no { color: #888; }
 nav.contents { background: #fafafa; border: 1px solid #ddd; padding: 0.5em 1em; display: inline-block; }
 nav.contents ol { margin: 0.3em 0; padding-left: 1.5em; }
@@ -580,15 +583,25 @@ def staircases_section(workflows: dict, main: str, scores: dict | None = None) -
     ])
 
 
-def write_html(path: str | Path, title: str, sections: list[str], note: str = "") -> Path:
-    """Write the report (to a temporary name first, then renamed into place), its sections'
-    headings linked from a list of contents at the top where there are several."""
+def verdict_html(workflow) -> str:
+    """The workflow's three-line verdict (:func:`.verdict.verdict`), to open its report."""
+    found = verdict(workflow)
+    lines = "".join(f"<p><b>{label}</b>: {_prose(text)}</p>" for label, text in
+                    (("Lacks", found.lacks), ("Where", found.where), ("Next", found.next)))
+    return f'<div class="verdict">{lines}</div>'
+
+
+def write_html(path: str | Path, title: str, sections: list[str], note: str = "",
+               opening: str = "") -> Path:
+    """Write the report (to a temporary name first, then renamed into place): ``opening``
+    (HTML) under its title, then ``note``, and its sections' headings linked from a list of
+    contents where there are several."""
     path = Path(path)
     body, contents = with_contents("\n".join(sections))
     document = (f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
                 f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head><body>"
-                f"<h1>{html.escape(title)}</h1><p>{html.escape(note)}</p>{contents}{body}"
-                "</body></html>")
+                f"<h1>{html.escape(title)}</h1>{opening}<p>{html.escape(note)}</p>{contents}"
+                f"{body}</body></html>")
     with atomic_file(path) as stream:
         stream.write(document)
     return path

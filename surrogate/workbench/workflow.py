@@ -47,7 +47,8 @@ from ..leastsquares import FitResult, free_parameters
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
-from ..reporting.prose import summarise, workflow_summary
+from ..reporting.prose import summarise
+from ..reporting.verdict import summary_text, verdict
 from ..solver.map_tables import release_tables
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
@@ -166,7 +167,7 @@ class Workflow:
         return {"data": self.log.source, "samples": len(self.log), "maps": self.maps,
                 "noise_floor_bar": round(float(from_si(self.noise_floor, "bar")), 4),
                 "final_rms_over_noise": round(self.final.rms / self.noise_floor, 3),
-                "summary": workflow_summary(self),
+                "verdict": verdict(self).to_json(), "summary": summary_text(self),
                 "dropped_step": self.dropped or None,
                 "steps": [step.to_json() for step in self.steps],
                 "seconds": round(self.seconds, 1)}

@@ -110,6 +110,9 @@ def test_workflow_json_contract(capsys, viscous_log, tmp_path):
                  "workflow.json"):
         assert (out / name).is_file()
     assert load_model(str(out / "final_model.toml")).has_effect("friction_viscous")
+    # the summary opens with the three-line verdict
+    assert set(result["verdict"]) == {"lacks", "where", "next"}
+    assert result["summary"].splitlines()[0] == f"Lacks: {result['verdict']['lacks']}"
 
 
 @pytest.mark.slow

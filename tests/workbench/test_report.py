@@ -21,7 +21,7 @@ from surrogate.reporting.figures import TITLE_LENGTH, all_figures
 from surrogate.reporting.report import (CELL_LENGTH, comparison_section, diagnosis_figure,
                                         diagnosis_section, next_steps_section,
                                         parameter_summary, readable, staircase_figure,
-                                        staircase_section, write_html)
+                                        staircase_section, verdict_html, write_html)
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 from surrogate.workbench.compare import compare
 from surrogate.workbench.workflow import run_workflow
@@ -246,6 +246,22 @@ def test_a_long_report_opens_with_contents_linking_every_section(tmp_path, page)
     assert text.index("<nav") < text.index("<h2")
 
 
+def test_the_report_opens_with_the_verdict_of_the_final_model(tmp_path, page, workflow):
+    """Under the title, before the contents, three lines: what the final model lacks, where,
+    and what to run next, of the final diagnosis' model with its RMS."""
+    from surrogate.reporting.verdict import verdict
+
+    path = write_html(tmp_path / "report.html", "title", [page, "<h2>Next</h2><p>x</p>"],
+                      opening=verdict_html(workflow))
+    text = path.read_text()
+    opening = text[text.index("</h1>"):text.index("<nav")]
+    assert [label in opening for label in ("<b>Lacks</b>", "<b>Where</b>", "<b>Next</b>")] \
+        == [True] * 3
+    found = verdict(workflow)
+    assert found.lacks.split(":")[0] in opening
+    assert f"{workflow.final.rms / 1e5:.2f} bar" in found.lacks  # the final model's RMS
+
+
 def test_a_binned_line_breaks_where_the_log_has_no_samples():
     """Openings between 0.25 and 0.63 mm are never reached: the residual's line must not join
     the bins across them (it drew a trend where there are no data)."""
@@ -303,10 +319,10 @@ def rendered_widths(path, width: int) -> dict:
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="no chromium: the rendered page cannot be measured")
-def test_nothing_overflows_a_1000_pixel_window(tmp_path, page):
+def test_nothing_overflows_a_1000_pixel_window(tmp_path, page, workflow):
     """Rendered at 1,000 pixels, with every folded table opened, no element reaches past the
     page's content box and no table is wider than its own box: nothing to scroll sideways."""
-    path = write_html(tmp_path / "report.html", "title", [page])
+    path = write_html(tmp_path / "report.html", "title", [page], opening=verdict_html(workflow))
     measured = rendered_widths(path, 1000)
     assert measured["page"] <= measured["viewport"], measured
     assert not measured["over"], measured["over"][:5]
