@@ -19,6 +19,7 @@ from ..reporting.report import (comparison_section, diagnosis_section, figure_pn
                                 staircase_section, staircase_table, staircases_section,
                                 verdict_html, write_html)
 from ..reporting.staircase import staircase_figure
+from ..reporting.kinds import compare_kinds, comparison_sentences
 from ..reporting.verdict import verdict
 from ..spec import ValveSource
 from ..units import from_si
@@ -127,6 +128,9 @@ def run(args) -> int:
         for kind in others:
             print(f"    {kind} maps: {from_si(workflows[kind].final.rms, 'bar'):.3f} bar after "
                   f"{len(workflows[kind].steps)} steps")
+        if others:
+            for sentence in comparison_sentences(compare_kinds(workflows, main)):
+                print(f"  - {sentence}")
         print(f"report: {out}/report.html")
     return 0
 
@@ -153,7 +157,9 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
                         kind: round(score, 4) if np.isfinite(score) else None
                         for kind, score in scores.items()},
                     "other_kinds": {kind: other.to_json() for kind, other in workflows.items()
-                                    if kind != main}}
+                                    if kind != main},
+                    "kinds_compared": (compare_kinds(workflows, main).to_json()
+                                       if len(workflows) > 1 else None)}
         document["effects_files"] = hand_over_shapes(workflow, staging)
         (staging / "workflow.json").write_text(json.dumps(document, indent=2) + "\n")
         staircase_table(workflow.steps).to_csv(staging / "staircase.csv", index=False)

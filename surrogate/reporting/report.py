@@ -28,6 +28,7 @@ from .figures import DPI, all_figures, caption
 from .prose import next_steps, sensor_check_text, summarise, workflow_summary
 from ..planning.cfd_runs import operating_points_figure
 from .staircase import staircase_figure, staircases_figure, step_label
+from .kinds import compare_kinds, comparison_sentences
 from .verdict import verdict
 from .views import residual_views, run_loops
 
@@ -568,12 +569,17 @@ def staircases_section(workflows: dict, main: str, scores: dict | None = None) -
         f"<p>The same loop run on grid, neural-network and Gaussian-process maps, on the kinds "
         f"beside the main one with the library's effects only (a term of free shape there "
         f"would mostly take up that kind's own map error). The rest of "
-        f"this report follows the <b>{html.escape(main)}</b> maps: {why}. Effects that only one "
-        f"kind's loop adds are more likely to make up for that kind's map error than to be "
-        f"physics.</p>",
+        f"this report follows the <b>{html.escape(main)}</b> maps: {why}. Each kind's maps err "
+        f"in their own way, and its loop adds what makes up for that error beside what the "
+        f"valve holds: below, the effects the loops added, grouped by the physics they stand "
+        f"for, and which to trust.</p>",
         table_html(pd.DataFrame(rows), ("maps", "added by diagnosis"),
                    {"flow-force CV error [%]": ".1f", "final rms [bar]": ".3f",
                     "× noise floor": ".2f"}),
+        "<h3>Where the kinds agree, where they differ, and what to trust</h3><ul>"
+        + "".join(f"<li>{html.escape(sentence)}</li>"
+                  for sentence in comparison_sentences(compare_kinds(workflows, main)))
+        + "</ul>",
         # the main kind's staircase is drawn above: only the others here, on its RMS axis
         figure_html(figure_png(staircases_figure(
             {kind: workflow for kind, workflow in workflows.items() if kind != main})),

@@ -130,6 +130,12 @@ def test_workflow_shows_every_kinds_staircase_and_defaults_to_the_most_accurate(
         assert [s["model"] for s in other["steps"][:4]] == ["bmbe", "bmbebf", "cfd-maps", "cfda"]
     report = (out / "report.html").read_text()
     assert "The staircase on every kind of map" in report
+    # which kind to trust where the kinds' physics differ: the best on held-out runs
+    compared = result["kinds_compared"]
+    heldout = compared["heldout_rms_bar"]
+    assert set(heldout) == {"grid", "nn", "gp"} and compared["trusted"] == min(heldout,
+                                                                              key=heldout.get)
+    assert "Where the kinds agree, where they differ, and what to trust" in report
 
 
 def test_workflow_writes_the_main_kinds_results_before_the_comparison_kinds(

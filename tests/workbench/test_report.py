@@ -322,7 +322,11 @@ def rendered_widths(path, width: int) -> dict:
 def test_nothing_overflows_a_1000_pixel_window(tmp_path, page, workflow):
     """Rendered at 1,000 pixels, with every folded table opened, no element reaches past the
     page's content box and no table is wider than its own box: nothing to scroll sideways."""
-    path = write_html(tmp_path / "report.html", "title", [page], opening=verdict_html(workflow))
+    from surrogate.reporting.report import staircases_section
+
+    kinds = staircases_section({"gp": workflow, "grid": workflow}, "gp")  # the kinds compared
+    path = write_html(tmp_path / "report.html", "title", [page, kinds],
+                      opening=verdict_html(workflow))
     measured = rendered_widths(path, 1000)
     assert measured["page"] <= measured["viewport"], measured
     assert not measured["over"], measured["over"][:5]
