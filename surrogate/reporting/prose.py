@@ -285,13 +285,14 @@ def absorbed_sentence(diagnosis: Diagnosis) -> str:
         effect_name, parameter_name = split_key(key)
         effect = diagnosis.model.effect(effect_name)
         title = re.sub(r"^(a|an|the) ", "", effect.title)
-        own = (f"the model's {title} ({parameter_name} = {parameter.display_value:.3g} "
-               f"{parameter.unit})")
-        said = " and ".join(f"{titles.get(name, name)} ({name})" for name in names)
-        words.append(f" On this log {said} would change the pressure drop almost as "
-                     f"{own} does ({100 * alike:.0f} % alike): that value may already carry "
-                     f"part of {'them' if len(names) > 1 else 'it'}, and the log cannot tell "
-                     "how much; runs that move what sets them apart would.")
+        said = " and ".join(titles.get(name, name) for name in names)
+        # in words first, the names and the value last
+        words.append(f" On this log {said} would change the pressure drop almost as the "
+                     f"model's {title} does ({100 * alike:.0f} % alike): its value may already "
+                     f"carry part of {'them' if len(names) > 1 else 'it'}, and the log cannot "
+                     "tell how much; runs that move what sets them apart would ("
+                     + ", ".join(names) + f" against {parameter_name} = "
+                     f"{parameter.display_value:.3g} {parameter.unit}).")
     return "".join(words)
 
 
