@@ -182,6 +182,27 @@ def test_legends_stay_readable_on_a_narrow_page(workflow, comparison):
     assert not small, small
 
 
+def _texts(figure) -> list[str]:
+    """Every piece of text a figure shows: titles, axis labels, legends, annotations."""
+    return [text.get_text() for text in figure.findobj(lambda artist: hasattr(artist, "get_text"))]
+
+
+def test_one_sign_convention_in_every_figure_table_and_sentence(workflow, comparison, page):
+    """The residual is model − measured everywhere it is named (figures, tables, prose), and
+    the residual figure plots exactly that: the model's Δp minus the measured one."""
+    named = re.compile(r"(model|measured)\s*[−-]\s*(model|measured)")
+    texts = [text for figure in _report_figures(workflow, comparison).values()
+             for text in _texts(figure)] + [unescape(re.sub(r"<[^>]+>", " ", page))]
+    orders = {match.groups() for text in texts for match in named.finditer(text)}
+    assert orders == {("model", "measured")}, orders
+    panels = all_figures(comparison)["residuals"]
+    assert "model − measured" in panels.axes[0].get_ylabel()
+    plotted = np.sort(panels.axes[0].collections[0].get_offsets()[:, 1])
+    played = comparison.played
+    expected = (played.replay.dp - played.measured)[played.ok] / 1e5
+    assert plotted.size and np.all(np.isin(np.round(plotted, 9), np.round(expected, 9)))
+
+
 def test_the_misfit_views_are_the_runs_median_lines_and_half_widths(workflow):
     """The dots of the residual views are each run's binned median line (top) and half-width
     (bottom) of the last model's residual, in bar, one per bin."""
