@@ -9,6 +9,7 @@ import numpy as np
 from ..effects.handover import hand_over
 from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MAP_KINDS
+from ..memory import release_freed
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
@@ -107,6 +108,9 @@ def run(args) -> int:
             if number < len(kinds):
                 progress(f"wrote the {main} maps' results to {out}; the comparison kinds follow "
                          f"({', '.join(kinds[1:])}), their staircases added to the report after")
+        # the kind's fits are done: glibc keeps what they freed unless asked (:mod:`..memory`),
+        # and the next kind would start its peak on top of it
+        release_freed()
         if number < len(kinds):
             progress(f"{number} of {len(kinds)} kinds done; "
                      f"{remaining_words(workflows, main, len(kinds) - number)}")

@@ -222,13 +222,14 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
             + f" on held-out runs against its {from_si(claim.heldout_rms, 'bar'):.3f} bar, and"
               " as close on each condition left out")
         results = [replace(c, significant=False) for c in results]
+    mimicked = absorbed(results, own_matrix, [c.key for c in own_columns])
+    checks = sensor_checks(results, judge.schemes)
+    results = [candidate.settled() for candidate in results]
     diagnosis = Diagnosis(model, base, problem.rms_before, floor, problem.n_eff, tuple(results),
                           residual_correlations(base),
                           judge.heldout.get(HEADLINE, float("nan")),
-                          judge.expected_rms(base), judge.map_limits(),
-                          sensor_checks(results, judge.schemes), median_before, half_before,
-                          heldout_by_scheme=judge.heldout,
-                          absorbed=absorbed(results, own_matrix, [c.key for c in own_columns]),
+                          judge.expected_rms(base), judge.map_limits(), checks, median_before,
+                          half_before, heldout_by_scheme=judge.heldout, absorbed=mimicked,
                           declined=withheld)
     return replace(diagnosis, separation=look_alike_separation(diagnosis, log))
 

@@ -5,7 +5,7 @@ Both are immutable; the words that explain them are :mod:`surrogate.reporting.pr
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -50,6 +50,13 @@ class Candidate:
     probe: np.ndarray | None = field(default=None, repr=False)
     #: a shape-free term's fitted shape against its variable, with its band (None otherwise)
     curve: "ShapeCurve | None" = field(default=None, repr=False)
+
+    def settled(self) -> "Candidate":
+        """The candidate as a finished diagnosis keeps it: the fitting's working arrays (its
+        linearisation, probe columns and prediction change, a few megabytes on a long log)
+        dropped. Its model, replay and curve stay: a workflow adds the best one from them and
+        the report draws its shape."""
+        return replace(self, linearised=None, probe=None, change=None)
 
     @property
     def shape_free(self) -> bool:

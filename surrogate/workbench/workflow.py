@@ -45,6 +45,7 @@ from ..fitting.logfit import Column, fit_to_log, probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
 from ..leastsquares import FitResult, free_parameters
 from ..maps.registry import MapsSpec
+from ..memory import release_freed
 from ..model import ValveModel
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..reporting.prose import summarise
@@ -229,6 +230,7 @@ class _Staircase:
                      "parameter(s))")
             fitted = fit_to_log(model, self.log, start=near, progress=self.say)
             model = fitted.model
+        release_freed()  # the fit's working arrays, before the step's replay and checks
         played = replay_log(model, self.log, guess=near)
         # probed once: for the step's held-out check and the next diagnosis' linearisation
         if fitted is not None:
