@@ -203,6 +203,18 @@ def test_one_sign_convention_in_every_figure_table_and_sentence(workflow, compar
     assert plotted.size and np.all(np.isin(np.round(plotted, 9), np.round(expected, 9)))
 
 
+def test_no_label_or_cell_is_cut_short(workflow, comparison, page):
+    """Labels, ticks, legends and table cells are wrapped or shortened in words, never cut
+    with an ellipsis."""
+    for name, figure in _report_figures(workflow, comparison).items():
+        figure.canvas.draw()  # tick labels get their text when the figure is drawn
+        cut = [text for text in _texts(figure) if "…" in text or text.rstrip().endswith("...")]
+        assert not cut, (name, cut)
+    parser = _Cells()
+    parser.feed(page)
+    assert not [cell for cell in parser.cells if "…" in cell or cell.endswith("...")]
+
+
 def test_the_misfit_views_are_the_runs_median_lines_and_half_widths(workflow):
     """The dots of the residual views are each run's binned median line (top) and half-width
     (bottom) of the last model's residual, in bar, one per bin."""
