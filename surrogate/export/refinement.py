@@ -5,8 +5,8 @@ else: a friction of free shape in the oil's viscosity may change over one kelvin
 temperature while the rest of the valve is smooth over ten. So the grid starts even
 (:class:`~.tables.TableGrid`) and is refined along each axis separately: the band's edges are
 solved at the middle of every cell along the axis, for a sample of the other axes' nodes, and a
-cell whose interpolated pressure drop misses the solver's by more than the tolerance there gets a
-node in its middle. The middle is where an interpolant between nodes strays most; the error falls
+cell whose interpolated pressure drop misses the solver's there by more than the tolerance, RMS
+over the sample, gets a node in its middle. The middle is where an interpolant between nodes strays most; the error falls
 about fourfold each time a smooth cell is halved, twofold at a kink. Rounds repeat until no cell
 misses, or the node budget is spent, which the result says.
 """
@@ -41,9 +41,8 @@ class Refinement:
     tables : ValveTables
         Tabulated on ``grid``.
     worst : dict of str to float
-        Per axis, the largest miss [Pa] of the interpolated edge Δp at a cell's middle found in
-        the last check (after the last insertion the check is not repeated when the budget
-        stopped it).
+        Per axis, the largest RMS miss [Pa] of the interpolated edge Δp at a cell's middle in
+        the last check (of the grid before the insertions the budget refused, if it stopped).
     rounds : int
         How many rounds inserted nodes.
     stopped_by : str
@@ -73,9 +72,7 @@ def refined_grid(model: ValveModel, grid: TableGrid, tolerance: float, progress=
     rng = np.random.default_rng(seed)
     tables = tabulate(model, grid, say)
     for round_ in range(1, ROUNDS + 1):
-        misses = {axis: _cell_misses(model, tables, grid, axis, rng) for axis in EDGE_AXES}
-        worst = {axis: float(np.max(miss, initial=0.0)) for axis, (_, miss) in misses.items()}
-        wanted = {axis: middles[miss > tolerance] for axis, (middles, miss) in misses.items()}
+        worst, wanted = _check(model, tables, grid, tolerance, rng)
         count = sum(len(nodes) for nodes in wanted.values())
         if not count:
             return Refinement(grid, tables, worst, round_ - 1)
@@ -94,10 +91,18 @@ def refined_grid(model: ValveModel, grid: TableGrid, tolerance: float, progress=
             f"{from_si(tolerance, 'bar'):.3g} bar RMS in the middle (at most "
             f"{from_si(max(worst.values()), 'bar'):.3g} bar); inserting nodes: {shown}")
         grid, tables = refined, tabulate(model, refined, say, previous=tables)
-    misses = {axis: _cell_misses(model, tables, grid, axis, rng) for axis in EDGE_AXES}
-    worst = {axis: float(np.max(miss, initial=0.0)) for axis, (_, miss) in misses.items()}
+    worst, wanted = _check(model, tables, grid, tolerance, rng)
     return Refinement(grid, tables, worst, ROUNDS,
-                      "" if max(worst.values()) <= tolerance else "rounds")
+                      "rounds" if any(len(nodes) for nodes in wanted.values()) else "")
+
+
+def _check(model: ValveModel, tables: ValveTables, grid: TableGrid, tolerance: float,
+           rng: np.random.Generator) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """Per axis: the largest RMS miss [Pa] at a cell's middle, and the middles [SI] of the
+    cells that miss by more than ``tolerance`` [Pa]."""
+    misses = {axis: _cell_misses(model, tables, grid, axis, rng) for axis in EDGE_AXES}
+    return ({axis: float(np.max(miss, initial=0.0)) for axis, (_, miss) in misses.items()},
+            {axis: middles[miss > tolerance] for axis, (middles, miss) in misses.items()})
 
 
 def _edge_count(grid: TableGrid) -> int:
@@ -106,9 +111,9 @@ def _edge_count(grid: TableGrid) -> int:
 
 def _cell_misses(model: ValveModel, tables: ValveTables, grid: TableGrid, axis: str,
                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """The middles [SI] of the cells along ``axis`` and, per cell, the largest miss [Pa] of
-    either edge's interpolated Δp against the solver's there, over a sample of the other axes'
-    nodes (cells where the solver found no equilibrium at any sample: 0)."""
+    """The middles [SI] of the cells along ``axis`` and, per cell, the RMS over a sample of the
+    other axes' nodes of the larger miss [Pa] of the two edges' interpolated Δp against the
+    solver's there (samples without an equilibrium left out; a cell without any: 0)."""
     nodes = grid.axis(axis)
     if len(nodes) < 2:
         return np.empty(0), np.empty(0)

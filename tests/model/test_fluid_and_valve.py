@@ -27,6 +27,14 @@ def test_oil_hits_its_datasheet_points_and_thins_with_temperature():
     assert np.all(np.diff(oil.density(temperatures)) < 0)
 
 
+def test_the_oils_temperature_at_a_viscosity_inverts_its_viscosity():
+    oil = load_valve().oil
+    temperature = np.linspace(250.0, 400.0, 31)
+    np.testing.assert_allclose(oil.temperature(oil.viscosity(temperature)), temperature,
+                               rtol=1e-12)
+    assert oil.temperature(oil.nu40) == pytest.approx(313.15)
+
+
 def test_shipped_valve_has_the_papers_parameters():
     valve = load_valve()
     assert valve.A_L == pytest.approx(10.7e-6)
