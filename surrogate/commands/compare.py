@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 
 from ..outputs import Output, atomic_directory
-from ..reporting.report import comparison_section, figure_pngs, write_html
 from ..workbench.compare import compare
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)
@@ -46,6 +45,9 @@ def run(args) -> int:
 
 def write_comparison(comparison, out) -> None:
     """All files of a comparison, all or none."""
+    # the report draws with matplotlib, half a second of a start: only when it is written
+    from ..reporting.report import comparison_section, figure_pngs, write_html
+
     with atomic_directory(out) as staging:
         (staging / "compare.json").write_text(json.dumps(comparison.to_json(), indent=2) + "\n")
         comparison.runs.to_csv(staging / "runs.csv", index=False)

@@ -12,8 +12,6 @@ from ..fitting.logfit import fit_to_log
 from ..outputs import Output, atomic_directory
 from ..effects.handover import hand_over
 from ..reporting.prose import diagnosis_document, naming_words, shape_words, summarise
-from ..reporting.report import (comparison_section, diagnosis_figure, diagnosis_section,
-                                diagnosis_table, figure_png, write_html)
 from ..units import from_si
 from ..workbench.compare import compare
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
@@ -70,6 +68,10 @@ def run(args) -> int:
     # by hand on a log that tells them apart)
     shape = diagnosis.best or (diagnosis.declined.claim if diagnosis.declined else None)
     if args.out:
+        # the report draws with matplotlib, half a second of a start: only when it is written
+        from ..reporting.report import (comparison_section, diagnosis_figure, diagnosis_section,
+                                        diagnosis_table, figure_png, write_html)
+
         with atomic_directory(args.out) as staging:
             if shape is not None and shape.shape_free:
                 document["effects_files"] = hand_over(

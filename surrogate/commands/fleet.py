@@ -19,7 +19,6 @@ from ..fleet.population import (
     spread_floors,
     summary,
 )
-from ..fleet.report import FleetSummary, write_fleet_report
 from ..fleet.results import (
     QUALITY_COLUMNS,
     VALVES_FOLDER,
@@ -266,6 +265,9 @@ def _write_population(args, records: list[dict], model, progress) -> dict:
         document["population"]["findings"] = {
             str(name): int(count) for name, count in table["finding"].value_counts().items()}
     files = list(FLEET_FILES)
+    # the report draws with matplotlib, half a second of a start: only when it is written
+    from ..fleet.report import FleetSummary, write_fleet_report
+
     with atomic_directory(args.out) as staging:
         table.to_csv(staging / "valves.csv", index=False)
         if write_parquet(table, staging / "valves.parquet"):

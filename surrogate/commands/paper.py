@@ -7,7 +7,6 @@ import json
 from ..data import load_bench_log
 from ..outputs import Output
 from ..paper.comparison import reproduce
-from ..paper.report import write_report
 from ..spec import ValveSource
 from .common import (add_command, bench_log_path, guard_outputs, maps_from_args, maps_help_text,
                      maps_option, progress_for)
@@ -39,6 +38,9 @@ def run(args) -> int:
     log = load_bench_log(bench_log_path(args, progress), progress)
     comparison = reproduce(valve, maps_from_args(args.maps, args.cfd), log, progress)
     if out:
+        # the figures draw with matplotlib, half a second of a start: only when written
+        from ..paper.report import write_report
+
         progress(f"writing tables and figures to {out}")
         written = write_report(comparison, out, args.maps)
         progress(f"wrote {len(written)} files")

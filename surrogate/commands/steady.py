@@ -11,7 +11,6 @@ from ..export.characteristic import steady_characteristic
 from ..export.valve_only import valve_physics
 from ..limits import FLOW, PRESSURE, PRESSURE_DIFFERENCE, TEMPERATURE
 from ..outputs import Output, atomic_directory
-from ..reporting.report import figure_png
 from ..units import from_si, to_si
 from .common import (add_command, effect_library, guard_outputs, maps_from_args, maps_help_text,
                      maps_option, model_option, print_json, progress_for, required)
@@ -80,6 +79,9 @@ def run(args) -> int:
                                   to_si(args.p_B_bar, "bar"), to_si(args.temperature_C, "degC"))
     check_result(curve, where)
     document = curve.to_json() | {"left_out": physics.left_out, "failures": curve.failures}
+    # matplotlib, half a second of a start, for this command's figure only
+    from ..reporting.report import figure_png
+
     with atomic_directory(args.out) as staging:
         curve.to_frame().to_csv(staging / "steady.csv", index=False, float_format="%.6g")
         (staging / "steady.json").write_text(json.dumps(document, indent=2, allow_nan=False)

@@ -10,7 +10,6 @@ from ..maps.crossval import most_accurate_kind
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, atomic_directory
 from ..planning.cfd_runs import suggest_cfd, suggestion_figure
-from ..reporting.report import figure_png
 from .common import (add_command, add_data_options, bench_log_path, effect_library, guard_outputs,
                      maps_from_args, model_option, positive_int, print_json, progress_for)
 
@@ -59,6 +58,9 @@ def run(args) -> int:
     progress(f"replaying {model.name} and ranking candidate CFD runs")
     suggestion = suggest_cfd(model, log, args.runs)
     if args.out:
+        # the figure draws with matplotlib, half a second of a start: only when it is written
+        from ..reporting.report import figure_png
+
         with atomic_directory(args.out) as staging:
             suggestion.runs.to_csv(staging / "suggestions.csv", index=False, float_format="%.4g")
             (staging / "suggestions.json").write_text(

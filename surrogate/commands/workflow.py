@@ -15,11 +15,6 @@ from ..outputs import Output, atomic_directory
 from ..presets import maps
 from ..progress import duration
 from ..reporting.prose import naming_words, shape_words, workflow_summary
-from ..reporting.report import (comparison_section, diagnosis_section, figure_png, figure_pngs,
-                                misfit_figures, misfit_section, next_steps_section,
-                                staircase_section, staircase_table, staircases_section,
-                                verdict_html, write_html)
-from ..reporting.staircase import staircase_figure
 from ..reporting.kinds import compare_kinds, comparison_sentences
 from ..reporting.verdict import verdict
 from ..spec import ValveSource
@@ -152,6 +147,14 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
     """Write the main kind's staircase, final model, comparison, figures and report (with the
     staircases of the kinds done so far beside it) into ``out``, all at once; return the
     JSON document."""
+    # the figures draw with matplotlib: imported when the results are written, not at every
+    # command's start (half a second)
+    from ..reporting.report import (comparison_section, diagnosis_section, figure_png,
+                                    figure_pngs, misfit_figures, misfit_section,
+                                    next_steps_section, staircase_section, staircase_table,
+                                    staircases_section, verdict_html, write_html)
+    from ..reporting.staircase import staircase_figure
+
     workflow = workflows[main]
     final = workflow.final
     comparison = compare(final.model, log, played=final.played)
