@@ -217,3 +217,16 @@ def test_the_main_jobs_eta_follows_the_kinds_already_run():
     assert remaining_words(done, "gp", 2) == "about 2 min 40 s left"
     done["grid"] = SimpleNamespace(seconds=50.0)
     assert remaining_words(done, "gp", 1) == "about 50 s left"
+
+
+def test_the_command_line_starts_without_matplotlib():
+    """The figures' library (half a second of a start) is imported only by a command that
+    draws: parsing and running diagnose, fit or export never need it."""
+    import subprocess
+    import sys
+
+    from surrogate.paths import PROJECT_ROOT
+
+    code = ("import sys, surrogate.cli; "
+            "assert 'matplotlib' not in sys.modules, 'matplotlib imported at start-up'")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=PROJECT_ROOT)
