@@ -129,9 +129,11 @@ def run(args) -> int:
         missed = _missed(refined, shown["rms"], summary["envelope_error_bar"]["rms"],
                          tolerance, log.source)
         if missed and strict:
-            raise InputError(f"--tolerance {tolerance:g} bar is not met: {missed}; start finer "
-                             "(--grid-scale 1.5), narrow the ranges (--q-lpm LOW HIGH, ...) or "
-                             "loosen --tolerance")
+            raise InputError(f"--tolerance {tolerance:g} bar is not met by a grid starting at "
+                             f"--grid-scale {args.grid_scale:g}, refined as far as allowed: "
+                             f"{missed}; start finer (--grid-scale "
+                             f"{min(8.0, 1.5 * args.grid_scale):g}), narrow the ranges "
+                             "(--q-lpm LOW HIGH, ...) or loosen --tolerance")
         if missed:
             progress(f"warning: the tolerance of {tolerance:g} bar is not met everywhere: "
                      f"{missed}")

@@ -923,7 +923,7 @@ CASES = [
     Case("export: a grid too coarse for the tolerance asked",
          ("export", "--model", "cfda", "--data", "log.csv", "--format", "fmu",
           "--grid-scale", "0.25", "--tolerance", "0.001", "--out", "out"),
-         ("--grid-scale 0.25", "too coarse", "--tolerance 0.001", "log.csv")),
+         ("--grid-scale 0.25", "not met", "--tolerance 0.001", "log.csv")),
     Case("export: onnx of a model on grid maps",
          ("export", "--model", "cfda", "--data", "log.csv", "--format", "onnx", "--out", "out"),
          ("cfda", "onnx", "nn", "gp")),
