@@ -269,8 +269,12 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
     axes.hlines(positions, after, before, color=colours, linewidth=2.0)
     axes.scatter(after, positions, color=colours, zorder=3)
     for x, y in zip(after, positions):
-        axes.annotate(f"{x:.3f}", (x, y), textcoords="offset points", xytext=(-4, 0),
-                      ha="right", va="center", fontsize=7)
+        # on the side away from the current RMS's line: a candidate that made it worse to the
+        # right, so that its value never sits across the line
+        worse = x > before
+        axes.annotate(f"{x:.3f}", (x, y), textcoords="offset points",
+                      xytext=(4 if worse else -4, 0), ha="left" if worse else "right",
+                      va="center", fontsize=7)
     axes.set_yticks(positions, table["effect"])
     axes.axvline(before, color="k", label=f"current model {before:.3f} bar")
     # zoomed to the candidates and the current RMS (not from 0), so that close candidates stay
@@ -280,7 +284,8 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
     if values.min() - floor <= 0.5 * span:
         values = np.append(values, floor)
         span = float(values.max() - values.min())
-    low, high = values.min() - 0.15 * span, values.max() + 0.05 * span
+    low = values.min() - 0.15 * span
+    high = values.max() + (0.15 if np.any(after > before) else 0.05) * span
     axes.set_xlim(low, high)
     if floor >= low:
         axes.axvline(floor, color="tab:red", linestyle="--", label=f"noise floor {floor:.3f} bar")
