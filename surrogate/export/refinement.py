@@ -6,9 +6,10 @@ temperature while the rest of the valve is smooth over ten. So the grid starts e
 (:class:`~.tables.TableGrid`) and is refined along each axis separately: the band's edges are
 solved at the middle of every cell along the axis, for a sample of the other axes' nodes, and a
 cell whose interpolated pressure drop misses the solver's there by more than the tolerance, RMS
-over the sample, gets a node in its middle. The middle is where an interpolant between nodes strays most; the error falls
-about fourfold each time a smooth cell is halved, twofold at a kink. Rounds repeat until no cell
-misses, or the node budget is spent, which the result says.
+over the sample, gets a node in its middle. The middle is where an interpolant between nodes
+strays most; the error falls about fourfold each time a smooth cell is halved, twofold at a
+kink. Rounds repeat until no cell misses, or the node budget or the rounds are spent, which the
+result says.
 """
 
 from __future__ import annotations
