@@ -87,8 +87,12 @@ def test_an_interrupted_file_write_leaves_the_old_file(tmp_path):
 
 
 def test_deferred_raises_nothing_when_no_signal_came():
-    with handling_interrupts(), deferred():
-        pass
+    reached = []
+    with handling_interrupts():
+        with deferred():
+            reached.append("the block")
+        reached.append("past it")  # an Interrupted raised on leaving would skip this
+    assert reached == ["the block", "past it"]
 
 
 def test_a_real_process_stopped_by_sigterm_exits_143_and_leaves_nothing(two_runs_here, tmp_path):
