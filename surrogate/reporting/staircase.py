@@ -11,6 +11,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from ..units import from_si
+from .prose import NOISE_LEVEL
 
 #: the colour of each category a step can add (look-alikes of two categories: "physics or
 #: sensor", say, take their own)
@@ -46,9 +47,9 @@ def colour(category: str) -> str:
 def plot_staircase(axes, steps, noise_floor: float, *, fontsize: float = 9,
                    width: int = 22, lines: int = 4) -> float:
     """The RMS after each step on ``axes`` as bars coloured by category, each labelled with its
-    value, the held-out RMS as a diamond on it, and the noise floor and 1.3 times it [Pa in,
-    bar shown]. A linear axis: the last steps' tenths of a bar are written on their bars, where
-    a log axis hid them among its ticks. Returns the floor [bar]."""
+    value, the held-out RMS as a diamond on it, and the noise floor and :data:`.prose.NOISE_LEVEL`
+    times it [Pa in, bar shown]. A linear axis: the last steps' tenths of a bar are written on
+    their bars, where a log axis hid them among its ticks. Returns the floor [bar]."""
     rms = np.array([from_si(step.rms, "bar") for step in steps])
     heldout = np.array([from_si(step.heldout_rms, "bar") for step in steps])
     positions = np.arange(len(steps))
@@ -62,7 +63,8 @@ def plot_staircase(axes, steps, noise_floor: float, *, fontsize: float = 9,
     floor = from_si(noise_floor, "bar")
     axes.axhline(floor, color="black", linestyle="--", linewidth=1,
                  label=f"noise floor {floor:.2f} bar")
-    axes.axhline(1.3 * floor, color="black", linestyle=":", linewidth=1, label="1.3 × floor")
+    axes.axhline(NOISE_LEVEL * floor, color="black", linestyle=":", linewidth=1,
+                 label=f"{NOISE_LEVEL:g} × floor")
     axes.set_xticks(positions, [f"{i + 1}. {step_label(step, width, lines)}"
                                 for i, step in enumerate(steps)],
                     rotation=45, ha="right", rotation_mode="anchor", fontsize=fontsize)
