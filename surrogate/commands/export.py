@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..export.envelope import probe_runs, valve_envelope
 from ..export.fmu import model_identifier, write_fmu
 from ..export.refinement import Refinement, refined_grid
-from ..export.tables import TableGrid, resolution_error, write_tables
+from ..export.tables import TableGrid, ValveTables, resolution_error, write_tables
 from ..export.tabulable import refuse_untabulable
 from ..export.valve_only import valve_physics
 from ..outputs import Output, atomic_directory
@@ -93,8 +93,6 @@ def run(args) -> int:
         progress(f"left out {name}: {why}")
     summary = {"model": model.name, "source": source, "formats": formats,
                "left_out": physics.left_out, "files": {}}
-    points = OperatingPoints.from_bench(log.frame)
-    runs = log.frame["run"].to_numpy()
     onnx_maps = None
     if "onnx" in formats:
         from ..export.onnx_maps import learned_maps_of
@@ -102,48 +100,8 @@ def run(args) -> int:
         onnx_maps = learned_maps_of(model, source)  # refused before any long work
     tables = grid = None
     if "fmu" in formats or "tables" in formats:
-        grid = _grid(args, points, physics.model)
-        refuse_untabulable(physics.model, grid, source)
-        refined = refined_grid(physics.model, grid, float(to_si(tolerance, "bar")), progress)
-        grid = refined.grid
-        tables = dataclasses.replace(refined.tables, left_out=physics.left_out)
-        summary["refinement"] = _refinement_summary(refined)
-        progress(f"{tables.node_count():,} table nodes; measuring their resolution error on "
-                 f"{log.source}")
-        error = resolution_error(tables, physics.model, points, runs)
-        shown = {key: round(float(from_si(value, "bar")), 4) if key != "points" else value
-                 for key, value in error.items()}
-        progress(f"resolution error: {shown['rms']:.3f} bar RMS, {shown['max']:.3f} bar at most "
-                 f"({shown['rms_linear']:.3f} and {shown['max_linear']:.3f} bar with linear "
-                 "interpolation)")
-        probe_points, probe_labels = probe_runs(grid)
-        across = resolution_error(tables, physics.model, probe_points, probe_labels)
-        summary["envelope_error_bar"] = {
-            "rms": round(float(from_si(across["rms"], "bar")), 4),
-            "max": round(float(from_si(across["max"], "bar")), 4), "samples": across["points"],
-            "against": "the solver's replay of smooth flow ramps at four corners of the "
-                       "ranges (surrogate.export.envelope.probe_runs)"}
-        progress(f"across the ranges (flow ramps at four of their corners): "
-                 f"{summary['envelope_error_bar']['rms']:.3f} bar RMS, "
-                 f"{summary['envelope_error_bar']['max']:.3f} bar at most")
-        missed = _missed(refined, shown["rms"], summary["envelope_error_bar"]["rms"],
-                         tolerance, log.source)
-        if missed and strict:
-            raise InputError(f"--tolerance {tolerance:g} bar is not met by a grid starting at "
-                             f"--grid-scale {args.grid_scale:g}, refined as far as allowed: "
-                             f"{missed}; start finer (--grid-scale "
-                             f"{min(8.0, 1.5 * args.grid_scale):g}), narrow the ranges "
-                             "(--q-lpm LOW HIGH, ...) or loosen --tolerance")
-        if missed:
-            progress(f"warning: the tolerance of {tolerance:g} bar is not met everywhere: "
-                     f"{missed}")
-            summary["tolerance_not_met"] = missed
-        summary["tolerance_bar"] = tolerance
-        summary["resolution_error_bar"] = {
-            "rms": shown["rms"], "max": shown["max"], "rms_linear": shown["rms_linear"],
-            "max_linear": shown["max_linear"], "samples": shown["points"],
-            "against": f"the solver's replay (classic play) of {log.source}"}
-        summary["table_nodes"] = tables.node_count()
+        tables, grid, found = _tabulated(args, physics, log, tolerance, strict, progress)
+        summary |= found
     extra = {"source": source,
              "resolution_error_bar": summary.get("resolution_error_bar"),
              "generated_by": "cbv-surrogate export"}
@@ -172,25 +130,78 @@ def run(args) -> int:
     if args.json:
         print_json(summary)
     else:
-        print(f"exported {model.name} ({', '.join(formats)}) to {args.out}")
-        if physics.left_out:
-            print(f"  left out: {', '.join(physics.left_out)}")
-        if "resolution_error_bar" in summary:
-            found = summary["resolution_error_bar"]
-            print(f"  resolution error on the log: {found['rms']:.3f} bar RMS, "
-                  f"{found['max']:.3f} bar at most")
-            across = summary["envelope_error_bar"]
-            print(f"  across the ranges (flow ramps at four corners): {across['rms']:.3f} bar "
-                  f"RMS, {across['max']:.3f} bar at most")
-            worst = summary["refinement"]["worst_cell_rms_bar"]
-            print(f"  between nodes over the ranges: at most {max(worst.values()):.3f} bar RMS "
-                  f"in a cell's middle (most along {max(worst, key=worst.get)})")
-        if "tolerance_not_met" in summary:
-            print(f"  tolerance {summary['tolerance_bar']:g} bar not met: "
-                  f"{summary['tolerance_not_met']}")
-        if "fmu" in summary and not summary["fmu"]["binary"]:
-            print(f"  FMU without binary: {summary['fmu']['compiler']}")
+        _print_summary(summary, model.name, formats, args.out)
     return 0
+
+
+def _tabulated(args, physics, log, tolerance: float, strict: bool, progress
+               ) -> tuple[ValveTables, TableGrid, dict]:
+    """The valve's tables on a grid refined to ``tolerance`` [bar], and what the summary says of
+    them: the refinement, the resolution error on the log and across the ranges. A tolerance
+    given (``strict``) and not met is refused."""
+    points = OperatingPoints.from_bench(log.frame)
+    grid = _grid(args, points, physics.model)
+    refuse_untabulable(physics.model, grid, args.model)
+    refined = refined_grid(physics.model, grid, float(to_si(tolerance, "bar")), progress)
+    grid = refined.grid
+    tables = dataclasses.replace(refined.tables, left_out=physics.left_out)
+    progress(f"{tables.node_count():,} table nodes; measuring their resolution error on "
+             f"{log.source}")
+    error = resolution_error(tables, physics.model, points, log.frame["run"].to_numpy())
+    shown = {key: round(float(from_si(value, "bar")), 4) if key != "points" else value
+             for key, value in error.items()}
+    progress(f"resolution error: {shown['rms']:.3f} bar RMS, {shown['max']:.3f} bar at most "
+             f"({shown['rms_linear']:.3f} and {shown['max_linear']:.3f} bar with linear "
+             "interpolation)")
+    across = resolution_error(tables, physics.model, *probe_runs(grid))
+    found = {"refinement": _refinement_summary(refined), "envelope_error_bar": {
+        "rms": round(float(from_si(across["rms"], "bar")), 4),
+        "max": round(float(from_si(across["max"], "bar")), 4), "samples": across["points"],
+        "against": "the solver's replay of smooth flow ramps at four corners of the ranges "
+                   "(surrogate.export.envelope.probe_runs)"}}
+    progress(f"across the ranges (flow ramps at four of their corners): "
+             f"{found['envelope_error_bar']['rms']:.3f} bar RMS, "
+             f"{found['envelope_error_bar']['max']:.3f} bar at most")
+    missed = _missed(refined, shown["rms"], found["envelope_error_bar"]["rms"], tolerance,
+                     log.source)
+    if missed and strict:
+        raise InputError(f"--tolerance {tolerance:g} bar is not met by a grid starting at "
+                         f"--grid-scale {args.grid_scale:g}, refined as far as allowed: "
+                         f"{missed}; start finer (--grid-scale "
+                         f"{min(8.0, 1.5 * args.grid_scale):g}), narrow the ranges "
+                         "(--q-lpm LOW HIGH, ...) or loosen --tolerance")
+    if missed:
+        progress(f"warning: the tolerance of {tolerance:g} bar is not met everywhere: {missed}")
+        found["tolerance_not_met"] = missed
+    found["tolerance_bar"] = tolerance
+    found["resolution_error_bar"] = {
+        "rms": shown["rms"], "max": shown["max"], "rms_linear": shown["rms_linear"],
+        "max_linear": shown["max_linear"], "samples": shown["points"],
+        "against": f"the solver's replay (classic play) of {log.source}"}
+    found["table_nodes"] = tables.node_count()
+    return tables, grid, found
+
+
+def _print_summary(summary: dict, name: str, formats: list[str], out) -> None:
+    """What the export wrote and how well its tables follow the solver, on stdout."""
+    print(f"exported {name} ({', '.join(formats)}) to {out}")
+    if summary["left_out"]:
+        print(f"  left out: {', '.join(summary['left_out'])}")
+    if "resolution_error_bar" in summary:
+        found = summary["resolution_error_bar"]
+        print(f"  resolution error on the log: {found['rms']:.3f} bar RMS, "
+              f"{found['max']:.3f} bar at most")
+        across = summary["envelope_error_bar"]
+        print(f"  across the ranges (flow ramps at four corners): {across['rms']:.3f} bar "
+              f"RMS, {across['max']:.3f} bar at most")
+        worst = summary["refinement"]["worst_cell_rms_bar"]
+        print(f"  between nodes over the ranges: at most {max(worst.values()):.3f} bar RMS "
+              f"in a cell's middle (most along {max(worst, key=worst.get)})")
+    if "tolerance_not_met" in summary:
+        print(f"  tolerance {summary['tolerance_bar']:g} bar not met: "
+              f"{summary['tolerance_not_met']}")
+    if "fmu" in summary and not summary["fmu"]["binary"]:
+        print(f"  FMU without binary: {summary['fmu']['compiler']}")
 
 
 def _refinement_summary(refined: Refinement) -> dict:
