@@ -108,6 +108,23 @@ def test_the_fmu_follows_the_solver_on_runs_outside_the_fitted_log(exported):
     assert np.all(simulate_log(fmu, points, runs, output="outside") == 0)
 
 
+def test_runs_outside_the_fitted_log_need_the_valves_envelope(tmp_path):
+    """The unseen runs are a real test of the envelope: an FMU over the log's own range (with a
+    margin), held at its edges, misses the solver there by bars and says it is outside."""
+    out = tmp_path / "log-range"
+    assert main(["export", "--model", "cfda", "--format", "fmu", "--ranges", "log",
+                 "--out", str(out), "--quiet"]) == 0
+    points, runs = unseen_runs()
+    reference = replay(valve_physics(load_model("cfda")).model, points, runs,
+                       diagnostics=False)
+    fmu = str(out / "cfda.fmu")
+    error = from_si(simulate_log(fmu, points, runs) - reference.dp, "bar")[reference.ok]
+    rms = float(np.sqrt(np.mean(error ** 2)))
+    print(f"an FMU over the log's range against the replay on unseen runs: {rms:.2f} bar RMS")
+    assert rms > 1.0
+    assert np.any(simulate_log(fmu, points, runs, output="outside") > 0)
+
+
 def test_the_fmu_holds_its_inputs_to_the_tables_and_says_so(exported):
     """Far outside the grid the FMU answers with the edge's values, never NaN, and flags the
     inputs held (1 q, 2 p_B, 4 p_P, 8 T) on its output and through the logger, once."""
