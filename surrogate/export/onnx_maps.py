@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..maps.cfd_error import CAVITATION_FORCE_ERROR, GAP_FLOW_ERROR
+from ..maps.cfd_error import CAVITATION_FORCE_ERROR, GAP_FLOW_ERROR, GAP_FORCE_ERROR
 from ..maps.gp import BRIDGE, MATERN, SQRT3, GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.network import HOLD_SHARPNESS, BridgedNet, NumpyNet, smoothing_matrix
@@ -429,15 +429,16 @@ def _cfd_error(g: Graph, learned_map, p_B: str, u: str) -> str:
     central = coverage.central_back_pressure + P_ATM
     cavitation = g.mul(g.abs(g.log(g.div(g.add(g.max(p_B, 0.0), P_ATM), central))),
                        CAVITATION_FORCE_ERROR)
-    return g.sqrt(g.add(g.square(bias), g.square(cavitation)))
+    return g.max(g.sqrt(g.add(g.square(bias), g.square(cavitation))),
+                 _gap_error(g, coverage.gaps(), u, GAP_FORCE_ERROR))
 
 
-def _gap_error(g: Graph, gaps, u: str) -> str:
+def _gap_error(g: Graph, gaps, u: str, size: float = GAP_FLOW_ERROR) -> str:
     """:func:`..maps.cfd_error.gap_error` at ``u``."""
     error = g.mul(u, 0.0)
     for low, high in gaps:
         error = g.add(error, g.mul(g.op("Sin", g.mul(_position(g, u, low, high), float(np.pi))),
-                                   GAP_FLOW_ERROR))
+                                   size))
     return error
 
 

@@ -30,8 +30,8 @@ import numpy as np
 from ..fluid import FluidState, broadcast_query
 from ..roots import invert_increasing
 from ..units import BAR, LPM
-from .cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, cavitation_error, gap_error,
-                        mesh_bias_share)
+from .cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, GAP_FORCE_ERROR, cavitation_error,
+                        gap_error, mesh_bias_share)
 
 
 @dataclass(frozen=True)
@@ -240,12 +240,16 @@ class ForceMap(ABC):
         """Relative σ of the flow force [1] that the CFD adds at back pressures ``p_B`` [Pa] and
         openings ``u`` [m] (flat): :attr:`cfd_error`, the meshes' biases as the map bridges them
         (:func:`.cfd_error.mesh_bias_share`), and away from the samples' central back pressure
-        what the cavitation model may miss (:func:`.cfd_error.cavitation_error`)."""
+        what the cavitation model may miss (:func:`.cfd_error.cavitation_error`); across an
+        unsampled gap never less than what no mesh says there (:data:`.cfd_error.GAP_FORCE_ERROR`,
+        a half sine in ln u)."""
         p_B, u = np.ravel(p_B), np.ravel(u)
         if self.coverage is None:
             return np.full(p_B.shape, self.cfd_error)
         bias = self.cfd_error * mesh_bias_share(self.coverage.openings, u)
-        return np.hypot(bias, cavitation_error(self.coverage.central_back_pressure, p_B))
+        return np.maximum(np.hypot(bias, cavitation_error(self.coverage.central_back_pressure,
+                                                          p_B)),
+                          gap_error(self.coverage.gaps(), u, GAP_FORCE_ERROR))
 
     def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of f_sim [N] against the valve (that of its flow force), or None if
