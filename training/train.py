@@ -1,7 +1,7 @@
 """Train every learned surrogate (NN and GP, flow and force maps) on CPU and save them.
 
     python training/train.py [--kinds nn gp grid] [--out surrogate/trained] [--cfd PATH]
-                             [--workers 2]
+                             [--workers 2] [--calibrate-only]
 
 Each kind is trained on **every** CFD sample: a user's CFD runs are too expensive to hold any
 back. How accurate the result is comes from cross-validation (``surrogate.maps.crossval``): the
@@ -10,6 +10,9 @@ and asked about what it did not see. Those errors calibrate the maps' standard d
 into each folder: the summary per scheme in ``surrogate.json`` (with the SHA-256 of the sample
 file, so a test can tell when the committed surrogates no longer match the shipped samples), the
 errors per left-out sample in ``cross_validation.csv``.
+
+``--calibrate-only`` fits the learned kinds' calibrations again from the errors their folders
+keep, without training (seconds): for a change in how σ is fitted.
 
 The grid maps are not trained, but their calibration (from their own cross-validation) is
 stored for the shipped samples too (``--kinds grid``, a few seconds).
@@ -30,7 +33,7 @@ from pathlib import Path
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.learn.reproducibility import environment
-from surrogate.learn.training import KINDS, learned_maps_on, train_surrogate
+from surrogate.learn.training import KINDS, learned_maps_on, recalibrate, train_surrogate
 from surrogate.maps.crossval import calibrate, cross_validate, summary
 from surrogate.maps.grid import GridUncertainty
 from surrogate.maps.grid_calibration import SHIPPED_GRID_CALIBRATION, write_calibrations
@@ -53,6 +56,9 @@ def main() -> int:
     parser.add_argument("--valve", help="valve file (default: the shipped valve)")
     parser.add_argument("--workers", type=int, default=2,
                         help="processes for the cross-validation (default 2)")
+    parser.add_argument("--calibrate-only", action="store_true",
+                        help="refit the learned kinds' calibrations from the cross-validated "
+                        "errors their folders keep (cross_validation.csv); no training")
     args = parser.parse_args()
     try:  # before any training: no kind's folder may replace or hold what training reads
         check_outputs([Output("--out", args.out / kind, "folder") for kind in args.kinds],
@@ -79,8 +85,13 @@ def main() -> int:
         # what decides the rounding: a retraining matches bit for bit only where this does
         "environment": environment(),
     }
-    progress(f"{len(samples)} CFD samples from {args.cfd}; training on all of them")
+    if not args.calibrate_only:
+        progress(f"{len(samples)} CFD samples from {args.cfd}; training on all of them")
     for kind in args.kinds:
+        if args.calibrate_only and kind != "grid":
+            flow, force = recalibrate(args.out / kind, samples)
+            progress(f"{kind.upper()}: calibration refitted in {args.out / kind}")
+            continue
         if kind == "grid":
             path = args.out / "grid" / SHIPPED_GRID_CALIBRATION.name
             calibrations = GridUncertainty(samples, valve).fitted_calibrations()
@@ -94,9 +105,9 @@ def main() -> int:
         started = time.perf_counter()
         errors = cross_validate(samples, valve, partial(learned_maps_on, kind, samples, valve),
                                 progress=progress, workers=args.workers)
-        flow, force = calibrate(errors, use_spread=True)
+        flow, force = calibrate(errors, use_spread=True, samples=samples)
         trained.calibrate(flow, force)
-        metrics = {"cross_validation": summary(errors, flow, force),
+        metrics = {"cross_validation": summary(errors, flow, force, samples=samples),
                    "cross_validation_seconds": round(time.perf_counter() - started, 1)}
         folder = args.out / kind
         trained.save(folder, training, metrics, errors)

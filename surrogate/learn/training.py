@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -161,6 +162,31 @@ class TrainedSurrogate:
             if cross_validation is not None:
                 cross_validation.to_csv(staging / CROSS_VALIDATION_FILE, index=False,
                                         float_format="%.6g")
+
+
+def recalibrate(folder: str | Path, samples: CfdSamples) -> tuple[Calibration, Calibration]:
+    """Fit a trained folder's calibrations again from the cross-validated errors it keeps
+    (``cross_validation.csv``, made on ``samples``) and write them, with the summary per scheme,
+    into its ``surrogate.json``; the weights stay as they are. For a change in how σ is fitted
+    (:func:`surrogate.maps.crossval.calibrate`), which needs no retraining. Returns (flow,
+    force)."""
+    import pandas as pd
+
+    from ..maps.crossval import calibrate, summary
+    from ..maps.package import MANIFEST, read_manifest
+
+    folder = Path(folder)
+    read_manifest(folder, learned_kinds())  # checked; rewritten below as it was, but for σ
+    manifest = json.loads((folder / MANIFEST).read_text())
+    errors = pd.read_csv(folder / CROSS_VALIDATION_FILE)
+    flow, force = calibrate(errors, use_spread=True, samples=samples)
+    manifest.pop("format_version")
+    manifest["flow"]["calibration"] = flow.to_dict()
+    manifest["force"]["calibration"] = force.to_dict()
+    manifest["metrics"]["cross_validation"] = summary(errors, flow, force, samples=samples)
+    with atomic_directory(folder) as staging:  # the manifest replaced whole or not at all
+        write_manifest(staging, manifest)
+    return flow, force
 
 
 def train_surrogate(kind: str, samples: CfdSamples, valve: ValveParameters,

@@ -30,6 +30,7 @@ from ..fluid import FluidState
 from ..valve import ValveParameters
 from . import splits
 from .calibration import Calibration, coverage_of
+from .cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR, mesh_bias_share
 from .registry import MAP_KINDS, cross_validation_summary, map_kind
 
 SCHEMES = ("k-fold by sweep", "leave one opening out", "leave one temperature out",
@@ -155,15 +156,38 @@ def _run_fold(job) -> pd.DataFrame:
     return result.assign(scheme=fold.scheme, fold=fold.label)
 
 
-def calibrate(errors: pd.DataFrame, *, use_spread: bool) -> tuple[Calibration, Calibration]:
+def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None
+              ) -> tuple[Calibration, Calibration]:
     """The flow and force calibrations that make the cross-validated errors most likely, each
     scheme weighted alike, with ±2σ holding 90-98 % of every scheme's errors
-    (:meth:`~surrogate.maps.calibration.Calibration.fit`)."""
+    (:meth:`~surrogate.maps.calibration.Calibration.fit`). Given the CFD ``samples`` the errors
+    were made on, the meshes' biases they carry are known variance, not the map's
+    (:func:`meshes_in_errors`)."""
     weights = 1.0 / errors.groupby("scheme")["case"].transform("size").to_numpy()
+    known = (None, None) if samples is None else meshes_in_errors(errors, samples)
     return tuple(Calibration.fit(errors[error], errors[f"{name}_spread"],
                                  _distances(errors, name), weights=weights,
-                                 use_spread=use_spread, groups=errors["scheme"].to_numpy())
-                 for name, error in (("flow", "discharge_error"), ("force", "force_error")))
+                                 use_spread=use_spread, groups=errors["scheme"].to_numpy(),
+                                 known=variance)
+                 for (name, error), variance in zip((("flow", "discharge_error"),
+                                                     ("force", "force_error")), known))
+
+
+def meshes_in_errors(errors: pd.DataFrame, samples: CfdSamples) -> tuple[np.ndarray, np.ndarray]:
+    """The variance [ln units²] the CFD meshes' own biases put into each cross-validated error
+    (flow, force): at an opening left out, its mesh's bias and the bridged neighbours'
+    (σ_CFD²·(1 + share²), :func:`.cfd_error.mesh_bias_share` of the openings left in); 0 where
+    the training kept the sample's mesh (a sweep, a temperature or the back-pressure set out)."""
+    frame = samples.frame.set_index("case")
+    u = frame.loc[errors["case"], "u"].to_numpy()
+    openings = np.unique(frame["u"].round(12))
+    left_out = (errors["scheme"] == SCHEMES[1]).to_numpy()
+    share = np.ones(len(errors))
+    for index in np.flatnonzero(left_out):
+        kept = openings[~np.isclose(openings, u[index], rtol=0, atol=1e-12)]
+        share[index] = mesh_bias_share(kept, np.array([u[index]]))[0]
+    carried = np.where(left_out, 1.0 + share ** 2, 0.0)
+    return FLOW_CFD_ERROR ** 2 * carried, FORCE_CFD_ERROR ** 2 * carried
 
 
 def standard_deviations(errors: pd.DataFrame, flow: Calibration, force: Calibration):
@@ -172,11 +196,17 @@ def standard_deviations(errors: pd.DataFrame, flow: Calibration, force: Calibrat
                  for name, calibration in (("flow", flow), ("force", force)))
 
 
-def summary(errors: pd.DataFrame, flow: Calibration, force: Calibration) -> dict:
+def summary(errors: pd.DataFrame, flow: Calibration, force: Calibration, *,
+            samples: CfdSamples | None = None) -> dict:
     """Per scheme: relative RMS error of q and of the flow force, and the share of left-out
     samples inside the calibrated ±2σ bands (of ln C_d, i.e. of q at its Δp, and of the flow
-    force)."""
+    force); given the ``samples``, σ with the meshes' biases the errors carry
+    (:func:`meshes_in_errors`), as the calibration was fitted."""
     flow_std, force_std = standard_deviations(errors, flow, force)
+    if samples is not None:
+        flow_known, force_known = meshes_in_errors(errors, samples)
+        flow_std, force_std = np.sqrt(flow_std ** 2 + flow_known), np.sqrt(force_std ** 2
+                                                                            + force_known)
     result = {}
     for scheme in SCHEMES:
         at = (errors["scheme"] == scheme).to_numpy()

@@ -1,6 +1,7 @@
 """The calibration of the maps' σ: likelihood, and the ±2σ band held within 90-98 % per group."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from surrogate.maps.calibration import COVERAGE_BAND, Calibration, coverage_of
@@ -58,6 +59,36 @@ def test_a_fit_already_inside_the_band_is_the_likelihood_fit(seed):
         pytest.skip("this draw's likelihood fit is outside the band")
     grouped = Calibration.fit(errors, None, {}, use_spread=False, groups=groups)
     assert grouped == plain
+
+
+def test_variance_known_to_be_in_the_errors_is_not_learned_again():
+    """Errors whose variance is 1 % of the map's own plus a known 2 %: the fit finds the map's
+    1 %, where one that does not know of the 2 % takes all of it (√5 % ≈ 2.2 %) as its own."""
+    rng = np.random.default_rng(5)
+    own, known = 0.01, np.full(4000, 0.02 ** 2)
+    errors = rng.normal(0.0, np.sqrt(own ** 2 + known))
+    told = Calibration.fit(errors, None, {}, use_spread=False, known=known)
+    untold = Calibration.fit(errors, None, {}, use_spread=False)
+    assert told.floor == pytest.approx(own, rel=0.15)
+    assert untold.floor == pytest.approx(np.sqrt(own ** 2 + 0.02 ** 2), rel=0.05)
+
+
+def test_the_meshes_biases_are_in_a_left_out_openings_errors_only(cfd_samples):
+    """σ_CFD²·(1 + share²) at a left-out opening (its own mesh's bias and its neighbours' as the
+    map bridges them: 1 + ½ halfway in ln u), nothing where the training kept the mesh."""
+    from surrogate.maps.cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR
+    from surrogate.maps.crossval import SCHEMES, meshes_in_errors
+
+    frame = cfd_samples.frame
+    openings = np.unique(frame["u"].round(12))
+    middle = frame.loc[np.isclose(frame["u"], openings[2]), "case"].iloc[0]
+    errors = pd.DataFrame({"case": [middle, middle], "scheme": [SCHEMES[1], SCHEMES[0]]})
+    flow, force = meshes_in_errors(errors, cfd_samples)
+    low, high = np.log(openings[1]), np.log(openings[3])
+    t = (np.log(openings[2]) - low) / (high - low)
+    share_squared = (1 - t) ** 2 + t ** 2
+    assert flow == pytest.approx([FLOW_CFD_ERROR ** 2 * (1 + share_squared), 0.0])
+    assert force == pytest.approx([FORCE_CFD_ERROR ** 2 * (1 + share_squared), 0.0])
 
 
 def test_sixteen_errors_in_a_group_leave_one_outside():

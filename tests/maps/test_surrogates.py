@@ -5,6 +5,7 @@ import json
 import pickle
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 from hypothesis import given, settings
@@ -18,8 +19,9 @@ from surrogate.learn.monotone_nn import SignConstrainedNet, state_arrays, train
 from surrogate.learn.monotonicity import random_states, violations
 from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_one_ulp,
                                              prediction_difference)
-from surrogate.maps.calibration import Calibration
-from surrogate.maps.crossval import SCHEMES, cross_validate, folds, summary
+from surrogate.learn.training import CROSS_VALIDATION_FILE
+from surrogate.maps.calibration import Calibration, coverage_of
+from surrogate.maps.crossval import SCHEMES, cross_validate, folds, meshes_in_errors, summary
 from surrogate.maps.domain import FeatureDomain
 from surrogate.maps.gp import BRIDGE, MATERN, NumpyGP
 from surrogate.maps.learned import load_learned_maps, trained_folder
@@ -70,12 +72,26 @@ def test_learned_flow_force_is_right_between_openings_and_at_other_back_pressure
 
 
 @pytest.mark.parametrize("kind", ("grid", *LEARNED))
-def test_two_sigma_bands_hold_90_to_98_percent_in_every_scheme(kind, accuracy):
+def test_two_sigma_bands_hold_90_to_98_percent_in_every_scheme(kind, accuracy, cfd_samples):
     """Calibrated bands: ±2σ holds 90-98 % of the cross-validated samples of every scheme (the
-    calibration's constraint, surrogate/maps/calibration.py; of the back-pressure set's 16, 15)."""
+    calibration's constraint, surrogate/maps/calibration.py; of the back-pressure set's 16, 15).
+    Above 98 % only where the CFD meshes' biases that the errors carry hold more by themselves
+    (a left-out opening's, :func:`surrogate.maps.crossval.meshes_in_errors`): there no σ of the
+    map's own can do less."""
+    known_alone = {}
+    if kind in LEARNED:
+        errors = pd.read_csv(trained_folder(kind) / CROSS_VALIDATION_FILE)
+        flow_known, force_known = meshes_in_errors(errors, cfd_samples)
+        for scheme, part in errors.groupby("scheme"):
+            at = (errors["scheme"] == scheme).to_numpy()
+            known_alone[scheme] = {
+                "q_coverage_2sigma": coverage_of(part["discharge_error"], np.sqrt(flow_known[at])),
+                "flow_force_coverage_2sigma": coverage_of(part["force_error"],
+                                                          np.sqrt(force_known[at]))}
     for scheme, row in accuracy[kind].items():
         for name in ("q_coverage_2sigma", "flow_force_coverage_2sigma"):
-            assert 0.90 <= row[name] <= 0.98, (kind, scheme, name, row[name])
+            top = max(0.98, known_alone.get(scheme, {}).get(name, 0.0))
+            assert 0.90 <= row[name] <= top, (kind, scheme, name, row[name])
 
 
 @pytest.mark.slow
