@@ -180,12 +180,11 @@ def recalibrate(folder: str | Path, samples: CfdSamples) -> tuple[Calibration, C
     manifest = json.loads((folder / MANIFEST).read_text())
     errors = pd.read_csv(folder / CROSS_VALIDATION_FILE)
     flow, force = calibrate(errors, use_spread=True, samples=samples)
-    manifest.pop("format_version")
     manifest["flow"]["calibration"] = flow.to_dict()
     manifest["force"]["calibration"] = force.to_dict()
     manifest["metrics"]["cross_validation"] = summary(errors, flow, force, samples=samples)
-    with atomic_directory(folder) as staging:  # the manifest replaced whole or not at all
-        write_manifest(staging, manifest)
+    with atomic_directory(folder) as staging:  # replaced whole or not at all, in its own format
+        (staging / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return flow, force
 
 

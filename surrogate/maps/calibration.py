@@ -125,9 +125,10 @@ class Calibration:
 
         def unpack(theta) -> "Calibration":
             scale, floor, *slopes = np.exp(theta[:-1])
+            with np.errstate(over="ignore"):  # exp(−θ) → ∞ is the power's lower end
+                power = low + (high - low) / (1.0 + np.exp(-theta[-1]))
             return cls(float(scale) if spread is not None else 0.0, float(floor),
-                       {name: float(s) for name, s in zip(names, slopes)},
-                       float(low + (high - low) / (1.0 + np.exp(-theta[-1]))))
+                       {name: float(s) for name, s in zip(names, slopes)}, float(power))
 
         def negative_log_likelihood(theta):
             variance = unpack(theta).std(spread, distances) ** 2 + known

@@ -448,9 +448,9 @@ class GridUncertainty:
         """The calibrations fitted to this grid's cross-validated errors, never the shipped
         ones."""
         # without the meshes' biases as known variance (crossval.meshes_in_errors), unlike the
-        # learned kinds: the grid's errors at a left-out opening (5 % RMS in the flow force) hold
-        # little of them (1.1 %), and taking them out moved the fit to constants whose ±2σ held
-        # 99 % of the virtual valves' flow force at the sampled openings (eval/valve_coverage.py)
+        # learned kinds: taken out, they left the grid's flow σ across the unsampled gap at 2.9 %,
+        # whose ±2σ held 51 % of the virtual valves' q there (89 % as is), for a gain between
+        # openings only (the flow force's band 99 -> 98 %; eval/valve_coverage.py)
         flow, force = calibrate(self.errors, use_spread=False)
         return {"flow": flow, "force": force}
 
