@@ -10,6 +10,12 @@ While a pool runs, the BLAS that NumPy calls keeps to one thread. The replays al
 cores; OpenBLAS's own threads on top of them (it starts one per core for each matrix product of a
 GP map's kernel) only contend with them: a diagnose on GP maps took 1.79 times as long with them
 (``python eval/workbench.py`` measures the diagnosis both ways).
+
+``diagnose`` keeps the BLAS to one thread throughout (:func:`blas_limited`), pool or not: its
+matrices are small (products and QR factors of 11,000 × 20 Jacobians), and between them
+OpenBLAS's idle threads spin. On 2 cores that other work shared, ``diagnose --model cfda`` on
+the shipped log took 13.3, 18.5 and 23.2 CPU s with two BLAS threads and 11.1, 11.4 and 12.5 s
+with one (``OPENBLAS_NUM_THREADS``, runs alternating), its wall time alike.
 """
 
 from __future__ import annotations
@@ -60,7 +66,7 @@ def map_threads(function: Callable[[Item], Result], items: Iterable[Item], *,
     if workers <= 1 or len(items) <= 1:
         yield from map(function, items)
         return
-    with _blas_limited():
+    with blas_limited():
         pool = ThreadPoolExecutor(max_workers=min(workers, len(items)))
         try:
             yield from pool.map(function, items)
@@ -76,10 +82,10 @@ _blas_limit = None
 
 
 @contextmanager
-def _blas_limited():
-    """BLAS kept to :data:`BLAS_THREADS_IN_POOL` threads from the first pool that starts to the
-    last that ends (pools nest: a refit on a worker thread differentiates on a pool of its own),
-    then restored to what it was."""
+def blas_limited():
+    """BLAS kept to :data:`BLAS_THREADS_IN_POOL` threads from the first pool (or command, module
+    docstring) that starts to the last that ends (pools nest: a refit on a worker thread
+    differentiates on a pool of its own), then restored to what it was."""
     global _pools_running, _blas_limit
     with _limit_lock:
         if _pools_running == 0 and BLAS_THREADS_IN_POOL is not None:
