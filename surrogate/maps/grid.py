@@ -104,18 +104,26 @@ class _SweepGrid:
         for k, level in enumerate(self.levels):
             self._log_u[k, : len(level.log_u)] = level.log_u
             self._curve[k, : len(level.log_u)] = level.curve
+        # the openings of every fluid level when they are the same (the shipped grid's are): one
+        # binary search then brackets a query's opening at both its levels
+        shared = all(np.array_equal(level.log_u, self.levels[0].log_u) for level in self.levels)
+        self._shared_log_u = self.levels[0].log_u if shared else None
 
     def _interpolate(self, x, log_u, log_nu, flags: bool = True
                      ) -> tuple[np.ndarray, np.ndarray | None]:
         """Value at (x, ln u, ln ν) and (if ``flags``) whether it lies inside the sampled sweeps."""
-        levels = len(self.levels)
-        k0, k1, t, nu_excess = _bracket(np.broadcast_to(self.log_nu, (len(x), levels)),
-                                        np.full(len(x), levels), log_nu)
+        k0, k1, t, nu_excess = _bracket_shared(self.log_nu, log_nu)
         inside = np.abs(nu_excess) <= 1e-6
-        j00, j01, s0, excess0 = _bracket(self._log_u[k0], self._count[k0], log_u)
-        j10, j11, s1, excess1 = _bracket(self._log_u[k1], self._count[k1], log_u)
-        curve = np.concatenate([self._curve[k0, j00], self._curve[k0, j01],
-                                self._curve[k1, j10], self._curve[k1, j11]])
+        if self._shared_log_u is not None:
+            j00, j01, s0, excess0 = j10, j11, s1, excess1 = _bracket_shared(self._shared_log_u,
+                                                                            log_u)
+        else:
+            j00, j01, s0, excess0 = _bracket(self._log_u[k0], self._count[k0], log_u)
+            j10, j11, s1, excess1 = _bracket(self._log_u[k1], self._count[k1], log_u)
+        widest = self._curve.shape[1]
+        flat = self._curve.ravel()
+        curve = np.concatenate([flat.take(k0 * widest + j00), flat.take(k0 * widest + j01),
+                                flat.take(k1 * widest + j10), flat.take(k1 * widest + j11)])
         xs = np.concatenate([x, x, x, x])
         values = self.curves(curve, xs).reshape(4, -1)
         level0 = (1.0 - s0) * values[0] + s0 * values[1] + self.excess_slope * excess0
@@ -197,6 +205,22 @@ def _bracket(knots: np.ndarray, count: np.ndarray, value: np.ndarray):
     lower = np.minimum(np.sum(clamped[:, None] >= knots[:, 1:], axis=1), np.maximum(count - 2, 0))
     upper = np.minimum(lower + 1, count - 1)
     low, high = knots[rows, lower], knots[rows, upper]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        weight = np.where(high > low, (clamped - low) / (high - low), 0.0)
+    return lower, upper, _snap(weight), excess
+
+
+def _bracket_shared(knots: np.ndarray, value: np.ndarray):
+    """:func:`_bracket` for one ascending row of ``knots`` shared by every value: a binary
+    search instead of comparing each value with every knot (the same indices and weights)."""
+    count = len(knots)
+    clamped = np.minimum(np.maximum(value, knots[0]), knots[count - 1])
+    excess = value - clamped
+    # the knots after the first at or below the value: _bracket's count of them
+    lower = np.minimum(np.searchsorted(knots[1:], clamped, side="right"), max(count - 2, 0))
+    lower = np.where(np.isnan(clamped), 0, lower)  # as _bracket counts for NaN (no knot below)
+    upper = np.minimum(lower + 1, count - 1)
+    low, high = knots.take(lower), knots.take(upper)
     with np.errstate(invalid="ignore", divide="ignore"):
         weight = np.where(high > low, (clamped - low) / (high - low), 0.0)
     return lower, upper, _snap(weight), excess

@@ -103,3 +103,36 @@ def test_grid_pressure_drop_is_smooth_in_flow(grid_maps, valve):
     slope = np.diff(dp) / np.diff(q)
     assert np.all(slope > 0)
     assert np.max(np.abs(np.diff(slope)) / slope[1:]) < 0.01  # no jump in slope
+
+
+def test_grid_shared_openings_search_gives_the_general_brackets(grid_maps, valve):
+    """The binary search over openings every fluid level shares (the shipped grid's) gives
+    the same brackets, weights and values as comparing with each level's own openings, on
+    and between knots, beyond them and for NaN."""
+    from surrogate.maps.grid import _bracket, _bracket_shared
+
+    flow_map, force_map = grid_maps
+    knots = flow_map._shared_log_u
+    assert knots is not None
+    values = np.concatenate([knots, np.log(np.geomspace(0.01, 2.0, 501) * MM),
+                             [np.nan, np.inf, -np.inf]])
+    rows = np.broadcast_to(knots, (len(values), len(knots)))
+    general = _bracket(rows, np.full(len(values), len(knots)), values)
+    for mine, theirs in zip(_bracket_shared(knots, values), general):
+        np.testing.assert_array_equal(mine, theirs)
+    single = _bracket(rows[:, :1], np.ones(len(values), int), values)
+    for mine, theirs in zip(_bracket_shared(knots[:1], values), single):
+        np.testing.assert_array_equal(mine, theirs)
+    # the general path (levels with openings of their own) answers alike
+    rng = np.random.default_rng(3)
+    n = 400
+    q, u = rng.uniform(1, 12, n) * LPM, rng.uniform(0.02, 0.8, n) * MM
+    fluid = valve.oil.state(rng.uniform(5.0, 100.0, n) + ZERO_CELSIUS)
+    p_L = 5 * BAR + rng.uniform(1, 200, n) * BAR
+    shared = (flow_map.pressure_drop(q, 5 * BAR, u, fluid),
+              force_map.force(p_L, 5 * BAR, u, fluid))
+    flow_map._shared_log_u = force_map._shared_log_u = None
+    general = (flow_map.pressure_drop(q, 5 * BAR, u, fluid),
+               force_map.force(p_L, 5 * BAR, u, fluid))
+    np.testing.assert_array_equal(shared[0], general[0])
+    np.testing.assert_array_equal(shared[1], general[1])
