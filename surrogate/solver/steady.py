@@ -331,7 +331,9 @@ def _solve_flowing(model, points, sign, guess=None, with_dp=True, tables=None):
     h = _FlowingBalance(model, points, sign, tables)
     pending = np.arange(len(points))
     if guess is not None:
-        pending = np.setdiff1d(pending, _solve_near_guess(h, guess))
+        left = np.ones(len(points), dtype=bool)  # a mask, not np.setdiff1d's sort
+        left[_solve_near_guess(h, guess)] = False
+        pending = pending[left]
     if pending.size:
         _solve_over_stroke(h, pending)
     _first_met(h)
