@@ -48,7 +48,11 @@ class FluidState:
 
     def __getitem__(self, index) -> "FluidState":
         """The fluid state at a subset of points (same indexing as numpy)."""
-        return FluidState(self.nu[index], self.rho[index])
+        # a subset of checked states needs no check: the solver takes subsets at every step
+        subset = object.__new__(FluidState)
+        object.__setattr__(subset, "nu", self.nu[index])
+        object.__setattr__(subset, "rho", self.rho[index])
+        return subset
 
     def ravel(self) -> "FluidState":
         """The same states as flat arrays."""
