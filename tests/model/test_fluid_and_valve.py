@@ -82,3 +82,25 @@ def test_bad_valve_file_names_file_and_key(tmp_path, edit, words):
     message = str(caught.value)
     assert words in message, message
     assert message.startswith(str(path)), message
+
+
+def test_subsets_of_points_and_fluid_states_are_as_made_afresh(valve):
+    """The unchecked fast path of indexing gives what the checked constructor gives."""
+    from surrogate.points import OperatingPoints
+
+    n = 12
+    points = OperatingPoints(np.linspace(1e-5, 2e-4, n), np.full(n, 3e6), np.full(n, 5e5),
+                             np.linspace(300, 330, n), np.where(np.arange(n) % 2, 1, -1),
+                             np.array([f"R{i // 4}" for i in range(n)]))
+    fluid = valve.oil.state(points.temperature)
+    fields = ("q", "p_P", "p_B", "temperature", "direction", "run")
+    for index in (np.array([3, 0, 7]), np.arange(n) % 3 == 0, slice(2, 9), slice(None, None, 2),
+                  5, np.array([], int)):
+        fast, made = points[index], OperatingPoints(*(getattr(points, f)[index] for f in fields))
+        for name in fields:
+            np.testing.assert_array_equal(getattr(fast, name), getattr(made, name))
+            assert getattr(fast, name).dtype == getattr(made, name).dtype
+            assert getattr(fast, name).ndim == 1
+        sub = fluid[index]
+        np.testing.assert_array_equal(sub.nu, fluid.nu[index])
+        np.testing.assert_array_equal(sub.rho, fluid.rho[index])
