@@ -181,7 +181,7 @@ class RunBlocks:
         jacobian = fit.jacobian
         self.p = jacobian.shape[1]
         runs = np.asarray(runs).astype(str)
-        self.labels = list(dict.fromkeys(runs))
+        self.labels = list(dict.fromkeys(runs.tolist()))  # a list iterates faster than NumPy
         r = fit.residual
         rows = [runs == run for run in self.labels]
         # [J, N]ᵀ[J, N] per run, its nuisance block shared with every other refit on the same
