@@ -217,14 +217,16 @@ class _Locator:
         self.segment = np.searchsorted(nodes, edges, "right") - 1
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
+        # fmin/fmax and np.take: as clip, nan_to_num and fancy indexing, at a fraction of
+        # their overhead (every balance a fit evaluates reads the tables here)
         with np.errstate(invalid="ignore"):
-            bucket = np.clip((x - self.origin) / self.width, 0, len(self.segment) - 1)
-        segment = self.segment[np.nan_to_num(bucket).astype(np.intp)]
+            bucket = np.fmin(np.fmax((x - self.origin) / self.width, 0), len(self.segment) - 1)
+        segment = self.segment.take(bucket.astype(np.intp))
         # a bucket may hold a node (or, between close kinks, several); rounding may miss by one
         while True:
-            below = x < self.nodes[np.maximum(segment, 0)]
+            below = x < self.nodes.take(np.maximum(segment, 0))
             below &= segment >= 0
-            above = x >= self.nodes[segment + 1]
+            above = x >= self.nodes.take(segment + 1)
             if not (below.any() or above.any()):
                 return segment
             segment = np.minimum(segment - below + above, len(self.nodes) - 2)
@@ -455,7 +457,13 @@ class TableView:
         for level in self.levels[: coarsest + 1]:
             if not pending.size:
                 break
-            found, main, extra = _interpolate(level, self.row[pending], x[pending], expansions)
+            if pending.size == u.size:  # every point (a fit's usual case): no gathers
+                found, main, extra = _interpolate(level, self.row, x.ravel(), expansions)
+                if found.all():
+                    return found, main, extra
+            else:
+                found, main, extra = _interpolate(level, self.row[pending], x[pending],
+                                                  expansions)
             at = pending[found]
             values[:, at] = main
             if expansions:
@@ -480,14 +488,15 @@ def _interpolate(level: _Snapshot, rows: np.ndarray, x: np.ndarray, expansions: 
     if not level.first.size:
         return np.zeros(x.shape, bool), np.empty((2, 0)), np.empty((_EXPANSIONS, 0))
     segment = level.locate(x)
-    local = segment - level.first[rows]
-    found = (local >= 0) & (local < level.count[rows] - 1)
+    count = level.count.take(rows)
+    local = segment - level.first.take(rows)
+    found = (local >= 0) & (local < count - 1)
     if found.all():
-        k, flat = segment, level.offset[rows] + local
+        k, flat = segment, level.offset.take(rows) + local
     else:
         k, flat, x = segment[found], level.offset[rows[found]] + local[found], x[found]
-    left = level.nodes[k]
-    width = level.nodes[k + 1] - left
+    left = level.nodes.take(k)
+    width = level.nodes.take(k + 1) - left
     t = (x - left) / width
     # the cubic Hermite basis, its slope terms scaled by the segment's width
     t2 = t * t
