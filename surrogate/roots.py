@@ -2,8 +2,9 @@
 
 Both the valve solver (u for each operating point) and the maps (Δp for a flow, or the flow for a
 Δp) need thousands of independent one-dimensional roots. They are found together with Chandrupatla's
-bracketing method from :func:`scipy.optimize.elementwise.find_root`, which keeps the guarantee of
-bisection and converges superlinearly, and only evaluates the points that are still iterating.
+bracketing method, :func:`scipy.optimize.elementwise.find_root`'s to the bit without its framework
+(:mod:`.chandrupatla`), which keeps the guarantee of bisection and converges superlinearly, and
+only evaluates the points that are still iterating.
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize.elementwise import find_root
+
+from .chandrupatla import CONVERGED, chandrupatla
 
 @dataclass(frozen=True)
 class Roots:
@@ -50,25 +52,14 @@ def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper,
     if lower.size == 0:
         empty = np.empty(0)
         return Roots(empty, empty.astype(bool), empty.astype(int))
-    index = np.arange(lower.size, dtype=float)
-    # find_root starts by evaluating the two ends, one call each; answer those from what the
-    # caller knows (checked by value, so a different start-up only costs the evaluations)
-    known = [] if f_lower is None or f_upper is None else [
-        (lower, np.asarray(f_lower, float)), (upper, np.asarray(f_upper, float))]
-
-    def wrapped(x, point):
-        if known:
-            ends, values = known.pop(0)
-            if x.shape == ends.shape and np.array_equal(x, ends):
-                return values.copy()
-            known.clear()
-        return fn(x, point.astype(np.intp))
-
-    result = find_root(wrapped, (lower, upper), args=(index,), maxiter=maxiter,
-                       tolerances={"xatol": xatol, "xrtol": xrtol, "fatol": fatol, "frtol": 0.0})
-    converged = np.asarray(result.success)
-    x = np.where(converged, result.x, np.nan)
-    return Roots(x, converged, np.asarray(result.status))
+    index = np.arange(lower.size)
+    # the ends' values: the caller's (having checked the bracket), or one evaluation each
+    if f_lower is None or f_upper is None:
+        f_lower, f_upper = fn(lower, index), fn(upper, index)
+    x, status = chandrupatla(fn, lower, upper, f_lower, f_upper, xatol=xatol, xrtol=xrtol,
+                             fatol=fatol, maxiter=maxiter)
+    converged = status == CONVERGED
+    return Roots(np.where(converged, x, np.nan), converged, status)
 
 
 def invert_increasing(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], target: np.ndarray,

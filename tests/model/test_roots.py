@@ -22,3 +22,31 @@ def test_known_end_values_stand_in_for_the_first_two_evaluations():
     assert not any(np.array_equal(x, lower) or np.array_equal(x, upper) for x in calls)
     np.testing.assert_array_equal(known.x, plain.x)
     np.testing.assert_allclose(known.x, np.cbrt(targets), rtol=1e-13)
+
+
+def test_roots_are_scipys_to_the_bit():
+    """The port of Chandrupatla's method (surrogate.chandrupatla) returns what
+    scipy.optimize.elementwise.find_root returns: the same roots, convergence and status, for
+    good brackets, brackets without a sign change, non-finite ends and the iteration limit."""
+    from scipy.optimize.elementwise import find_root
+
+    rng = np.random.default_rng(1)
+    n = 5000
+    a, c, p = rng.uniform(0.1, 3, n), rng.uniform(-5, 5, n), rng.uniform(1, 5, n)
+
+    def fn(x, i):
+        return np.sign(x - a[i]) * np.abs(x - a[i]) ** p[i] + 1e-3 * np.tanh(c[i] * x) - 1e-4
+
+    lower, upper = np.zeros(n), np.full(n, 4.0)
+    upper[:50] = 0.05  # no sign change
+    lower[50:60] = np.nan  # not finite
+    for tolerances, maxiter in (({"xatol": 1e-30, "xrtol": 1e-14}, 200),
+                                ({"xatol": 1e-12, "xrtol": 1e-8}, 3)):
+        mine = find_roots(fn, lower, upper, maxiter=maxiter, **tolerances)
+        theirs = find_root(lambda x, k: fn(x, k.astype(np.intp)), (lower, upper),
+                           args=(np.arange(n, dtype=float),), maxiter=maxiter,
+                           tolerances={**tolerances, "fatol": 0.0, "frtol": 0.0})
+        success = np.asarray(theirs.success)
+        np.testing.assert_array_equal(mine.converged, success)
+        np.testing.assert_array_equal(mine.status, theirs.status)
+        np.testing.assert_array_equal(mine.x, np.where(success, theirs.x, np.nan))
