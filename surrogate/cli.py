@@ -32,6 +32,7 @@ from .data.errors import DataFileError
 from .errors import InputError
 from .input_files import LIMIT_VARIABLE
 from .interrupts import exit_code, handling_interrupts
+from .parallel import blas_limited
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -76,7 +77,8 @@ def _run(args, argv: list[str], as_json: bool) -> int:
         # through the environment, so that a fleet's worker processes read with the same bound
         os.environ[LIMIT_VARIABLE] = repr(bound)
     try:
-        return args.func(args) or EXIT_OK
+        with blas_limited():  # every command's matrices are small (surrogate.parallel)
+            return args.func(args) or EXIT_OK
     except InputError as error:
         return _report(error, EXIT_BAD_INPUT, as_json)
     except FileNotFoundError as error:

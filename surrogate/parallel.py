@@ -11,11 +11,14 @@ cores; OpenBLAS's own threads on top of them (it starts one per core for each ma
 GP map's kernel) only contend with them: a diagnose on GP maps took 1.79 times as long with them
 (``python eval/workbench.py`` measures the diagnosis both ways).
 
-``diagnose`` keeps the BLAS to one thread throughout (:func:`blas_limited`), pool or not: its
-matrices are small (products and QR factors of 11,000 × 20 Jacobians), and between them
-OpenBLAS's idle threads spin. On 2 cores that other work shared, ``diagnose --model cfda`` on
-the shipped log took 13.3, 18.5 and 23.2 CPU s with two BLAS threads and 11.1, 11.4 and 12.5 s
-with one (``OPENBLAS_NUM_THREADS``, runs alternating), its wall time alike.
+Every command, and a fit, a diagnosis or a workflow called from Python, keeps the BLAS to one
+thread throughout (:func:`blas_limited`, also a decorator), pool or not: the package's matrices
+are small (products and QR factors of 11,000 × 20 Jacobians), and between them OpenBLAS's idle
+threads spin. On 2 cores that other work shared, ``diagnose --model cfda`` on the shipped log
+took 13.3, 18.5 and 23.2 CPU s with two BLAS threads and 11.1, 11.4 and 12.5 s with one
+(``OPENBLAS_NUM_THREADS``, runs alternating), its wall time alike; a workflow on an off-library
+log (eval/profile_loop.py offlibrary --case 4243) 25.2 against 11.3 CPU s, 7.4 s of the
+difference in QR factors of 1,380 × 11 Jacobians that take milliseconds on one thread.
 """
 
 from __future__ import annotations

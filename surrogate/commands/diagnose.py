@@ -10,7 +10,6 @@ from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUS
 from ..errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..outputs import Output, atomic_directory
-from ..parallel import blas_limited
 from ..effects.handover import hand_over
 from ..reporting.prose import diagnosis_document, naming_words, shape_words, summarise
 from ..units import from_si
@@ -57,15 +56,12 @@ def run(args) -> int:
     if not candidate_effects(model, library, args.candidates):  # checks names before the fit
         raise InputError(f"nothing to diagnose: model {model.name!r} has every candidate "
                          f"({', '.join(args.candidates or ['the whole library'])}) already")
-    # the BLAS on one thread throughout: between a diagnosis' small products its idle threads
-    # only spin (surrogate.parallel)
-    with blas_limited():
-        progress(f"fitting the free parameters of {model.name}")
-        model = fit_to_log(model, log, progress=progress).model
-        progress(f"diagnosing {model.name}")
-        comparison = compare(model, log)
-        diagnosis = diagnose(model, log, library, base=comparison.played,
-                             candidates=args.candidates, progress=progress)
+    progress(f"fitting the free parameters of {model.name}")
+    model = fit_to_log(model, log, progress=progress).model
+    progress(f"diagnosing {model.name}")
+    comparison = compare(model, log)
+    diagnosis = diagnose(model, log, library, base=comparison.played,
+                         candidates=args.candidates, progress=progress)
     progress(f"done in {progress.elapsed:.1f} s")
     document = diagnosis_document(diagnosis)
     # a shape without a name is handed over, found or withheld for its look-alikes (to test

@@ -63,3 +63,35 @@ def test_the_blas_keeps_to_one_thread_while_pools_run_and_is_restored_after():
         assert all(during == {1} and all(threads == {1} for _, threads in nested)
                    for during, nested in seen), seen
         assert _blas_threads() == before == {2}
+
+
+
+def test_every_command_and_the_loops_entry_points_keep_the_blas_to_one_thread(monkeypatch):
+    """A command (here check-data, its work replaced by a probe) and a function decorated as a
+    fit, a diagnosis and a workflow are run with one BLAS thread: between their small products
+    the idle threads only spin (surrogate.parallel's docstring). The BLAS is restored after."""
+    from threadpoolctl import threadpool_limits
+
+    from surrogate import cli
+    from surrogate.commands import check_data
+    from surrogate.diagnosis.diagnose import diagnose
+    from surrogate.fitting.logfit import fit_to_log
+    from surrogate.parallel import blas_limited
+    from surrogate.workbench.workflow import run_workflow
+
+    with threadpool_limits(2, user_api="blas"):
+        if not _blas_threads():
+            pytest.skip("NumPy's BLAS is not one threadpoolctl can see")
+        seen = []
+        monkeypatch.setattr(check_data, "run", lambda args: seen.append(_blas_threads()))
+        assert cli.main(["check-data", "any.csv"]) == 0
+
+        @blas_limited()
+        def decorated():
+            seen.append(_blas_threads())
+
+        decorated()
+        assert seen == [{1}, {1}]
+        assert _blas_threads() == {2}
+    # the loop's entry points carry that decorator (functools.wraps leaves the original behind)
+    assert all(hasattr(entry, "__wrapped__") for entry in (run_workflow, diagnose, fit_to_log))
