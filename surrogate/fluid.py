@@ -48,10 +48,13 @@ class FluidState:
 
     def __getitem__(self, index) -> "FluidState":
         """The fluid state at a subset of points (same indexing as numpy)."""
+        nu, rho = self.nu[index], self.rho[index]
+        if np.ndim(nu) == 0:  # one point: 0-d arrays, as the constructor makes them
+            return FluidState(nu, rho)
         # a subset of checked states needs no check: the solver takes subsets at every step
         subset = object.__new__(FluidState)
-        object.__setattr__(subset, "nu", self.nu[index])
-        object.__setattr__(subset, "rho", self.rho[index])
+        object.__setattr__(subset, "nu", nu)
+        object.__setattr__(subset, "rho", rho)
         return subset
 
     def ravel(self) -> "FluidState":
