@@ -42,7 +42,7 @@ from ..fitting.hysteresis import hysteresis_split
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
 from ..leastsquares import free_parameters
 from ..model import ValveModel
-from ..parallel import blas_limited, map_threads
+from ..parallel import blas_limited, map_threads, threads_sized_by
 from ..units import from_si
 from .judge import Judge
 from .lookalikes import (absorbed, alike_shapes, declined, grouped, joined,
@@ -83,6 +83,7 @@ def shape_candidates(model: ValveModel, names: Iterable[str] | None = None,
 
 
 @blas_limited()
+@threads_sized_by("log")
 def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY, *,
              candidates: Iterable[str] | None = None, base: LogReplay | None = None,
              steps: int = REFINE_STEPS, progress=None, workers: int | None = None,

@@ -12,7 +12,7 @@ import numpy as np
 from ..data.loaders import BenchLog
 from ..leastsquares import Evaluation, FitProblem, FitResult, Minimizer, free_parameters, split_key
 from ..model import ValveModel
-from ..parallel import blas_limited, map_threads
+from ..parallel import blas_limited, map_threads, threads_sized_by
 from ..parameters import Parameter
 from ..progress import Stage
 from ..units import from_si
@@ -75,6 +75,7 @@ class LogProblem(FitProblem):
 
 
 @blas_limited()
+@threads_sized_by("log")
 def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = None, *,
                start: LogReplay | None = None, max_evaluations: int = 60,
                tolerance: float = 1e-4, progress=None) -> FitResult:

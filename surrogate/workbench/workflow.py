@@ -50,7 +50,7 @@ from ..model import ValveModel
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..reporting.prose import summarise
 from ..reporting.verdict import summary_text, verdict
-from ..parallel import blas_limited
+from ..parallel import blas_limited, threads_sized_by
 from ..solver.map_tables import release_tables
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
@@ -333,6 +333,7 @@ class _Staircase:
 
 
 @blas_limited()
+@threads_sized_by("log")
 def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
                  library: EffectLibrary = LIBRARY, candidates: list[str] | None = None,
                  valve: ValveSource | None = None, maps_spec: MapsSpec | None = None,

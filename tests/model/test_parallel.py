@@ -95,3 +95,22 @@ def test_every_command_and_the_loops_entry_points_keep_the_blas_to_one_thread(mo
         assert _blas_threads() == {2}
     # the loop's entry points carry that decorator (functools.wraps leaves the original behind)
     assert all(hasattr(entry, "__wrapped__") for entry in (run_workflow, diagnose, fit_to_log))
+
+
+def test_a_small_log_runs_on_one_thread_a_large_one_on_several(monkeypatch):
+    """Below THREADED_SAMPLES a job's pools use one thread (its arrays are too small for the
+    threads to gain anything; surrogate.parallel), from the call on the main thread down; a
+    call from a worker thread, on part of its caller's log, decides nothing."""
+    from surrogate import parallel
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 2)
+    monkeypatch.setattr(parallel, "THREAD_LIMIT", None)
+
+    @parallel.threads_sized_by("log")
+    def job(log):
+        return parallel.default_workers()
+
+    assert job(range(parallel.THREADED_SAMPLES - 1)) == 1
+    assert job(log=range(parallel.THREADED_SAMPLES)) == 2
+    assert parallel.default_workers() == 2  # restored after the job
+    assert list(map_threads(lambda n: job(range(n)), [10, 10], workers=2)) == [2, 2]
