@@ -89,7 +89,7 @@ def main() -> int:
         progress(f"{len(samples)} CFD samples from {args.cfd}; training on all of them")
     for kind in args.kinds:
         if args.calibrate_only and kind != "grid":
-            flow, force = recalibrate(args.out / kind, samples)
+            recalibrate(args.out / kind, samples)
             progress(f"{kind.upper()}: calibration refitted in {args.out / kind}")
             continue
         if kind == "grid":

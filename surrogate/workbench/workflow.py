@@ -47,10 +47,10 @@ from ..leastsquares import FitResult, free_parameters
 from ..maps.registry import MapsSpec
 from ..memory import release_freed
 from ..model import ValveModel
+from ..parallel import blas_limited, threads_sized_by
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..reporting.prose import summarise
 from ..reporting.verdict import summary_text, verdict
-from ..parallel import blas_limited, threads_sized_by
 from ..solver.map_tables import release_tables
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
