@@ -13,7 +13,8 @@ For each valve (one seed) and region, the states are operating points (opening, 
 back pressure); the valve's own Δp gives the load pressure; the map under test is asked its flow
 at that load pressure and its flow force there, with σ. Reported per kind and region: the
 median and the 90th percentile of |ln(map / valve)| and the share of states within ±2σ (the
-target is 85-98 %, the issue's band). Regions:
+target is 85-98 %, the issue's band) with its 90 % interval when whole valves are resampled
+(a valve's states share its draws, so they fall inside or outside together). Regions:
 
 * sampled: the CFD samples' own states (every opening, temperature and back pressure sampled);
 * between: halfway in ln u between neighbouring openings, outside the wide gap;
@@ -22,7 +23,7 @@ target is 85-98 %, the issue's band). Regions:
 * oils: viscosities 0.7 and 1.5 times the oil's at 40 °C, at the sampled openings;
 * back pressures: 2.5, 7.5 and 15 bar (the samples hold 1.5, 5 and 10 bar).
 
-    python eval/valve_coverage.py                        # grid, NN and GP; valves 1-5
+    python eval/valve_coverage.py                        # grid, NN and GP; valves 1-20
     python eval/valve_coverage.py --truth samples        # valves that bridge the grid's way
     python eval/valve_coverage.py --truth own            # each kind's maps, wrong by the draws
     python eval/valve_coverage.py --constant-cfd-error   # σ without the region terms
@@ -67,7 +68,10 @@ from surrogate.synthetic.valve_coverage import (BAND, REGIONS, regions,  # noqa:
 from surrogate.valve import load_valve  # noqa: E402
 
 KINDS = ("grid", "nn", "gp")
-SEEDS = (1, 2, 3, 4, 5)
+#: the virtual valves: a valve's states share its draws, so the valve is the unit of chance, and
+#: with 5 valves one unlucky draw moved a share by up to 18 points (the GP's flow force across
+#: the gap: 82 % over valves 1-5, 86 % over 1-20)
+SEEDS = tuple(range(1, 21))
 
 def constant_cfd_error() -> None:
     """Take the region terms of the CFD's error out of every map's σ in this process
@@ -125,11 +129,12 @@ def main(argv: list[str] | None = None) -> int:
         truths = {seed: valve_truth(samples, valve, seed, mismatch, on) for seed in args.seeds}
         results[kind] = {region: summarise([score(maps, truths[seed], states[region])
                                             for seed in args.seeds]) for region in REGIONS}
-    print(f"{len(args.seeds)} virtual valves (seeds {', '.join(map(str, args.seeds))}) on "
+    print(f"{len(args.seeds)} virtual valves (seeds {_seeds(args.seeds)}) on "
           f"{args.truth} maps, mismatch x{args.mismatch:g}; share of states within ±2σ (target {BAND[0]:.0%}-"
-          f"{BAND[1]:.0%}), median |error| [%] and median σ [%]:")
+          f"{BAND[1]:.0%}) with its 90 % interval over the valves, median |error| [%] and median "
+          "σ [%]:")
     header = f"{'kind':<6}{'region':<16}{'states':>7}  " + "".join(
-        f"{name + ' ±2σ':>16}{'err':>7}{'σ':>7}" for name in ("q", "flow force"))
+        f"{name + ' ±2σ':>24}{'err':>7}{'σ':>7}" for name in ("q", "flow force"))
     print(header)
     for kind, by_region in results.items():
         for region, summary in by_region.items():
@@ -138,7 +143,8 @@ def main(argv: list[str] | None = None) -> int:
                 entry = summary[name]
                 share = entry.get("within 2 sigma")
                 mark = "" if share is None or BAND[0] <= share <= BAND[1] else " *"
-                cells += (f"{'-' if share is None else f'{share:.0%}' + mark:>16}"
+                text = "-" if share is None else f"{share:.0%} ({_interval(entry)}){mark}"
+                cells += (f"{text:>24}"
                           f"{entry['median error %']:>7.2f}"
                           f"{entry.get('median sigma %', float('nan')):>7.2f}")
             print(f"{kind:<6}{region:<16}{summary['states']:>7}  {cells}")
@@ -152,6 +158,19 @@ def main(argv: list[str] | None = None) -> int:
     (out / "coverage.png").write_bytes(figure_png(coverage_figure(results, args.truth)))
     print(f"wrote {out / 'coverage.json'} and coverage.png")
     return 0
+
+
+def _seeds(seeds: list[int]) -> str:
+    """Seeds as a range where they are one ("1-20"), else listed."""
+    if len(seeds) > 2 and list(seeds) == list(range(seeds[0], seeds[0] + len(seeds))):
+        return f"{seeds[0]}-{seeds[-1]}"
+    return ", ".join(map(str, seeds))
+
+
+def _interval(entry: dict) -> str:
+    """A share's 90 % interval over the valves, in percent ("78-93")."""
+    low, high = entry["within 2 sigma, 90 % interval"]
+    return f"{low:.0%}-{high:.0%}".replace("%-", "-")
 
 
 def coverage_figure(results: dict, truth: str) -> Figure:
@@ -169,8 +188,11 @@ def coverage_figure(results: dict, truth: str) -> Figure:
                       else "#f5c27a" if share > BAND[1] else "#f08080")
             ax.add_patch(Rectangle((column, row), 1, 1, facecolor=colour, edgecolor="white"))
             text = "-" if share is None else f"{share:.0%}"
-            ax.text(column + 0.5, row + 0.42, text, ha="center", va="center", fontsize=11)
-            ax.text(column + 0.5, row + 0.75, f"err {entry['median error %']:.1f} / "
+            ax.text(column + 0.5, row + 0.35, text, ha="center", va="center", fontsize=11)
+            if share is not None:
+                ax.text(column + 0.5, row + 0.58, f"({_interval(entry)})", ha="center",
+                        va="center", fontsize=7)
+            ax.text(column + 0.5, row + 0.8, f"err {entry['median error %']:.1f} / "
                     f"σ {entry.get('median sigma %', float('nan')):.1f} %",
                     ha="center", va="center", fontsize=7, color="0.3")
     ax.set_xlim(0, len(columns))
@@ -183,8 +205,9 @@ def coverage_figure(results: dict, truth: str) -> Figure:
         side.set_visible(False)
     valves = {"others": "the other kinds' maps", "samples": "grid maps of perturbed samples",
               "own": "each kind's own maps"}.get(truth, f"{truth} maps")
-    ax.set_title(f"±2σ's share of the virtual valves' truth (valves of {valves}); green "
-                 f"{BAND[0]:.0%}-{BAND[1]:.0%}, orange wider, red narrower", fontsize=9)
+    ax.set_title(f"±2σ's share of the virtual valves' truth (valves of {valves}), with its 90 % "
+                 f"interval over the valves; green {BAND[0]:.0%}-{BAND[1]:.0%}, orange wider, "
+                 "red narrower", fontsize=9)
     return figure
 
 

@@ -73,3 +73,23 @@ def test_between_two_meshes_a_map_carries_both_biases_and_across_a_gap_what_no_m
     gaps = [(0.2e-3, 0.63e-3)]
     assert np.allclose(gap_error(gaps, [halfway[1]]), GAP_FLOW_ERROR)
     assert np.allclose(gap_error(gaps, [*openings, halfway[0]]), 0.0)
+
+
+def _part(covered):
+    covered = np.asarray(covered, bool)
+    entry = {"errors": np.ones(len(covered)), "sigmas": np.ones(len(covered)),
+             "covered": covered}
+    return {"states": len(covered), "q": entry, "flow force": entry}
+
+
+def test_the_share_within_two_sigma_has_an_interval_over_whole_valves():
+    """A valve's states fall inside or outside ±2σ together (they share its draws): the
+    interval resamples valves, so valves that agree leave none, and one valve wholly outside
+    among five leaves a wide one around the share."""
+    alike = summarise([_part([True] * 9 + [False]) for _ in range(5)])["q"]
+    assert alike["within 2 sigma"] == 0.9
+    assert alike["within 2 sigma, 90 % interval"] == [0.9, 0.9]
+    unlucky = summarise([_part([True] * 10)] * 4 + [_part([False] * 10)])["q"]
+    low, high = unlucky["within 2 sigma, 90 % interval"]
+    assert unlucky["within 2 sigma"] == 0.8
+    assert low <= 0.6 and high == 1.0
