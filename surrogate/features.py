@@ -102,6 +102,12 @@ class FeatureSpec:
     def _margin(self, p_B: np.ndarray) -> np.ndarray:
         return np.maximum(p_B + self.p_atm - self.p_sat, _SMALLEST_MARGIN)
 
+    def cavitation_number(self, p_B, dp) -> np.ndarray:
+        """σ = (p_B + p_atm − p_sat)/Δp [1] at back pressures ``p_B`` [Pa] and pressure drops
+        ``dp`` [Pa] (> 0), broadcast together: the force features' third, before its log."""
+        p_B, dp = np.broadcast_arrays(np.asarray(p_B, float), np.asarray(dp, float))
+        return self._margin(p_B) / np.maximum(dp, _SMALLEST_DP)
+
     def flow_features(self, q, p_B, u, fluid: FluidState) -> np.ndarray:
         """(ln Re_q, ln(u/U), ln σ_q) of flattened queries, shape (n, 3)."""
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)

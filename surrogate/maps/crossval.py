@@ -49,8 +49,14 @@ class Fold:
     test: np.ndarray
 
 
-def folds(frame: pd.DataFrame) -> list[Fold]:
-    """Every fold of the four schemes (:data:`SCHEMES`), deterministic."""
+def folds(frame: pd.DataFrame, *, back_pressure_by_opening: bool = False) -> list[Fold]:
+    """Every fold of the four schemes (:data:`SCHEMES`), deterministic.
+
+    ``back_pressure_by_opening`` asks about the back-pressure set one opening at a time, the
+    rest of the set in the training, instead of training on the reference back pressure alone:
+    for a map that learns the back pressure's effect from the set itself (the grid's
+    :class:`~.cavitation.CavitationLaw`), which without the set has nothing to be judged on.
+    """
     keys = splits.sweep_keys(frame).to_numpy()
     order = np.random.default_rng(FOLD_SEED).permutation(np.unique(keys))
     result = []
@@ -61,7 +67,10 @@ def folds(frame: pd.DataFrame) -> list[Fold]:
                for label, train, test in splits.leave_one_opening_out(frame)]
     result += [Fold(SCHEMES[2], label, train, test)
                for label, train, test in splits.leave_one_temperature_out(frame)]
-    if splits.back_pressure_set(frame).any():
+    if back_pressure_by_opening:
+        result += [Fold(SCHEMES[3], label, train, test)
+                   for label, train, test in splits.back_pressure_set_by_opening(frame)]
+    elif splits.back_pressure_set(frame).any():
         result.append(Fold(SCHEMES[3], "back-pressure set", splits.main_set(frame),
                            splits.back_pressure_set(frame)))
     return result
@@ -102,15 +111,16 @@ def _distances(errors: pd.DataFrame, name: str) -> dict[str, np.ndarray]:
 def cross_validate(samples: CfdSamples, valve: ValveParameters,
                    fit_maps: Callable[[np.ndarray], tuple], *,
                    progress: Callable[[str], None] = lambda message: None,
-                   workers: int = 1) -> pd.DataFrame:
+                   workers: int = 1, back_pressure_by_opening: bool = False) -> pd.DataFrame:
     """The errors of the maps ``fit_maps(train_mask)`` returns, on every fold's left-out
-    samples: one row per (fold, sample), see :func:`errors_on`.
+    samples: one row per (fold, sample), see :func:`errors_on`; ``back_pressure_by_opening``
+    as :func:`folds`.
 
     ``workers`` > 1 runs folds in that many fresh processes of one thread each (the learned
     kinds' training holds the interpreter); ``fit_maps`` must then be picklable (a module-level
     function, or a :func:`functools.partial` of one).
     """
-    every = folds(samples.frame)
+    every = folds(samples.frame, back_pressure_by_opening=back_pressure_by_opening)
     jobs = [(fit_maps, samples.frame, valve, fold) for fold in every]
     parts = [None] * len(jobs)
 

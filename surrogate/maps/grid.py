@@ -29,7 +29,12 @@ is the flow force (the part of f_sim a uniform pressure would not give):
 
 * **in Δp**: PCHIP in ln Δp, α held beyond a sweep's range (flow force proportional to Δp);
 * **in u**: linear in ln u, α held outside the sampled openings;
-* **in temperature and p_B**: as the flow map.
+* **in temperature**: as the flow map;
+* **in p_B**: the sweeps at the reference back pressure give α there; at another back pressure α
+  follows the cavitation law the samples' back-pressure set gives
+  (:class:`~.cavitation.CavitationLaw`: α·c(σ)/c(σ_ref), σ the cavitation number), where the
+  samples hold one (two or more groups of runs at one opening and flow at several back
+  pressures), and is held otherwise.
 
 Where a query lies outside the samples the grid is built from, and why, is said as for every map
 kind (:mod:`.coverage`): outside or between far-apart openings, outside a sweep's range, outside
@@ -56,6 +61,7 @@ from ..paths import SHIPPED_CFD_SAMPLES
 from ..units import BAR, from_si
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
+from .cavitation import CavitationLaw
 from .coverage import DP_OUTSIDE, Coverage
 from .crossval import calibrate, cross_validate, summary
 from .curves import CurveSet
@@ -63,9 +69,9 @@ from .grid_calibration import shipped_calibrations
 from .package import file_hash
 from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register,
                        resolve_file, sha256_hex)
+from .splits import group_keys
 
 _TINY_OPENING = 1e-12  # [m] openings below this are treated as this, to keep logarithms finite
-_SAME_RTOL = 1e-6  # relative tolerance for "same value" when grouping samples into sweeps
 
 
 @dataclass(frozen=True)
@@ -183,12 +189,16 @@ class _SweepGrid:
 
     def describe(self) -> str:
         """The sweeps the grid holds, in display units."""
+        law = getattr(self, "cavitation", None)  # the force grid's, where the samples give one
+        others = "give its cavitation law" if law is not None else "left out"
         lines = [f"{type(self).__name__}: {len(self.curves)} sweeps at p_B = "
                  f"{from_si(self.reference_back_pressure, 'bar'):g} bar "
-                 f"({self.excluded_samples} samples at other back pressures left out)"]
+                 f"({self.excluded_samples} samples at other back pressures {others})"]
         for level in self.levels:
             openings = ", ".join(f"{from_si(u, 'mm'):g}" for u in np.exp(level.log_u))
             lines.append(f"  ν = {from_si(level.nu, 'cSt'):.4g} cSt: u = {openings} mm")
+        if law is not None:
+            lines.append(f"  {law.describe()}")
         return "\n".join(lines)
 
 
@@ -256,8 +266,8 @@ def _sweeps(samples: CfdSamples, reference_back_pressure: float | None):
         raise InputError(f"{samples.source}: no samples at the reference back pressure "
                          f"{from_si(reference_back_pressure, 'bar'):g} bar")
     groups: dict[float, dict[float, object]] = {}
-    nu_keys = _group_keys(used["nu"].to_numpy())
-    u_keys = _group_keys(used["u"].to_numpy())
+    nu_keys = group_keys(used["nu"].to_numpy())
+    u_keys = group_keys(used["u"].to_numpy())
     for (nu, u), sweep in used.groupby([nu_keys, u_keys]):
         sweep = sweep.sort_values("q")
         if len(sweep) < 2 or np.any(np.diff(sweep["q"]) <= 0):
@@ -273,18 +283,6 @@ def _sweeps(samples: CfdSamples, reference_back_pressure: float | None):
                 f"(lines {', '.join(map(str, sweep['line']))}); a grid map needs monotone sweeps")
         groups.setdefault(nu, {})[u] = sweep
     return reference_back_pressure, int(len(frame) - len(used)), groups
-
-
-def _group_keys(values: np.ndarray) -> np.ndarray:
-    """Values that agree to a relative 1e-6 mapped onto one representative each."""
-    keys = np.empty_like(values)
-    order = np.argsort(values)
-    current = values[order[0]]
-    for i in order:
-        if abs(values[i] - current) > _SAME_RTOL * abs(current):
-            current = values[i]
-        keys[i] = current
-    return keys
 
 
 def _build(groups, curve_of_sweep) -> tuple[list[_FluidLevel], list]:
@@ -358,10 +356,12 @@ class GridForceMap(_SweepGrid, ForceMap):
 
     kind = "grid"
 
-    def __init__(self, *args, A_L: float, back_area: float, **kwargs):
+    def __init__(self, *args, A_L: float, back_area: float,
+                 cavitation: CavitationLaw | None = None, **kwargs):
         super().__init__(*args, **kwargs)
         self.A_L = A_L
         self.back_area = back_area
+        self.cavitation = cavitation
 
     @classmethod
     def from_samples(cls, samples: CfdSamples, valve: ValveParameters, *,
@@ -380,8 +380,9 @@ class GridForceMap(_SweepGrid, ForceMap):
             return np.log(dp), flow_force / (valve.A_L * dp)
 
         levels, curves = _build(groups, curve)
+        law = CavitationLaw.fit(samples.frame[samples.frame["q"] > 0], valve)
         grid = cls(levels, CurveSet(curves, outside="hold"), reference, excluded, A_L=valve.A_L,
-                   back_area=back_area)
+                   back_area=back_area, cavitation=law)
         grid.coverage = Coverage.of_samples(_used_samples(samples, reference))
         return grid
 
@@ -395,7 +396,10 @@ class GridForceMap(_SweepGrid, ForceMap):
                                              np.log(np.maximum(u.ravel(), _TINY_OPENING)),
                                              np.log(fluid.nu.ravel()), flags)
         inside = None if inside is None else inside.reshape(dp.shape)
-        return p_L, p_B, dp, fraction.reshape(dp.shape), inside
+        fraction = fraction.reshape(dp.shape)
+        if self.cavitation is not None:
+            fraction = fraction * self.cavitation.ratio(p_B, self.reference_back_pressure, dp)
+        return p_L, p_B, dp, fraction, inside
 
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         p_L, p_B, dp, fraction, _ = self._fraction(p_L, p_B, u, fluid, flags=False)
@@ -451,10 +455,12 @@ class GridUncertainty:
     @property
     def errors(self):
         """The grid's cross-validated errors (:func:`.crossval.cross_validate`),
-        computed on first use."""
+        computed on first use; the back-pressure set asked one opening at a time, the rest of
+        it fitting the force's cavitation law."""
         if self._errors is None:
             self._errors = cross_validate(self.samples, self.valve,
-                                          partial(grid_maps_on, self.samples, self.valve))
+                                          partial(grid_maps_on, self.samples, self.valve),
+                                          back_pressure_by_opening=True)
         return self._errors
 
     @property

@@ -55,3 +55,31 @@ def leave_one_temperature_out(frame: pd.DataFrame) -> list[tuple[str, np.ndarray
 def back_pressure_set(frame: pd.DataFrame) -> np.ndarray:
     """True for the samples away from the reference back pressure."""
     return ~main_set(frame)
+
+
+def back_pressure_set_by_opening(frame: pd.DataFrame
+                                 ) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(label, training mask, test mask) for each opening of the back-pressure set in turn:
+    training keeps every other sample, the opening's runs at the reference back pressure too."""
+    others = back_pressure_set(frame)
+    splits = []
+    for u in np.unique(frame.loc[others, "u"].round(9)):
+        test = others & np.isclose(frame["u"], u, rtol=0, atol=1e-9)
+        splits.append((f"back-pressure set at u = {u * 1e3:.2f} mm", ~test, test))
+    return splits
+
+
+#: relative tolerance for "the same value" when samples are grouped (into sweeps, say)
+SAME_RTOL = 1e-6
+
+
+def group_keys(values: np.ndarray) -> np.ndarray:
+    """Values that agree to a relative :data:`SAME_RTOL` mapped onto one representative each."""
+    keys = np.empty_like(values)
+    order = np.argsort(values)
+    current = values[order[0]]
+    for i in order:
+        if abs(values[i] - current) > SAME_RTOL * abs(current):
+            current = values[i]
+        keys[i] = current
+    return keys

@@ -34,8 +34,10 @@ def _near_the_left_out_opening(runs) -> list[bool]:
 
 
 def test_a_left_out_opening_is_where_cfd_should_run_next(capsys, tmp_path, without_one_opening):
+    """The best run is at the left-out opening; the unsampled 0.20-0.63 mm gap, where the
+    control's runs all go, competes for the places after it."""
     result, out = _suggest(capsys, tmp_path, without_one_opening)
-    assert all(_near_the_left_out_opening(result["runs"])), result["runs"]
+    assert _near_the_left_out_opening(result["runs"])[0], result["runs"]
     table = pd.read_csv(out / "suggestions.csv")
     assert list(table["rank"]) == [1, 2, 3]
     assert {"u_mm", "q_lpm", "temperature_C", "p_B_bar", "variance_reduction_percent"} <= set(table)
