@@ -1,0 +1,120 @@
+"""What the grid's cavitation law buys: the back-pressure set predicted, and the paper's models.
+
+The paper's maps leave the back pressure out (its eq. 19 eliminates it); the package's grid
+reads the CFD's back-pressure set through one law of the cavitation number
+(:mod:`surrogate.maps.cavitation`). This script measures it twice:
+
+1. **On the CFD.** Each opening of the back-pressure set in turn is left out of the law's fit and
+   predicted from the other openings' law and its own run at the reference back pressure; the
+   error |ln α| is printed beside that of ignoring the back pressure.
+2. **On the bench.** ``paper --json`` with the shipped samples (the grid with its law) and with
+   the samples at the reference back pressure only (the grid has no law to fit: the paper's
+   maps), the same log: CFDA's fitted flow-force scale, Table 5's mean distances and Table 6's
+   friction fits.
+
+    python eval/cavitation_law.py
+
+Seconds (two ``paper`` runs of about 10 s each). Writes results/cavitation_law.json.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from surrogate.data.loaders import load_cfd_samples  # noqa: E402
+from surrogate.features import FeatureSpec  # noqa: E402
+from surrogate.maps.cavitation import CavitationLaw  # noqa: E402
+from surrogate.maps.splits import main_set, reference_back_pressure  # noqa: E402
+from surrogate.paths import SHIPPED_CFD_SAMPLES  # noqa: E402
+from surrogate.valve import load_valve  # noqa: E402
+
+
+def left_out_openings(samples, valve) -> list[dict]:
+    """Per sample of the back-pressure set: |ln α| error of the law fitted without its opening's
+    set, and of ignoring the back pressure (α of the run at the reference)."""
+    frame = samples.frame[samples.frame["q"] > 0].reset_index(drop=True)
+    spec = FeatureSpec.for_valve(valve)
+    dp = (frame["p_L"] - frame["p_B"]).to_numpy()
+    alpha = (frame["f_sim"].to_numpy() - spec.uniform_force(frame["p_L"], frame["p_B"])) / (
+        valve.A_L * dp)
+    sigma = spec.cavitation_number(frame["p_B"].to_numpy(), dp)
+    main = main_set(frame)
+    u, q, nu = (frame[name].to_numpy() for name in ("u", "q", "nu"))
+    rows = []
+    for opening in np.unique(u[~main]):
+        at = np.isclose(u, opening)
+        law = CavitationLaw.fit(frame[~(at & ~main)], valve)
+        for index in np.flatnonzero(at & ~main):
+            same = np.flatnonzero(at & main & np.isclose(q, q[index]) & np.isclose(nu, nu[index]))
+            if len(same) == 0:
+                continue
+            reference = same[0]
+            predicted = alpha[reference] * law.factor(sigma[index]) / law.factor(sigma[reference])
+            rows.append({"u_mm": round(opening * 1e3, 3), "q_lpm": round(q[index] * 6e4, 2),
+                         "p_B_bar": round(frame["p_B"].iloc[index] / 1e5, 2),
+                         "sigma": round(float(sigma[index]), 4),
+                         "error_with_law": round(float(np.log(predicted / alpha[index])), 4),
+                         "error_ignoring_p_B": round(float(np.log(alpha[reference]
+                                                                  / alpha[index])), 4)})
+    return rows
+
+
+def paper_runs() -> dict:
+    """``paper --json`` with the shipped samples and with those at the reference back pressure
+    only."""
+    frame = pd.read_csv(SHIPPED_CFD_SAMPLES)
+    reference_bar = reference_back_pressure(frame.assign(p_B=frame["p_B_bar"] * 1e5)) / 1e5
+    results = {}
+    with tempfile.TemporaryDirectory() as scratch:
+        only_reference = Path(scratch) / "cfd_at_reference.csv"
+        frame[np.isclose(frame["p_B_bar"], reference_bar)].to_csv(only_reference, index=False)
+        for name, extra in (("with the law", []), ("paper's maps (no law)",
+                                                   ["--cfd", str(only_reference)])):
+            output = subprocess.run([sys.executable, "-m", "surrogate", "paper", "--json", *extra],
+                                    cwd=ROOT, capture_output=True, text=True, check=True).stdout
+            results[name] = json.loads(output)
+    return results
+
+
+def main() -> int:
+    valve = load_valve()
+    samples = load_cfd_samples(SHIPPED_CFD_SAMPLES)
+    rows = left_out_openings(samples, valve)
+    table = pd.DataFrame(rows)
+    print("The back-pressure set, each opening predicted by the law of the others [|ln α|]:")
+    print(table.to_string(index=False))
+    with_law, ignoring = (np.abs(table[column]) for column in ("error_with_law",
+                                                                "error_ignoring_p_B"))
+    print(f"  with the law: rms {np.sqrt(np.mean(with_law ** 2)):.3f}, worst {with_law.max():.3f}; "
+          f"ignoring p_B: rms {np.sqrt(np.mean(ignoring ** 2)):.3f}, worst {ignoring.max():.3f}")
+    papers = paper_runs()
+    print("\nThe paper's comparison on the shipped log (python -m surrogate paper):")
+    print(f"{'maps':<24}{'CFDA scale':>11}{'Table 5 CFDA mean [bar]':>25}   Table 6 rms [bar]")
+    summary = {}
+    for name, result in papers.items():
+        scale = result["fitted"]["CFDA_flow_force_scale"]
+        cells = [row["mean_abs_bar"] for row in result["table5"] if row["model"] == "CFDA"]
+        rms = [row["rms_bar"] for row in result["table6"]]
+        summary[name] = {"CFDA_flow_force_scale": scale, "table5_CFDA_mean_bar": np.mean(cells),
+                         "table6_rms_bar": rms, "table6": result["table6"]}
+        print(f"{name:<24}{scale:>11.3f}{np.mean(cells):>25.2f}   "
+              f"{', '.join(f'{value:.2f}' for value in rms)}")
+    out = ROOT / "results" / "cavitation_law.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"back_pressure_set": rows, "paper": summary}, indent=2) + "\n")
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
