@@ -72,6 +72,11 @@ from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register
 from .splits import group_keys
 
 _TINY_OPENING = 1e-12  # [m] openings below this are treated as this, to keep logarithms finite
+#: queries interpolated at a time. Each query asks four sweeps' curves, and their dozens of
+#: temporaries then stay in the processor's cache: a replay of the shipped log that asks the
+#: grid (11,000 samples, both band edges at once) took 0.17-0.18 CPU s instead of 0.23-0.24.
+#: Every step is elementwise, so the values are the same to the bit whatever the block
+_BLOCK = 2048
 
 
 @dataclass(frozen=True)
@@ -117,7 +122,19 @@ class _SweepGrid:
 
     def _interpolate(self, x, log_u, log_nu, flags: bool = True
                      ) -> tuple[np.ndarray, np.ndarray | None]:
-        """Value at (x, ln u, ln ν) and (if ``flags``) whether it lies inside the sampled sweeps."""
+        """Value at (x, ln u, ln ν) and (if ``flags``) whether it lies inside the sampled sweeps,
+        :data:`_BLOCK` queries at a time (:meth:`_interpolate_block`)."""
+        if len(x) <= _BLOCK:
+            return self._interpolate_block(x, log_u, log_nu, flags)
+        parts = [self._interpolate_block(x[start:start + _BLOCK], log_u[start:start + _BLOCK],
+                                         log_nu[start:start + _BLOCK], flags)
+                 for start in range(0, len(x), _BLOCK)]
+        value = np.concatenate([value for value, _ in parts])
+        return value, np.concatenate([inside for _, inside in parts]) if flags else None
+
+    def _interpolate_block(self, x, log_u, log_nu, flags: bool
+                           ) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`_interpolate` of one block of queries."""
         k0, k1, t, nu_excess = _bracket_shared(self.log_nu, log_nu)
         inside = np.abs(nu_excess) <= 1e-6
         if self._shared_log_u is not None:
