@@ -9,6 +9,7 @@ from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUS
                               NOISE_MARGIN)
 from ..errors import InputError
 from ..fitting.logfit import fit_to_log
+from ..fitting.residuals import replay_log
 from ..outputs import Output, atomic_directory
 from ..effects.handover import hand_over
 from ..reporting.prose import diagnosis_document, naming_words, shape_words, summarise
@@ -59,9 +60,10 @@ def run(args) -> int:
     progress(f"fitting the free parameters of {model.name}")
     model = fit_to_log(model, log, progress=progress).model
     progress(f"diagnosing {model.name}")
-    comparison = compare(model, log)
-    diagnosis = diagnose(model, log, library, base=comparison.played,
-                         candidates=args.candidates, progress=progress)
+    # the comparison's tables are for the report alone: without --out the replay is all
+    played = replay_log(model, log).require_solved(model.name)
+    diagnosis = diagnose(model, log, library, base=played, candidates=args.candidates,
+                         progress=progress)
     progress(f"done in {progress.elapsed:.1f} s")
     document = diagnosis_document(diagnosis)
     # a shape without a name is handed over, found or withheld for its look-alikes (to test
@@ -82,7 +84,8 @@ def run(args) -> int:
             (staging / "diagnosis.png").write_bytes(figure_png(diagnosis_figure(diagnosis)))
             write_html(staging / "report.html", f"Diagnosis: {model.name}",
                        [diagnosis_section(diagnosis),
-                        comparison_section(comparison, "The fitted model against the data")])
+                        comparison_section(compare(model, log, played=played),
+                                           "The fitted model against the data")])
         progress(f"wrote {args.out}/report.html")
     if args.json:
         print_json(document)
