@@ -39,10 +39,11 @@ from ..effects import LIBRARY, Effect, EffectLibrary
 from ..effects.shapes import SHAPE_FREE
 from ..fitting.heldout import HEADLINE
 from ..fitting.hysteresis import hysteresis_split
+from ..fitting.logfit import probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
 from ..leastsquares import free_parameters
 from ..model import ValveModel
-from ..parallel import blas_limited, map_threads, threads_sized_by
+from ..parallel import blas_limited, threads_sized_by
 from ..units import from_si
 from .judge import Judge
 from .lookalikes import (absorbed, alike_shapes, declined, grouped, joined,
@@ -131,8 +132,7 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     own = free_parameters(model)
     if own_columns is None or [c.key for c in own_columns] != [key for key, _ in own]:
         say(f"linearising the replay in the model's {len(own)} free parameter(s)")
-        own_columns = list(map_threads(lambda entry: problem.column_of(model, entry[0]), own,
-                                       workers=workers))
+        own_columns = probe_columns(model, [key for key, _ in own], base, workers=workers)
     own_columns = [column for column in own_columns if column.felt]
     classes = [cls for cls in candidate_effects(model, library, candidates)
                if not getattr(cls, "shape_free", False) and cls.name not in exclude]

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -135,9 +136,12 @@ def probe_step(parameter) -> float:
 
 
 def probe_change(model: ValveModel, effect_name: str, parameter_name: str, log: BenchLog,
-                 base: LogReplay) -> tuple[float, np.ndarray]:
+                 base: LogReplay, alike: Callable[[], LogReplay] | None = None
+                 ) -> tuple[float, np.ndarray]:
     """The parameter's :func:`probe_step` [SI] and the change of the predicted Δp [Pa] it makes
-    on ``log``, replayed from ``base``, the model's own replay of ``log``."""
+    on ``log``, replayed from ``base``, the model's own replay of ``log``. ``alike``: gives
+    ``model``'s replay of ``log`` read as the trial's is (:class:`ReadAlike`), shared by the
+    probes of several parameters of one model."""
     trial = model.copy()
     parameter = trial.effect(effect_name).params[parameter_name]
     step = probe_step(parameter)
@@ -147,8 +151,28 @@ def probe_change(model: ValveModel, effect_name: str, parameter_name: str, log: 
     # trial is, from the fit's tables (surrogate.solver.map_tables), so that their small
     # difference from the maps does not enter the column
     if base.replay.tables is None and played.replay.tables is not None:
-        base = replay_log(model, log, guess=base, diagnostics=False)
+        base = alike() if alike is not None else ReadAlike(model, log, base)()
     return step, played.replay.dp - base.replay.dp
+
+
+class ReadAlike:
+    """``model``'s replay of ``log`` from ``base`` (its replay that asked the maps) as a probe's
+    trial replay reads them, from the fit's tables: made when a probe first needs it, then
+    shared. Every probe of one model differences its trial against this same replay (the
+    tables' rows are those of ``base``'s band throughout), so the probes of a model's free
+    parameters replay it once instead of once each."""
+
+    def __init__(self, model: ValveModel, log: BenchLog, base: LogReplay):
+        self.model, self.log, self.base = model, log, base
+        self._lock = threading.Lock()
+        self._played: LogReplay | None = None
+
+    def __call__(self) -> LogReplay:
+        with self._lock:  # probes on other threads wait for the one replay
+            if self._played is None:
+                self._played = replay_log(self.model, self.log, guess=self.base,
+                                          diagnostics=False)
+            return self._played
 
 
 @dataclass
@@ -163,18 +187,20 @@ class Column:
 
 
 def probe_column(model: ValveModel, key: str, log: BenchLog, base: LogReplay,
-                 ok: np.ndarray) -> Column:
+                 ok: np.ndarray, alike: ReadAlike | None = None) -> Column:
     """∂Δp/∂parameter · step of parameter ``key`` (``"effect.parameter"``) by a forward
     difference of :func:`probe_step`, at the samples ``ok``, warm-started from ``base``, the
     model's replay of ``log``; a parameter scoped to one run replays that run only. A step of a
     fiftieth of a range, not a hair: a friction play's Δp is not smooth in the parameters at
     fine scales (samples switch between sticking and sliding), and a tiny step's column is that
     noise (a constant friction's column, differenced by 6·10⁻⁴ N, had a run held out move K1 by
-    20 N)."""
+    20 N). ``alike``: ``model``'s replay of ``log`` read as the trial's is, shared with the
+    probes of its other parameters (:class:`ReadAlike`; a run's parameter replays its run
+    alone, and reads its own)."""
     effect_name, parameter_name = split_key(key)
     scope = model.effect(effect_name).params[parameter_name].scope
     if scope is None:
-        step, change = probe_change(model, effect_name, parameter_name, log, base)
+        step, change = probe_change(model, effect_name, parameter_name, log, base, alike)
         determined = felt(change[ok], scoped=False)
     else:
         rows = run_rows(log, scope)
@@ -189,10 +215,12 @@ def probe_column(model: ValveModel, key: str, log: BenchLog, base: LogReplay,
 def probe_columns(model: ValveModel, keys, base: LogReplay,
                   workers: int | None = None) -> list[Column]:
     """The :func:`probe_column` of every parameter of ``keys`` at the samples ``base`` (the
-    model's replay of its log) solves, side by side on threads: one replay each."""
+    model's replay of its log) solves, side by side on threads: one replay each, and one of the
+    model read from the tables that they share (:class:`ReadAlike`)."""
     ok = np.isfinite(base.residual)
-    return list(map_threads(lambda key: probe_column(model, key, base.log, base, ok), keys,
-                            workers=workers))
+    alike = ReadAlike(model, base.log, base)
+    return list(map_threads(lambda key: probe_column(model, key, base.log, base, ok, alike),
+                            keys, workers=workers))
 
 
 def felt(change: np.ndarray, scoped: bool) -> bool:
