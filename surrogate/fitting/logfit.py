@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -136,12 +136,11 @@ def probe_step(parameter) -> float:
 
 
 def probe_change(model: ValveModel, effect_name: str, parameter_name: str, log: BenchLog,
-                 base: LogReplay, alike: Callable[[], LogReplay] | None = None
-                 ) -> tuple[float, np.ndarray]:
+                 base: LogReplay, alike: ReadAlike | None = None) -> tuple[float, np.ndarray]:
     """The parameter's :func:`probe_step` [SI] and the change of the predicted Δp [Pa] it makes
-    on ``log``, replayed from ``base``, the model's own replay of ``log``. ``alike``: gives
-    ``model``'s replay of ``log`` read as the trial's is (:class:`ReadAlike`), shared by the
-    probes of several parameters of one model."""
+    on ``log``, replayed from ``base``, the model's own replay of ``log``. ``alike``:
+    ``model``'s replay of ``log`` read as the trial's is (:class:`ReadAlike`), when the probes
+    of several parameters of one model share it."""
     trial = model.copy()
     parameter = trial.effect(effect_name).params[parameter_name]
     step = probe_step(parameter)
@@ -151,7 +150,7 @@ def probe_change(model: ValveModel, effect_name: str, parameter_name: str, log: 
     # trial is, from the fit's tables (surrogate.solver.map_tables), so that their small
     # difference from the maps does not enter the column
     if base.replay.tables is None and played.replay.tables is not None:
-        base = alike() if alike is not None else ReadAlike(model, log, base)()
+        base = (alike or ReadAlike(model, log, base))()
     return step, played.replay.dp - base.replay.dp
 
 
