@@ -4,7 +4,9 @@ A replay of a bench log spends most of its time inside NumPy on arrays of tens o
 samples, where the interpreter lock is released, so threads overlap most of the work without the
 cost and fragility of processes (no pickling of maps, no forking a process that holds PyTorch).
 Measured once by hand on a 2-core machine: two replays on two threads took 0.68 of the time they
-take one after the other; eval/workbench.py reports the diagnosis' speed that results.
+take one after the other. A fit, a diagnosis or a workflow, though, runs its refits on one
+thread (:func:`single_threaded`: on two, its result depended on which thread came first);
+the batches of one replay still go side by side.
 
 While a pool runs, the BLAS that NumPy calls keeps to one thread. The replays already fill the
 cores; OpenBLAS's own threads on top of them (it starts one per core for each matrix product of a
@@ -24,7 +26,6 @@ difference in QR factors of 1,380 × 11 Jacobians that take milliseconds on one 
 from __future__ import annotations
 
 import functools
-import inspect
 import os
 import threading
 from collections.abc import Callable, Iterable, Iterator
@@ -43,50 +44,44 @@ BLAS_THREADS_IN_POOL: int | None = 1
 THREAD_LIMIT: int | None = None
 
 
-#: a log of fewer samples than this is fitted and diagnosed on one thread: its arrays are too
-#: small for NumPy to release the interpreter lock for long. Measured on 2 quiet cores: on an
-#: off-library log of 1,380 samples a workflow took 17.0-17.5 CPU s and 15.9-16.4 s of wall time
-#: on one thread, 22.0-23.6 and 18.0-19.3 s on two; on the shipped log (11,000 samples)
-#: ``diagnose --model cfda`` took 8.7-10.1 CPU s and 7.6-8.9 s on one thread, 10.7-11.4 and
-#: 7.3-7.8 s on two
-THREADED_SAMPLES = 4_000
-_small_jobs = 0
+#: how many fits, diagnoses or workflows are running, each on one thread
+#: (:func:`single_threaded`)
+_single_jobs = 0
 
 
 def default_workers() -> int:
     """Threads to use: the cores this process may run on, at most 4 (beyond that the
-    interpreter lock leaves little to gain) and at most :data:`THREAD_LIMIT`; one while a job
-    on a small log runs (:func:`threads_sized_by`)."""
-    if _small_jobs:
+    interpreter lock leaves little to gain) and at most :data:`THREAD_LIMIT`; one while a fit,
+    a diagnosis or a workflow runs (:func:`single_threaded`)."""
+    if _single_jobs:
         return 1
     cores = available_cores()
     return max(1, min(cores, 4, THREAD_LIMIT or cores))
 
 
-def threads_sized_by(argument: str):
-    """Decorator: while the function runs, on a log (its argument named ``argument``) of fewer
-    than :data:`THREADED_SAMPLES` samples, pools use one thread. Only a call on the main thread
-    decides: the refits it starts on worker threads, on parts of its log, follow it."""
-    def decorate(function):
-        signature = inspect.signature(function)
+def single_threaded(function):
+    """Decorator: while the function (a fit, a diagnosis, a workflow) runs, pools use one thread.
 
-        @functools.wraps(function)
-        def sized(*args, **kwargs):
-            global _small_jobs
-            log = signature.bind(*args, **kwargs).arguments[argument]
-            small = (threading.current_thread() is threading.main_thread()
-                     and len(log) < THREADED_SAMPLES)
-            if small:
-                with _limit_lock:
-                    _small_jobs += 1
-            try:
-                return function(*args, **kwargs)
-            finally:
-                if small:
-                    with _limit_lock:
-                        _small_jobs -= 1
-        return sized
-    return decorate
+    Why one: its refits replay the log on maps whose tables (:mod:`.solver.map_tables`) a
+    replay on another thread may renew meanwhile, and a renewed row of a GP or NN map differs
+    in its last digits from the row it replaces (their predictions depend on the batch they are
+    made in), so that on two threads the result depended on which thread came first (``diagnose
+    --model cfda-gp`` gave four different JSON files in four runs). On one thread it is the same
+    every run, and costs less CPU: on the shipped log 13-17 % less for ``diagnose`` and the
+    workflow, for 5-14 % more wall time; on an off-library log of 1,380 samples 17.0-17.5 CPU s
+    and 15.9-16.4 s of wall time against 22.0-23.6 and 18.0-19.3 s on two (2 quiet cores).
+    """
+    @functools.wraps(function)
+    def single(*args, **kwargs):
+        global _single_jobs
+        with _limit_lock:
+            _single_jobs += 1
+        try:
+            return function(*args, **kwargs)
+        finally:
+            with _limit_lock:
+                _single_jobs -= 1
+    return single
 
 
 def available_cores() -> int:

@@ -43,7 +43,7 @@ from ..fitting.logfit import probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
 from ..leastsquares import free_parameters
 from ..model import ValveModel
-from ..parallel import blas_limited, threads_sized_by
+from ..parallel import blas_limited, single_threaded
 from ..units import from_si
 from .judge import Judge
 from .lookalikes import (absorbed, alike_shapes, declined, grouped, joined,
@@ -84,7 +84,7 @@ def shape_candidates(model: ValveModel, names: Iterable[str] | None = None,
 
 
 @blas_limited()
-@threads_sized_by("log")
+@single_threaded
 def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY, *,
              candidates: Iterable[str] | None = None, base: LogReplay | None = None,
              steps: int = REFINE_STEPS, progress=None, workers: int | None = None,
@@ -109,8 +109,9 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     progress : callable, optional
         Called with a line of text as the work proceeds.
     workers : int, optional
-        Threads refitting candidates side by side (default
-        :func:`surrogate.parallel.default_workers`); the result does not depend on it.
+        Threads refitting candidates side by side (default one,
+        :func:`surrogate.parallel.single_threaded`); on GP and NN maps more threads may move the
+        result's last digits, with the order the threads renew the maps' tables in.
     rule : SignificanceRule
         When a candidate is a discovery (default: the package's :data:`.rule.RULE`).
     shapes : bool

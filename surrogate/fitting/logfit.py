@@ -13,7 +13,7 @@ import numpy as np
 from ..data.loaders import BenchLog
 from ..leastsquares import Evaluation, FitProblem, FitResult, Minimizer, free_parameters, split_key
 from ..model import ValveModel
-from ..parallel import blas_limited, map_threads, threads_sized_by
+from ..parallel import blas_limited, map_threads, single_threaded
 from ..parameters import Parameter
 from ..progress import Stage
 from ..units import from_si
@@ -76,7 +76,7 @@ class LogProblem(FitProblem):
 
 
 @blas_limited()
-@threads_sized_by("log")
+@single_threaded
 def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = None, *,
                start: LogReplay | None = None, max_evaluations: int = 60,
                tolerance: float = 1e-4, progress=None) -> FitResult:

@@ -47,7 +47,7 @@ from ..leastsquares import FitResult, free_parameters
 from ..maps.registry import MapsSpec
 from ..memory import release_freed
 from ..model import ValveModel
-from ..parallel import blas_limited, threads_sized_by
+from ..parallel import blas_limited, single_threaded
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..reporting.prose import summarise
 from ..reporting.verdict import summary_text, verdict
@@ -333,7 +333,7 @@ class _Staircase:
 
 
 @blas_limited()
-@threads_sized_by("log")
+@single_threaded
 def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
                  library: EffectLibrary = LIBRARY, candidates: list[str] | None = None,
                  valve: ValveSource | None = None, maps_spec: MapsSpec | None = None,

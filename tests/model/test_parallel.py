@@ -97,20 +97,33 @@ def test_every_command_and_the_loops_entry_points_keep_the_blas_to_one_thread(mo
     assert all(hasattr(entry, "__wrapped__") for entry in (run_workflow, diagnose, fit_to_log))
 
 
-def test_a_small_log_runs_on_one_thread_a_large_one_on_several(monkeypatch):
-    """Below THREADED_SAMPLES a job's pools use one thread (its arrays are too small for the
-    threads to gain anything; surrogate.parallel), from the call on the main thread down; a
-    call from a worker thread, on part of its caller's log, decides nothing."""
+def test_a_fit_a_diagnosis_and_a_workflow_run_on_one_thread(monkeypatch):
+    """While a decorated job runs, pools use one thread, from its call down (on two, a GP
+    map's tables renewed by one refit while another read them made the result depend on which
+    thread came first: surrogate.parallel.single_threaded); after it, as many as before. The
+    loop's entry points carry the decorator."""
     from surrogate import parallel
+    from surrogate.diagnosis.diagnose import diagnose
+    from surrogate.fitting.logfit import fit_to_log
+    from surrogate.workbench.workflow import run_workflow
 
     monkeypatch.setattr(parallel, "available_cores", lambda: 2)
     monkeypatch.setattr(parallel, "THREAD_LIMIT", None)
 
-    @parallel.threads_sized_by("log")
-    def job(log):
+    @parallel.single_threaded
+    def job():
         return parallel.default_workers()
 
-    assert job(range(parallel.THREADED_SAMPLES - 1)) == 1
-    assert job(log=range(parallel.THREADED_SAMPLES)) == 2
+    assert parallel.default_workers() == 2
+    assert job() == 1
     assert parallel.default_workers() == 2  # restored after the job
-    assert list(map_threads(lambda n: job(range(n)), [10, 10], workers=2)) == [2, 2]
+    assert list(map_threads(lambda _: job(), [1, 2], workers=2)) == [1, 1]
+
+    def wrappers(entry):
+        names = []
+        while hasattr(entry, "__wrapped__"):
+            names.append(entry.__code__.co_name)
+            entry = entry.__wrapped__
+        return names
+
+    assert all("single" in wrappers(entry) for entry in (run_workflow, diagnose, fit_to_log))
