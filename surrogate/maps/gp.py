@@ -178,6 +178,9 @@ class NumpyGP:
         total = np.zeros((len(z), len(a.inputs)))
         prior = np.zeros(len(z))
         factor = np.empty_like(total)
+        # the bridge's and the Matérn's factors are made in these, not in fresh arrays: the
+        # same operations in the same order, without allocating and touching new memory
+        scratch, spare = np.empty_like(total), np.empty_like(total)
         for part in self._parts:
             if part.rbf:
                 query = z[:, part.rbf] / part.scales
@@ -192,12 +195,14 @@ class NumpyGP:
                 factor.fill(1.0)
             if part.kind == BRIDGE:
                 b = bridge_coordinate(z[:, part.dims[0]], a.bridge_range, a.bridge_origin)
-                factor *= np.minimum(b[:, None], part.bridge[None, :])
+                np.minimum(b[:, None], part.bridge[None, :], out=scratch)
+                factor *= scratch
                 prior += part.amplitude * b
             else:
                 prior += part.amplitude
             if part.kind == MATERN:
-                factor *= matern32(z[:, part.dims[0]] / part.opening_scale, part.opening)
+                factor *= matern32(z[:, part.dims[0]] / part.opening_scale, part.opening,
+                                   scratch, spare)
             factor *= part.amplitude
             total += factor
         return total, prior
@@ -227,12 +232,19 @@ class NumpyGP:
 _BLOCK = 2048
 
 
-def matern32(query: np.ndarray, training: np.ndarray) -> np.ndarray:
+def matern32(query: np.ndarray, training: np.ndarray, out: np.ndarray | None = None,
+             spare: np.ndarray | None = None) -> np.ndarray:
     """(1 + √3·r)·exp(−√3·r), r = |query − training| (both over the length scale): the Matérn
-    3/2 correlation, (len(query), len(training))."""
-    r = np.abs(query[:, None] - training[None, :])
+    3/2 correlation, (len(query), len(training)); made in ``out`` (with ``spare`` for the
+    exponential) where given, arrays of that shape."""
+    r = np.subtract(query[:, None], training[None, :], out=out)
+    np.abs(r, out=r)
     r *= SQRT3
-    return (1.0 + r) * np.exp(-r)
+    decay = np.negative(r, out=spare)
+    np.exp(decay, out=decay)
+    r += 1.0
+    r *= decay
+    return r
 
 
 #: latent target -> the map's target (ln C_d stays ln C_d; α from ln(−α); α as it is)
