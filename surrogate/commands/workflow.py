@@ -170,8 +170,9 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
         document["effects_files"] = hand_over_shapes(workflow, staging)
         (staging / "workflow.json").write_text(json.dumps(document, indent=2) + "\n")
         staircase_table(workflow.steps).to_csv(staging / "staircase.csv", index=False)
-        (staging / "staircase.png").write_bytes(
-            figure_png(staircase_figure(workflow.steps, workflow.noise_floor)))
+        # drawn once, for the file and the report
+        staircase_png = figure_png(staircase_figure(workflow.steps, workflow.noise_floor))
+        (staging / "staircase.png").write_bytes(staircase_png)
         save_model(final.model, staging / "final_model.toml",
                    note=f"final model of the workflow on {log.source}")
         pngs = figure_pngs(comparison)  # drawn once, for the files and the report
@@ -181,7 +182,8 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
         others = ([staircases_section(workflows, main, scores)] if len(workflows) > 1
                   else [])
         write_html(staging / "report.html", "CBV model against bench data: the workflow",
-                   [staircase_section(workflow), misfit_section(workflow, misfit), *others,
+                   [staircase_section(workflow, staircase_png), misfit_section(workflow, misfit),
+                    *others,
                     comparison_section(comparison, "The final model against the data", pngs),
                     diagnosis_section(workflow.final_diagnosis,
                                       "What is left: the final model's diagnosis"),

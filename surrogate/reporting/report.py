@@ -405,7 +405,11 @@ def _step_parameters(number: int, step) -> str:
             "</details>")
 
 
-def staircase_section(workflow) -> str:
+def staircase_section(workflow, png: bytes | None = None) -> str:
+    """The staircase's table, each step's parameters and its figure (``png``: the figure
+    already rendered, as for staircase.png; else it is drawn here)."""
+    if png is None:
+        png = figure_png(staircase_figure(workflow.steps, workflow.noise_floor))
     floor = from_si(workflow.noise_floor, "bar")
     final = from_si(workflow.final.rms, "bar")
     return "\n".join([
@@ -430,7 +434,7 @@ def staircase_section(workflow) -> str:
         "<p>The parameters fitted at each step (all of them are in <i>staircase.csv</i> and the "
         "final model file):</p>",
         *(_step_parameters(number, step) for number, step in enumerate(workflow.steps, 1)),
-        figure_html(figure_png(staircase_figure(workflow.steps, workflow.noise_floor)), "staircase",
+        figure_html(png, "staircase",
                     f"Residual RMS after each step on {workflow.log.source}; the final model is "
                     f"{readable(workflow.final.model.name)}."),
     ])
