@@ -26,6 +26,9 @@ from ..units import from_si, label
 from ..workbench.compare import Comparison
 
 DPI = 110
+#: how the PNGs are written: zlib at level 3, not Pillow's 6 (an off-library log's eight report
+#: figures: 1.53 instead of 1.63 CPU s drawn and written, 2 % larger files)
+PNG_OPTIONS = {"compress_level": 3}
 # the paper's colours for 20, 40 and 60 °C, then more for logs with more temperatures
 TEMPERATURE_COLOURS = ("tab:blue", "tab:green", "tab:red", "tab:purple", "tab:orange",
                        "tab:brown", "tab:cyan", "tab:olive")
@@ -43,7 +46,7 @@ def write_figures(comparison: Comparison, folder: str | Path) -> dict[str, Path]
     figures = all_figures(comparison)
     with atomic_directory(folder) as staging:
         for name, figure in figures.items():
-            figure.savefig(staging / f"{name}.png", dpi=DPI)
+            figure.savefig(staging / f"{name}.png", dpi=DPI, pil_kwargs=PNG_OPTIONS)
     return {name: Path(folder) / f"{name}.png" for name in figures}
 
 

@@ -24,7 +24,7 @@ from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUS
 from ..outputs import atomic_file
 from ..units import from_si, label
 from ..workbench.compare import TEXT_RUNS, Comparison
-from .figures import DPI, all_figures, caption
+from .figures import DPI, PNG_OPTIONS, all_figures, caption
 from .prose import next_steps, sensor_check_text, summarise, workflow_summary
 from ..planning.cfd_runs import operating_points_figure
 from .staircase import staircase_figure, staircases_figure, step_label
@@ -66,7 +66,7 @@ def _prose(text: str) -> str:
 def figure_png(figure: Figure) -> bytes:
     """The figure as PNG bytes."""
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=DPI)
+    figure.savefig(buffer, format="png", dpi=DPI, pil_kwargs=PNG_OPTIONS)
     return buffer.getvalue()
 
 
