@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -33,6 +34,38 @@ PNG_OPTIONS = {"compress_level": 3}
 TEMPERATURE_COLOURS = ("tab:blue", "tab:green", "tab:red", "tab:purple", "tab:orange",
                        "tab:brown", "tab:cyan", "tab:olive")
 BAR, LPM, DEGC = label("bar"), label("L/min"), label("degC")
+
+
+#: room left of a grid of panels (a y label and its tick labels), right of it, and below it (x
+#: tick labels and an x label) [inches], where a figure places its panels itself
+LEFT, RIGHT, BELOW = 0.75, 0.15, 0.6
+
+
+def place_panels(figure: Figure, *, above: float, left: float = LEFT, right: float = RIGHT,
+                 below: float = BELOW, across: float, down: float) -> None:
+    """Place ``figure``'s grid of panels by its margins and the gaps between panels across and
+    down [inches].
+
+    The report's figures of several panels do so instead of using matplotlib's constrained
+    layout, which measures every tick label about ten times over: it was a third to a half of
+    their drawing. Their grids and labels keep their shape from log to log; what varies, a
+    legend or a title, the caller measures (:func:`extents`).
+    """
+    width, height = figure.get_size_inches()
+    rows, columns = figure.axes[0].get_subplotspec().get_gridspec().get_geometry()
+    panel_width = (width - left - right - (columns - 1) * across) / columns
+    panel_height = (height - above - below - (rows - 1) * down) / rows
+    figure.subplots_adjust(left=left / width, right=1.0 - right / width, bottom=below / height,
+                           top=1.0 - above / height, wspace=across / panel_width,
+                           hspace=down / panel_height)
+
+
+def extents(figure: Figure, *artists) -> list[tuple[float, float]]:
+    """(width, height) [inches] of each of ``artists`` (a legend, a title) as ``figure`` draws
+    them."""
+    renderer = FigureCanvasAgg(figure).get_renderer()
+    boxes = [artist.get_window_extent(renderer) for artist in artists]
+    return [(box.width / figure.dpi, box.height / figure.dpi) for box in boxes]
 
 
 def write_figures(comparison: Comparison, folder: str | Path) -> dict[str, Path]:
@@ -162,7 +195,7 @@ def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
     palette = colormaps["viridis"].resampled(max(len(set_points), 2))
     colour = {p: palette(0.85 * index / max(len(set_points) - 1, 1))
               for index, p in enumerate(set_points)}
-    figure = Figure(figsize=(4.2 * len(levels) + 2.0, 4.6), layout="constrained")
+    figure = Figure(figsize=(4.2 * len(levels) + 2.0, 4.6))
     axes = figure.subplots(1, len(levels), sharex=True, sharey=True, squeeze=False)[0]
     for ax, level in zip(axes, levels):
         for run, group in samples[samples["temperature_nominal_C"] == level].groupby(
@@ -185,9 +218,19 @@ def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
                 Line2D([], [], color="0.2", linewidth=1.3, label="model (line, dark)")]
     if samples["dp_std_bar"].notna().any():
         handles.append(Patch(color=_tint("0.2", 0.75), label="model ± 2σ of its maps"))
-    figure.legend(handles=handles, fontsize=11, loc="outside right upper")
-    figure.suptitle(_title(comparison, "Δp over q"))
+    legend = figure.legend(handles=handles, fontsize=11, loc="upper right")
+    title = figure.suptitle(_title(comparison, "Δp over q"))
+    _beside_legend(figure, legend, title, titled=True, across=0.25, down=0.0)
     return figure
+
+
+def _beside_legend(figure: Figure, legend, title, titled: bool, across: float,
+                   down: float) -> None:
+    """Place the panels under ``title`` (with room for their own titles where ``titled``) and
+    left of ``legend`` (in the upper right corner)."""
+    (legend_width, _), (_, title_height) = extents(figure, legend, title)
+    place_panels(figure, above=title_height + (0.55 if titled else 0.3),
+                 right=legend_width + 0.2, across=across, down=down)
 
 
 def _band(ax, run: pd.DataFrame, colour) -> None:
@@ -224,7 +267,7 @@ def residual_panels(comparison: Comparison, samples: pd.DataFrame) -> Figure:
     solved = samples[np.isfinite(samples["residual_bar"])]
     point_colours = solved["temperature_nominal_C"].map(colours).to_numpy()
     floor = from_si(comparison.noise_floor, "bar")
-    figure = Figure(figsize=(13.0, 7.2), layout="constrained")
+    figure = Figure(figsize=(13.0, 7.2))
     axes = figure.subplots(2, 3, sharey=True).ravel()
     for ax, (column, axis_label) in zip(axes, RESIDUAL_PANELS):
         ax.scatter(solved[column], solved["residual_bar"], s=1.5, c=point_colours, alpha=0.35,
@@ -255,8 +298,10 @@ def residual_panels(comparison: Comparison, samples: pd.DataFrame) -> Figure:
     handles = [Line2D([], [], marker="o", linestyle="", color=c, label=f"{t:g} {DEGC}")
                for t, c in colours.items()]
     handles.append(Line2D([], [], color="0.6", alpha=0.5, linewidth=6, label="± noise floor"))
-    figure.legend(handles=handles, fontsize=10, loc="outside right upper")
-    figure.suptitle(_title(comparison, "residuals"))
+    legend = figure.legend(handles=handles, fontsize=10, loc="upper right")
+    title = figure.suptitle(_title(comparison, "residuals"))
+    # the panels share their y axis: tick labels on the first column only; an x label on each
+    _beside_legend(figure, legend, title, titled=False, across=0.25, down=0.75)
     return figure
 
 

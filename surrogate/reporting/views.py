@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib import colormaps
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..fitting.hysteresis import hysteresis_split
 from ..units import from_si, label
+from .figures import extents, place_panels
 
 #: the state variables the views are drawn against: (column, what, display unit, the step of
 #: the levels a bench holds it at, 0 for a variable a run sweeps)
@@ -35,30 +35,6 @@ GAP_SHARE = 0.1
 #: tick text [pt]; legends and labels one more: at least 10 px on a 1,000-pixel page, where a
 #: 14-inch figure at 110 dpi shows at about 0.63 of its size
 FONT = 10
-#: room around a grid of panels [inches]: left of it (a y label and its tick labels), right of
-#: it, below it (x tick labels and an x label), above it (under the legend: the first row's
-#: titles); between panels across (tick labels of up to four digits) and down (x tick labels
-#: and the next row's titles). The panels are placed by these, not by matplotlib's constrained
-#: layout, which measures every tick label about ten times over: it was 40 % of these two
-#: figures' drawing. Their grids and labels keep their shape from log to log; only the legend
-#: above them varies, and it is measured.
-LEFT, RIGHT, BELOW, ABOVE, ACROSS, DOWN = 0.75, 0.15, 0.6, 0.3, 0.45, 0.6
-
-
-def _place_panels(figure: Figure, legend, across: float = ACROSS, down: float = DOWN) -> None:
-    """Place ``figure``'s grid of panels by the margins above and the gaps ``across`` and
-    ``down`` [inches], under ``legend`` (a figure legend in the upper centre)."""
-    width, height = figure.get_size_inches()
-    rows, columns = figure.axes[0].get_subplotspec().get_gridspec().get_geometry()
-    renderer = FigureCanvasAgg(figure).get_renderer()
-    top = height - legend.get_window_extent(renderer).height / figure.dpi - ABOVE
-    panel_width = (width - LEFT - RIGHT - (columns - 1) * across) / columns
-    panel_height = (top - BELOW - (rows - 1) * down) / rows
-    figure.subplots_adjust(left=LEFT / width, right=1.0 - RIGHT / width, bottom=BELOW / height,
-                           top=top / height, wspace=across / panel_width,
-                           hspace=down / panel_height)
-
-
 def model_colours(count: int) -> list:
     """One colour per model, hues that tell apart (shades of one map did not, for five
     models), the last model, the final one, in black."""
@@ -141,8 +117,8 @@ def residual_views(log, models: list[tuple[str, object]]) -> Figure | None:
     legend = figure.legend(loc="upper center", ncols=min(len(models), 3), fontsize=FONT + 1,
                            title="model − measured, per run and flow bin; lines: the bins' "
                            "median", title_fontsize=FONT + 1)
-    # the rows share their y axis: tick labels on the first column only, none between panels
-    _place_panels(figure, legend, across=0.25, down=0.45)
+    # under the legend; the rows share their y axis: tick labels on the first column only
+    place_panels(figure, above=extents(figure, legend)[0][1] + 0.3, across=0.25, down=0.45)
     return figure
 
 
@@ -191,7 +167,8 @@ def run_loops(log, models: list[tuple[str, object]], columns: int = 4,
                            + [title for title, _ in models], loc="upper center",
                            ncols=min(len(handles), 3), fontsize=FONT + 1)
     figure.supxlabel(f"flow q [{label('L/min')}]", fontsize=FONT + 1)
-    _place_panels(figure, legend)
+    # under the legend, each panel with its own y tick labels and title
+    place_panels(figure, above=extents(figure, legend)[0][1] + 0.3, across=0.45, down=0.6)
     return figure
 
 
