@@ -5,8 +5,9 @@ samples, where the interpreter lock is released, so threads overlap most of the 
 cost and fragility of processes (no pickling of maps, no forking a process that holds PyTorch).
 Measured once by hand on a 2-core machine: two replays on two threads took 0.68 of the time they
 take one after the other. A fit, a diagnosis or a workflow, though, runs its refits on one
-thread (:func:`single_threaded`: on two, its result depended on which thread came first);
-the batches of one replay still go side by side.
+thread, its replays' batches too (:func:`single_threaded`: on two, its result depended on
+which thread came first); a replay outside them (``predict``, ``simulate``, ``compare``) still
+runs its batches side by side.
 
 While a pool runs, the BLAS that NumPy calls keeps to one thread. The replays already fill the
 cores; OpenBLAS's own threads on top of them (it starts one per core for each matrix product of a
