@@ -100,6 +100,9 @@ class _SweepGrid:
     excess_slope = 0.0
     #: the calibrated uncertainty (:class:`GridUncertainty`), attached when built with a valve
     uncertainty = None
+    #: how α changes with the back pressure (:class:`~.cavitation.CavitationLaw`): the force
+    #: grid's, where its samples give one
+    cavitation = None
 
     def __init__(self, levels: list[_FluidLevel], curves: CurveSet, reference_back_pressure: float,
                  excluded: int):
@@ -207,16 +210,15 @@ class _SweepGrid:
 
     def describe(self) -> str:
         """The sweeps the grid holds, in display units."""
-        law = getattr(self, "cavitation", None)  # the force grid's, where the samples give one
-        others = "give its cavitation law" if law is not None else "left out"
+        others = "give its cavitation law" if self.cavitation is not None else "left out"
         lines = [f"{type(self).__name__}: {len(self.curves)} sweeps at p_B = "
                  f"{from_si(self.reference_back_pressure, 'bar'):g} bar "
                  f"({self.excluded_samples} samples at other back pressures {others})"]
         for level in self.levels:
             openings = ", ".join(f"{from_si(u, 'mm'):g}" for u in np.exp(level.log_u))
             lines.append(f"  ν = {from_si(level.nu, 'cSt'):.4g} cSt: u = {openings} mm")
-        if law is not None:
-            lines.append(f"  {law.describe()}")
+        if self.cavitation is not None:
+            lines.append(f"  {self.cavitation.describe()}")
         return "\n".join(lines)
 
 
