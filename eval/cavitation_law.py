@@ -32,41 +32,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from surrogate.data.loaders import load_cfd_samples  # noqa: E402
-from surrogate.features import FeatureSpec  # noqa: E402
-from surrogate.maps.cavitation import CavitationLaw  # noqa: E402
-from surrogate.maps.splits import main_set, reference_back_pressure  # noqa: E402
+from surrogate.maps.cavitation import left_out_opening_errors  # noqa: E402
+from surrogate.maps.splits import reference_back_pressure  # noqa: E402
 from surrogate.paths import SHIPPED_CFD_SAMPLES  # noqa: E402
+from surrogate.units import from_si  # noqa: E402
 from surrogate.valve import load_valve  # noqa: E402
-
-
-def left_out_openings(samples, valve) -> list[dict]:
-    """Per sample of the back-pressure set: |ln α| error of the law fitted without its opening's
-    set, and of ignoring the back pressure (α of the run at the reference)."""
-    frame = samples.frame[samples.frame["q"] > 0].reset_index(drop=True)
-    spec = FeatureSpec.for_valve(valve)
-    dp = (frame["p_L"] - frame["p_B"]).to_numpy()
-    alpha = (frame["f_sim"].to_numpy() - spec.uniform_force(frame["p_L"], frame["p_B"])) / (
-        valve.A_L * dp)
-    sigma = spec.cavitation_number(frame["p_B"].to_numpy(), dp)
-    main = main_set(frame)
-    u, q, nu = (frame[name].to_numpy() for name in ("u", "q", "nu"))
-    rows = []
-    for opening in np.unique(u[~main]):
-        at = np.isclose(u, opening)
-        law = CavitationLaw.fit(frame[~(at & ~main)], valve)
-        for index in np.flatnonzero(at & ~main):
-            same = np.flatnonzero(at & main & np.isclose(q, q[index]) & np.isclose(nu, nu[index]))
-            if len(same) == 0:
-                continue
-            reference = same[0]
-            predicted = alpha[reference] * law.factor(sigma[index]) / law.factor(sigma[reference])
-            rows.append({"u_mm": round(opening * 1e3, 3), "q_lpm": round(q[index] * 6e4, 2),
-                         "p_B_bar": round(frame["p_B"].iloc[index] / 1e5, 2),
-                         "sigma": round(float(sigma[index]), 4),
-                         "error_with_law": round(float(np.log(predicted / alpha[index])), 4),
-                         "error_ignoring_p_B": round(float(np.log(alpha[reference]
-                                                                  / alpha[index])), 4)})
-    return rows
 
 
 def paper_runs() -> dict:
@@ -89,12 +59,17 @@ def paper_runs() -> dict:
 def main() -> int:
     valve = load_valve()
     samples = load_cfd_samples(SHIPPED_CFD_SAMPLES)
-    rows = left_out_openings(samples, valve)
-    table = pd.DataFrame(rows)
-    print("The back-pressure set, each opening predicted by the law of the others [|ln α|]:")
+    errors = left_out_opening_errors(samples.frame, valve)
+    table = pd.DataFrame({"u_mm": from_si(errors["u"], "mm").round(3),
+                          "q_lpm": from_si(errors["q"], "L/min").round(2),
+                          "p_B_bar": from_si(errors["p_B"], "bar").round(2),
+                          "sigma": errors["sigma"].round(4),
+                          "error_with_law": errors["with_law"].round(4),
+                          "error_ignoring_p_B": errors["ignoring_p_B"].round(4)})
+    rows = table.to_dict("records")
+    print("The back-pressure set, each opening predicted by the law of the others [ln α]:")
     print(table.to_string(index=False))
-    with_law, ignoring = (np.abs(table[column]) for column in ("error_with_law",
-                                                                "error_ignoring_p_B"))
+    with_law, ignoring = (np.abs(errors[column]) for column in ("with_law", "ignoring_p_B"))
     print(f"  with the law: rms {np.sqrt(np.mean(with_law ** 2)):.3f}, worst {with_law.max():.3f}; "
           f"ignoring p_B: rms {np.sqrt(np.mean(ignoring ** 2)):.3f}, worst {ignoring.max():.3f}")
     papers = paper_runs()

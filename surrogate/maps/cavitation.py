@@ -33,7 +33,8 @@ from scipy.optimize import least_squares
 
 from ..features import FeatureSpec
 from ..valve import ValveParameters
-from .splits import group_keys
+from .splits import SAME_RTOL as _SAME_RTOL
+from .splits import group_keys, main_set
 
 #: bounds of the fitted σ₀ [1] and m [1]: far beyond anything a valve's CFD shows, only to keep
 #: a degenerate set (one group, every σ alike) from running off
@@ -90,11 +91,7 @@ class CavitationLaw:
         fluid state, opening and flow at two or more back pressures (with the flow force of one
         sign in each)."""
         spec = FeatureSpec.for_valve(valve)
-        dp = (frame["p_L"] - frame["p_B"]).to_numpy()
-        flow_force = frame["f_sim"].to_numpy() - spec.uniform_force(frame["p_L"], frame["p_B"])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            fraction = flow_force / (valve.A_L * dp)
-        sigma = spec.cavitation_number(frame["p_B"].to_numpy(), dp)
+        dp, fraction, sigma = _fractions(frame, valve, spec)
         keys = [group_keys(frame[name].to_numpy()) for name in ("nu", "u", "q")]
         groups = []
         for _, index in pd.Series(np.arange(len(frame))).groupby(keys):
@@ -123,3 +120,46 @@ class CavitationLaw:
         used = np.concatenate(groups)
         return cls(float(np.exp(solution.x[0])), float(solution.x[1]),
                    float(np.min(sigma[used])), spec, len(groups))
+
+
+def _fractions(frame: pd.DataFrame, valve: ValveParameters, spec: FeatureSpec):
+    """Δp [Pa], the flow-force fraction α [1] and the cavitation number σ [1] of each sample."""
+    dp = (frame["p_L"] - frame["p_B"]).to_numpy()
+    flow_force = frame["f_sim"].to_numpy() - spec.uniform_force(frame["p_L"], frame["p_B"])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fraction = flow_force / (valve.A_L * dp)
+    return dp, fraction, spec.cavitation_number(frame["p_B"].to_numpy(), dp)
+
+
+def left_out_opening_errors(frame: pd.DataFrame, valve: ValveParameters) -> pd.DataFrame:
+    """How well the law predicts an opening it was not fitted to: each sample of the
+    back-pressure set (``frame``'s samples away from its reference back pressure, flows > 0)
+    from the law of the other openings' sets and the opening's own run at the reference, at the
+    same fluid state and flow.
+
+    One row per such sample: u [m], q [m^3/s], p_B [Pa], sigma [1], and the error in ln α of
+    the law (``with_law``) and of ignoring the back pressure (``ignoring_p_B``, α of the run at
+    the reference), as the paper's maps do.
+    """
+    frame = frame[frame["q"] > 0].reset_index(drop=True)
+    spec = FeatureSpec.for_valve(valve)
+    _, alpha, sigma = _fractions(frame, valve, spec)
+    main = main_set(frame)
+    u, q, nu = (frame[name].to_numpy() for name in ("u", "q", "nu"))
+    rows = []
+    for opening in np.unique(u[~main]):
+        at = np.isclose(u, opening, rtol=_SAME_RTOL, atol=0)
+        law = CavitationLaw.fit(frame[~(at & ~main)], valve)
+        for index in np.flatnonzero(at & ~main):
+            same = np.flatnonzero(at & main & np.isclose(q, q[index], rtol=_SAME_RTOL, atol=0)
+                                  & np.isclose(nu, nu[index], rtol=_SAME_RTOL, atol=0))
+            if law is None or len(same) == 0:
+                continue
+            reference = same[0]
+            predicted = alpha[reference] * law.factor(sigma[index]) / law.factor(sigma[reference])
+            rows.append({"u": opening, "q": q[index], "p_B": frame["p_B"].iloc[index],
+                         "sigma": sigma[index],
+                         "with_law": np.log(predicted / alpha[index]),
+                         "ignoring_p_B": np.log(alpha[reference] / alpha[index])})
+    return pd.DataFrame(rows, columns=["u", "q", "p_B", "sigma", "with_law", "ignoring_p_B"])
+
