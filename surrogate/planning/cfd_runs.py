@@ -120,8 +120,9 @@ def suggest_cfd(model: ValveModel, log: BenchLog, runs: int = 8, *,
     weights = (gains.flow_gain**2, gains.force_gain**2)
     total = float(np.nansum(replay.dp_std[ok][gains.index] ** 2))  # reducible or not
 
-    # a map built from one back pressure's samples only (the grid) learns nothing from runs at
-    # others: its candidates are run there
+    # a flow map built from one back pressure's samples only (the grid's) learns nothing from
+    # runs at others: its candidates are run there (the grid's force map would learn its
+    # cavitation law from them, which the candidates' gains do not count)
     fixed = getattr(model.flow_map, "fixed_back_pressure", None)
     candidates = _candidates(replay.points[ok][gains.index], replay.u[ok][gains.index], fixed)
     fluid = model.valve.oil.state(candidates.temperature)
