@@ -33,8 +33,7 @@ from scipy.optimize import least_squares
 
 from ..features import FeatureSpec
 from ..valve import ValveParameters
-from .splits import SAME_RTOL as _SAME_RTOL
-from .splits import group_keys, main_set
+from .splits import SAME_RTOL, group_keys, main_set
 
 #: bounds of the fitted σ₀ [1] and m [1]: far beyond anything a valve's CFD shows, only to keep
 #: a degenerate set (one group, every σ alike) from running off
@@ -148,11 +147,11 @@ def left_out_opening_errors(frame: pd.DataFrame, valve: ValveParameters) -> pd.D
     u, q, nu = (frame[name].to_numpy() for name in ("u", "q", "nu"))
     rows = []
     for opening in np.unique(u[~main]):
-        at = np.isclose(u, opening, rtol=_SAME_RTOL, atol=0)
+        at = np.isclose(u, opening, rtol=SAME_RTOL, atol=0)
         law = CavitationLaw.fit(frame[~(at & ~main)], valve)
         for index in np.flatnonzero(at & ~main):
-            same = np.flatnonzero(at & main & np.isclose(q, q[index], rtol=_SAME_RTOL, atol=0)
-                                  & np.isclose(nu, nu[index], rtol=_SAME_RTOL, atol=0))
+            same = np.flatnonzero(at & main & np.isclose(q, q[index], rtol=SAME_RTOL, atol=0)
+                                  & np.isclose(nu, nu[index], rtol=SAME_RTOL, atol=0))
             if law is None or len(same) == 0:
                 continue
             reference = same[0]

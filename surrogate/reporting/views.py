@@ -35,6 +35,8 @@ GAP_SHARE = 0.1
 #: tick text [pt]; legends and labels one more: at least 10 px on a 1,000-pixel page, where a
 #: 14-inch figure at 110 dpi shows at about 0.63 of its size
 FONT = 10
+
+
 def model_colours(count: int) -> list:
     """One colour per model, hues that tell apart (shades of one map did not, for five
     models), the last model, the final one, in black."""
