@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..maps.cfd_error import CAVITATION_FORCE_ERROR, GAP_FLOW_ERROR, GAP_FORCE_ERROR
+from ..maps.cfd_error import (CAVITATION_FORCE_ERROR, GAP_FLOW_ERROR, GAP_FORCE_ERROR,
+                              SEAT_FLOW_ERROR, SEAT_FORCE_ERROR)
 from ..maps.gp import BRIDGE, MATERN, SQRT3, GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.network import HOLD_SHARPNESS, BridgedNet, NumpyNet, smoothing_matrix
@@ -406,9 +407,13 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
         slope = calibration.slopes[name]
         term = g.mul(g.op("Pow", distance, g.const(calibration.power)), slope)
         variance = g.add(variance, g.square(term))
-    if isinstance(learned_map, LearnedFlowMap) and learned_map.coverage is not None:
-        return g.max(g.sqrt(variance), _gap_error(g, learned_map.coverage.gaps(), u))
-    return g.sqrt(variance)
+    std = g.sqrt(variance)
+    if learned_map.coverage is None:
+        return std
+    if isinstance(learned_map, LearnedFlowMap):  # floors, as in FlowMap.log_discharge_std
+        std = g.max(std, _gap_error(g, learned_map.coverage.gaps(), u))
+        return g.max(std, _seat_error(g, learned_map.coverage.openings, u, SEAT_FLOW_ERROR))
+    return g.max(std, _seat_error(g, learned_map.coverage.openings, u, SEAT_FORCE_ERROR))
 
 
 def _cfd_error(g: Graph, learned_map, p_B: str, u: str) -> str:
@@ -440,6 +445,12 @@ def _gap_error(g: Graph, gaps, u: str, size: float = GAP_FLOW_ERROR) -> str:
         error = g.add(error, g.mul(g.op("Sin", g.mul(_position(g, u, low, high), float(np.pi))),
                                    size))
     return error
+
+
+def _seat_error(g: Graph, openings, u: str, size: float) -> str:
+    """:func:`..maps.cfd_error.seat_error` at ``u``."""
+    below = g.sub(float(np.log(np.min(openings))), g.log(g.max(u, 1e-12)))
+    return g.mul(g.max(below, 0.0), size)
 
 
 def _position(g: Graph, u: str, low: float, high: float) -> str:

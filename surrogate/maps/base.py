@@ -16,7 +16,8 @@ Every map built from data says where, and why, a query lies outside that data
 and how uncertain it is (``log_discharge_std`` and ``flow_std``; ``force_std``): a subclass gives
 ``calibration_inputs`` and a ``calibration`` fitted on cross-validation (:mod:`.calibration`),
 which measures how well it reproduces the CFD; the CFD's own error against the valve
-(``cfd_error``, :mod:`.cfd_error`) is added in quadrature. Maps without data (the orifice
+(``cfd_error``, :mod:`.cfd_error`) is added in quadrature, and σ is never below what no mesh
+says across an unsampled gap or below the smallest opening. Maps without data (the orifice
 equation) have neither.
 """
 
@@ -30,8 +31,8 @@ import numpy as np
 from ..fluid import FluidState, broadcast_query
 from ..roots import invert_increasing
 from ..units import BAR, LPM
-from .cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, GAP_FORCE_ERROR, cavitation_error,
-                        gap_error, mesh_bias_share)
+from .cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, GAP_FORCE_ERROR, SEAT_FORCE_ERROR,
+                        cavitation_error, gap_error, mesh_bias_share, seat_error)
 
 
 @dataclass(frozen=True)
@@ -147,8 +148,9 @@ class FlowMap(ABC):
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         calibrated = self.calibration.std(*self.calibration_inputs(q, p_B, u, fluid))
         std = np.hypot(calibrated, self.cfd_error_at(u))
-        if self.coverage is not None:  # a floor, not a term: the grid's σ grows across a gap
-            std = np.maximum(std, gap_error(self.coverage.gaps(), u))  # by itself
+        if self.coverage is not None:  # floors, not terms: the grid's σ grows across a gap and
+            std = np.maximum.reduce([std, gap_error(self.coverage.gaps(), u),  # below its
+                                     seat_error(self.coverage.openings, u)])  # openings itself
         return np.reshape(std, q.shape)
 
     def cfd_error_at(self, u) -> np.ndarray:
@@ -234,7 +236,17 @@ class ForceMap(ABC):
             return None
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
         calibrated = self.calibration.std(*self.calibration_inputs(p_L, p_B, u, fluid))
-        return np.reshape(np.hypot(calibrated, self.cfd_error_at(p_B, u)), p_L.shape)
+        return np.reshape(self.against_valve(calibrated, p_B, u), p_L.shape)
+
+    def against_valve(self, calibrated, p_B, u) -> np.ndarray:
+        """Relative σ of the flow force against the valve [1] (flat) from the ``calibrated`` one
+        at back pressures ``p_B`` [Pa] and openings ``u`` [m]: with the CFD's own error in
+        quadrature, and never below what no mesh says below the smallest opening (a floor, as
+        the flow's: the grid's calibrated σ grows there by itself)."""
+        std = np.hypot(calibrated, self.cfd_error_at(p_B, u))
+        if self.coverage is None:
+            return std
+        return np.maximum(std, seat_error(self.coverage.openings, np.ravel(u), SEAT_FORCE_ERROR))
 
     def cfd_error_at(self, p_B, u) -> np.ndarray:
         """Relative σ of the flow force [1] that the CFD adds at back pressures ``p_B`` [Pa] and

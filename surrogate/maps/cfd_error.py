@@ -55,6 +55,21 @@ GAP_FLOW_ERROR = 0.03
 #: virtual valves' flow force there without it)
 GAP_FORCE_ERROR = 0.05
 
+#: one σ per unit of ln(u₀/u) of the exponent k by which the valve's Δp at a flow, and its
+#: flow-force fraction, may change as (u/u₀)^k below the smallest sampled opening u₀ [1]. No mesh
+#: says how the characteristic goes on toward the seat, where a bench log spends much of its
+#: time, and every kind continues it by a rule of its own (the grid holds C_d and follows the
+#: flow-force fraction's power of u; a GP's kernel and the networks' features do what they do).
+#: The same prior as the virtual valves'
+#: (:attr:`surrogate.synthetic.mismatch.MapMismatch.seat_exponent`). A floor of σ, not a term
+#: beside it: the grid's calibrated σ grows beyond its openings by itself
+SEAT_EXPONENT_ERROR = 0.1
+
+#: the same in the calibrations' units per unit of ln(u₀/u): ln C_d (half of ln Δp at a given
+#: flow) and the relative flow force
+SEAT_FLOW_ERROR = SEAT_EXPONENT_ERROR / 2.0
+SEAT_FORCE_ERROR = SEAT_EXPONENT_ERROR
+
 #: one σ of the relative flow-force error the CFD's cavitation model adds per unit of
 #: |ln(absolute back pressure / the samples' central one)| [1]. Cavitation at the throttling edge
 #: changes the pressure on the piston, more the lower the back pressure; the paper's choice
@@ -71,6 +86,13 @@ def gap_error(gaps: list[tuple[float, float]], u, size: float = GAP_FLOW_ERROR) 
     log_u = _log_opening(u)
     return sum((size * np.sin(np.pi * _position(log_u, low, high)) for low, high in gaps),
                np.zeros(log_u.shape))
+
+
+def seat_error(openings, u, size: float = SEAT_FLOW_ERROR) -> np.ndarray:
+    """σ [ln units] below the smallest of the sampled ``openings`` u₀ [m] at openings ``u`` [m]:
+    ``size``·ln(u₀/u), 0 from u₀ up."""
+    smallest = np.log(np.min(openings)) if len(openings) else -np.inf
+    return size * np.maximum(smallest - _log_opening(u), 0.0)
 
 
 def mesh_bias_share(openings, u) -> np.ndarray:
@@ -111,5 +133,5 @@ def cavitation_error(central_back_pressure: float | None, p_B,
 
 
 __all__ = ["CAVITATION_FORCE_ERROR", "CFD_ERROR", "FLOW_CFD_ERROR", "FORCE_CFD_ERROR",
-           "GAP_FLOW_ERROR", "MESH_STUDY_DP_CHANGE", "cavitation_error", "gap_error",
-           "mesh_bias_share"]
+           "GAP_FLOW_ERROR", "MESH_STUDY_DP_CHANGE", "SEAT_EXPONENT_ERROR", "SEAT_FLOW_ERROR",
+           "SEAT_FORCE_ERROR", "cavitation_error", "gap_error", "mesh_bias_share", "seat_error"]

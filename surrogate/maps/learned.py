@@ -155,7 +155,7 @@ class LearnedForceMap(ForceMap):
         latent, spread, distances = _inputs(self, self.features(p_L, p_B, u, fluid), p_B, u)
         dp = np.maximum(p_L - p_B, 0.0).ravel()
         flow_force = self.predictor.from_latent(latent) * self.spec.A_L * dp
-        relative = np.hypot(self.calibration.std(spread, distances), self.cfd_error_at(p_B, u))
+        relative = self.against_valve(self.calibration.std(spread, distances), p_B, u)
         return np.reshape(np.abs(flow_force) * relative, p_L.shape)
 
 

@@ -39,6 +39,7 @@ from ..data.loaders import CfdSamples
 from ..effects import BalanceState, Effect, Parameter
 from ..fluid import FluidState
 from ..maps.base import FlowMap, ForceMap
+from ..maps.cfd_error import SEAT_EXPONENT_ERROR
 from ..maps.coverage import Coverage
 from ..maps.grid import GridFlowMap, GridForceMap
 from ..model import ValveModel
@@ -70,7 +71,7 @@ class MapMismatch:
     force_per_opening: float = 0.025
     gap_dp: float = 0.03
     gap_force: float = 0.05
-    seat_exponent: float = 0.1
+    seat_exponent: float = SEAT_EXPONENT_ERROR
     cavitation: float = 0.03
 
     def scaled(self, factor: float) -> "MapMismatch":
