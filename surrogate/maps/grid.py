@@ -29,7 +29,11 @@ Force map, stored as α = f_ff/(A_L·Δp) per sweep, where f_ff = f_sim − p_L�
 is the flow force (the part of f_sim a uniform pressure would not give):
 
 * **in Δp**: PCHIP in ln Δp, α held beyond a sweep's range (flow force proportional to Δp);
-* **in u**: linear in ln u, α held outside the sampled openings;
+* **in u**: linear in ln u between the sampled openings; below the smallest, α goes on as the
+  power of u the two smallest openings give (α ∝ u^k, 0 ≤ k ≤ 1; the shipped samples' k is
+  0.5–0.7): at a fixed Δp the jet's momentum, and with it the flow force, vanishes as the valve
+  closes, where holding α would keep the force of the smallest opening down to the seat. Above
+  the largest opening α is held;
 * **in temperature**: as the flow map;
 * **in p_B**: the sweeps at the reference back pressure give α there; at another back pressure α
   follows the cavitation law the samples' back-pressure set gives
@@ -78,6 +82,10 @@ _TINY_OPENING = 1e-12  # [m] openings below this are treated as this, to keep lo
 #: grid (11,000 samples, both band edges at once) took 0.17-0.18 CPU s instead of 0.23-0.24.
 #: Every step is elementwise, so the values are the same to the bit whatever the block
 _BLOCK = 2048
+#: the range the exponent of the flow-force fraction's power of u below the smallest opening is
+#: kept in: it may fall toward the seat as fast as the opening, never grow (the jet's momentum,
+#: and so the flow force, vanishes as the valve closes)
+_POWER_BELOW = (0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -98,6 +106,9 @@ class _SweepGrid:
     """
 
     excess_slope = 0.0
+    #: below the smallest opening, continue the value as a power of u (the force grid's flow-force
+    #: fraction) instead of ``excess_slope``'s linear continuation
+    power_below = False
     #: the calibrated uncertainty (:class:`GridUncertainty`), attached when built with a valve
     uncertainty = None
     #: how α changes with the back pressure (:class:`~.cavitation.CavitationLaw`): the force
@@ -155,6 +166,9 @@ class _SweepGrid:
         values = self.curves(curve, xs).reshape(4, -1)
         level0 = (1.0 - s0) * values[0] + s0 * values[1] + self.excess_slope * excess0
         level1 = (1.0 - s1) * values[2] + s1 * values[3] + self.excess_slope * excess1
+        if self.power_below and (np.any(excess0 < 0.0) or np.any(excess1 < 0.0)):
+            level0 = self._continued_below(level0, values[0], values[1], excess0, k0)
+            level1 = self._continued_below(level1, values[2], values[3], excess1, k1)
         value = (1.0 - t) * level0 + t * level1
         if not flags:
             return value, None
@@ -164,6 +178,23 @@ class _SweepGrid:
         inside &= ((t <= 0.0) | ((np.abs(excess1) <= 1e-9) & (within[2] | (s1 >= 1.0))
                                  & (within[3] | (s1 <= 0.0))))
         return value, inside
+
+    def _continued_below(self, level, smallest, next_one, excess, k):
+        """``level`` with the queries below the smallest opening (``excess`` < 0 [ln u]) on the
+        power of u that the smallest two openings' values (``smallest``, ``next_one``, same sign)
+        give, its exponent kept within :data:`_POWER_BELOW`; held where their signs differ."""
+        below = excess < 0.0
+        if not np.any(below):
+            return level
+        spacing = (self._log_u[k, 1] - self._log_u[k, 0])[below]
+        low, high = smallest[below], next_one[below]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            power = np.clip(np.log(high / low) / spacing, *_POWER_BELOW)
+        continued = np.where((low * high > 0.0) & np.isfinite(power),
+                             low * np.exp(power * excess[below]), low)
+        level = level.copy()
+        level[below] = continued
+        return level
 
     def sweep_distances(self, u, nu) -> dict[str, np.ndarray]:
         """How far the grid interpolates or extrapolates to reach a query at opening ``u`` [m]
@@ -375,6 +406,7 @@ class GridForceMap(_SweepGrid, ForceMap):
     docstring). Build it with :meth:`from_samples`."""
 
     kind = "grid"
+    power_below = True
 
     def __init__(self, *args, A_L: float, back_area: float,
                  cavitation: CavitationLaw | None = None, **kwargs):
