@@ -58,7 +58,8 @@ from surrogate.reporting.prose import summarise
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.offlibrary import (OFF_LIBRARY, RMS_RATIO, off_library_outcome,
                                             off_library_suite)
-from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
+from surrogate.synthetic.simulate import (hidden_effect_case, noise_free_sequence,
+                                          withheld_claims)
 from surrogate.workbench.workflow import heldout_rms, run_workflow
 
 #: effects the loop may add per case: the hidden one, a map correction or two
@@ -87,13 +88,6 @@ def handed_over(workflow) -> dict[str, float]:
         kept[name] = float((before.heldout_check - heldout_rms(fitted, played, schemes))
                            / gain) if gain > 0 else float("nan")
     return kept
-
-
-def withheld(workflow) -> list[str]:
-    """The physics claims the workflow's diagnoses withheld for their look-alikes of other
-    kinds, as "claim (look-alike, ...)"."""
-    return [f"{d.claim.name} ({', '.join(r.name for r in d.rivals)})"
-            for d in workflow.declined]
 
 
 def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool = True,
@@ -125,8 +119,8 @@ def run(kind: str, cases: int, controls: int, every: int, seed: int, twins: bool
         seconds = time.perf_counter() - began
         kept = handed_over(workflow)
         records.append({**outcome.to_json(), "seed": case.seed, "twin_invented": twin_invented,
-                        "withheld": withheld(workflow),
-                        "twin_withheld": [] if twin is None else withheld(twin),
+                        "withheld": withheld_claims(workflow),
+                        "twin_withheld": [] if twin is None else withheld_claims(twin),
                         "values": case.values, "seconds": round(seconds, 1),
                         "handed_over_kept": {k: round(v, 3) for k, v in kept.items()},
                         "final_summary": summarise(workflow.final_diagnosis)})

@@ -50,7 +50,7 @@ from surrogate.solver import replay
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import (STRESS_SETTINGS, WEAK_LEAKAGE, hidden_effect_case,
                                           identified, noise_free_sequence, random_settings,
-                                          run_stress_case, stress_suite)
+                                          run_stress_case, stress_suite, withheld_claims)
 from surrogate.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
@@ -134,12 +134,13 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
                                 "seed": case.seed, "added": added, "chosen_in": chosen_in,
                                 "shapes_beside_library": outcome.shapes_beside_library,
-                                "withheld": [d.claim.name for d in workflow.declined],
+                                "withheld": withheld_claims(workflow),
                                 "final_summary": summarise(workflow.final_diagnosis),
                                 "clean": ok, "seconds": round(outcome.seconds, 1)})
         print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
               f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'} "
-              f"{chosen_in or ''}")
+              f"{chosen_in or ''}"
+              + "".join(f"; withheld {claim}" for claim in record["cases"][-1]["withheld"]))
     record["clean_rate"] = (float(np.mean([c["clean"] for c in record["cases"]]))
                             if record["cases"] else None)
     record["false_additions"] = sum(len(c["invented"]) for c in record["controls"])
@@ -147,6 +148,10 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
     record["shapes_beside_library"] = sum(len(c["shapes_beside_library"])
                                           for c in record["cases"])
     record["by_group"] = by_group(record["cases"])
+    # misses that named the hidden effect but withheld it: a look-alike predicted as well
+    record["withheld_hidden"] = sum(
+        1 for c in record["cases"] if not c["clean"]
+        and any(claim.split(" ")[0] == c["hidden"] for claim in c["withheld"]))
     rate = "" if record["clean_rate"] is None else f"{record['clean_rate']:.0%} of "
     print(f"under map mismatch ({kind} maps): {rate}{len(record['cases'])} cases found "
           f"cleanly; {record['false_additions']} physics or sensor effects added over "
@@ -155,6 +160,8 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
           "that already explained its log")
     for group, (clean, total) in record["by_group"].items():
         print(f"  {group}: {clean} of {total} clean")
+    print(f"  not clean, the hidden effect named but withheld for a look-alike: "
+          f"{record['withheld_hidden']}")
     return record
 
 

@@ -436,6 +436,13 @@ def cleanly_identified(workflow, hidden: str | None, library: EffectLibrary = LI
                and hidden in step.diagnosis.best.group for step in workflow.steps[1:])
 
 
+def withheld_claims(workflow) -> list[str]:
+    """The physics claims a workflow's diagnoses withheld for their look-alikes of other kinds,
+    as "claim (look-alike, ...)": a log that cannot tell them apart, said so."""
+    return [f"{d.claim.name} ({', '.join(r.name for r in d.rivals)})"
+            for d in workflow.declined]
+
+
 def _category(name: str, model: ValveModel, library: EffectLibrary) -> str:
     """The category of the effect ``name`` a step added: the model's own (a shape-free term is
     in no library), else the library's."""
