@@ -84,9 +84,9 @@ def test_the_workflow_takes_the_maps_error_back_within_their_uncertainty(sequenc
     assert all(step.category == "map correction" for step in workflow.steps[1:])
     assert before.rms > 1.3 * workflow.noise_floor  # the maps' error is there to take back
     assert last.rms < 1.2 * workflow.noise_floor
-    # 1.09 -> 0.96 bar held out since the grid reads the back pressure (its cavitation law),
-    # which left the maps less error to take back
-    assert last.heldout_check < 0.9 * before.heldout_check
+    # the held-out RMS falls by less as the grid's own error shrinks: 1.09 -> 0.96 bar since it
+    # reads the back pressure, 1.04 -> 0.96 since its flow force falls toward the seat
+    assert last.heldout_check < 0.95 * before.heldout_check
     values = np.concatenate([last.model.effect(cls.name).coefficients for cls in CALIBRATIONS])
     assert np.all(np.abs(values) > 0) and np.max(np.abs(values)) < 0.5
     # the final diagnosis is the calibrated model's: the summary speaks of one model and one
