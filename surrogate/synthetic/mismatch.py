@@ -243,7 +243,8 @@ class MismatchFactor:
             inside = (t > 0.0) & (t < 1.0)
             factor = factor * np.where(inside, 1.0 + bump * np.sin(np.pi * np.clip(t, 0, 1)),
                                        1.0)
-        # below the smallest opening down to the lowest extra sweep, then held, as the grid does
+        # below the smallest opening down to the lowest extra sweep, then held (the grid of the
+        # perturbed samples holds its Δp's factor there and continues its flow force's power)
         below = np.clip(u / self.openings[0], min(SEAT_FRACTIONS), 1.0)
         return factor * below ** self.seat
 
