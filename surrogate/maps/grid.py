@@ -70,7 +70,7 @@ from .cavitation import CavitationLaw
 from .coverage import DP_OUTSIDE, Coverage
 from .crossval import calibrate, cross_validate, summary
 from .curves import CurveSet
-from .grid_calibration import shipped_calibrations
+from .grid_calibration import shipped_calibrations, shipped_summary
 from .package import file_hash
 from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register,
                        resolve_file, sha256_hex)
@@ -537,7 +537,13 @@ class GridUncertainty:
         return {"flow": flow, "force": force}
 
     def summary(self) -> dict:
-        """The cross-validation summary per scheme (:func:`.crossval.summary`)."""
+        """The cross-validation summary per scheme (:func:`.crossval.summary`): the shipped one
+        for the shipped samples and valve (:mod:`.grid_calibration`), otherwise computed."""
+        return shipped_summary(self.samples, self.valve) or self.computed_summary()
+
+    def computed_summary(self) -> dict:
+        """The cross-validation summary computed from this grid's errors, never the shipped
+        one."""
         return summary(self.errors, self.calibrations["flow"], self.calibrations["force"])
 
 

@@ -1,4 +1,5 @@
-"""The grid maps' calibration, shipped for the shipped CFD samples as the learned kinds' is.
+"""The grid maps' calibration and accuracy, shipped for the shipped CFD samples as the learned
+kinds' are.
 
 A grid's σ comes from its own errors on samples left out of it (:class:`.grid.GridUncertainty`):
 rebuilding the grid for every cross-validation fold and fitting the calibration's constants
@@ -6,6 +7,11 @@ takes about 3 CPU seconds, which every command on grid maps paid again (a tenth 
 The learned kinds ship their calibration with their weights (``surrogate/trained/<kind>``); the
 grid ships its own here, for the samples and valve it was computed from, recognised by a
 fingerprint of their values. Any other sample set or valve is calibrated on first use, as before.
+
+Beside it the file keeps the grid's cross-validation summary (:func:`.crossval.summary`), as a
+learned kind's manifest keeps its own: the workflow ranks the kinds by it at every start
+(:func:`.crossval.most_accurate_kind`), and rebuilding the grid for its folds was a tenth of a
+workflow on a small log, for the same numbers every time.
 
 ``python training/train.py --kinds grid`` writes it; a test recomputes it and compares, so it
 cannot drift from what the samples give.
@@ -58,11 +64,29 @@ def shipped_calibrations(samples: CfdSamples, valve: ValveParameters,
     return {name: Calibration.from_dict(stored[name]) for name in ("flow", "force")}
 
 
+def shipped_summary(samples: CfdSamples, valve: ValveParameters,
+                    path: Path = SHIPPED_GRID_CALIBRATION) -> dict | None:
+    """The cross-validation summary stored at ``path`` for exactly these samples and valve
+    (per scheme, as :func:`.crossval.summary` gives it), or None (no file or no summary in it,
+    another format, other data)."""
+    try:
+        stored = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    if (stored.get("format_version") != FORMAT_VERSION
+            or stored.get("fingerprint") != fingerprint(samples, valve)):
+        return None
+    return stored.get("cross_validation")
+
+
 def write_calibrations(path: Path, samples: CfdSamples, valve: ValveParameters,
-                       calibrations: dict) -> None:
-    """Store ``calibrations`` for ``samples`` and ``valve`` at ``path`` (its folder made)."""
+                       calibrations: dict, summary: dict | None = None) -> None:
+    """Store ``calibrations`` (and the cross-validation ``summary`` they give, where given) for
+    ``samples`` and ``valve`` at ``path`` (its folder made)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = {"format_version": FORMAT_VERSION, "fingerprint": fingerprint(samples, valve),
             **{name: calibrations[name].to_dict() for name in ("flow", "force")}}
+    if summary is not None:
+        data["cross_validation"] = summary
     path.write_text(json.dumps(data, indent=2) + "\n")

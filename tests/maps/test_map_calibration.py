@@ -152,16 +152,17 @@ def test_a_network_map_reads_the_opening_distance_of_its_own_samples_and_a_gp_it
 
 
 def test_the_shipped_grid_calibration_is_what_the_shipped_samples_give(tmp_path):
-    """The grid's calibration is stored for the shipped samples and valve
-    (surrogate/trained/grid/calibration.json) so that no command fits it again: it must be what
-    fitting it to the grid's own cross-validated errors gives today, and be used for exactly
-    those samples and that valve."""
+    """The grid's calibration and cross-validation summary are stored for the shipped samples
+    and valve (surrogate/trained/grid/calibration.json) so that no command computes them again:
+    they must be what the grid's own cross-validated errors give today, to the bit, and be used
+    for exactly those samples and that valve."""
     from dataclasses import replace
 
     from surrogate import load_valve
     from surrogate.data import load_cfd_samples
     from surrogate.maps.grid import GridUncertainty
-    from surrogate.maps.grid_calibration import shipped_calibrations, write_calibrations
+    from surrogate.maps.grid_calibration import (shipped_calibrations, shipped_summary,
+                                                 write_calibrations)
     from surrogate.paths import SHIPPED_CFD_SAMPLES
 
     samples, valve = load_cfd_samples(SHIPPED_CFD_SAMPLES), load_valve(None)
@@ -169,11 +170,21 @@ def test_the_shipped_grid_calibration_is_what_the_shipped_samples_give(tmp_path)
     assert shipped is not None, "no shipped grid calibration: python training/train.py --kinds grid"
     assert shipped == GridUncertainty(samples, valve).fitted_calibrations()
     assert GridUncertainty(samples, valve).calibrations == shipped
+    accuracy = shipped_summary(samples, valve)
+    assert accuracy is not None, "no shipped grid summary: python training/train.py --kinds grid"
+    assert accuracy == GridUncertainty(samples, valve).computed_summary()
+    assert GridUncertainty(samples, valve).summary() == accuracy
     fewer = samples.subset(np.arange(len(samples)) > 0)
     assert shipped_calibrations(fewer, valve) is None
+    assert shipped_summary(fewer, valve) is None
     assert shipped_calibrations(samples, replace(valve, A_L=valve.A_L * 1.01)) is None
-    # a file written for other samples is not taken for these
+    assert shipped_summary(samples, replace(valve, A_L=valve.A_L * 1.01)) is None
+    # a file written for other samples is not taken for these; one without a summary has none
     other = tmp_path / "calibration.json"
     write_calibrations(other, fewer, valve, shipped)
     assert shipped_calibrations(samples, valve, other) is None
     assert shipped_calibrations(fewer, valve, other) == shipped
+    assert shipped_summary(fewer, valve, other) is None
+    write_calibrations(other, fewer, valve, shipped, accuracy)
+    assert shipped_summary(fewer, valve, other) == accuracy
+    assert shipped_summary(samples, valve, other) is None
