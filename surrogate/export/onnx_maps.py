@@ -319,7 +319,8 @@ def _process(g: Graph, predictor: GaussianProcessPredictor, features: str
             query = g.div(g.columns(z, part.rbf), part.scales[None])
             factor = g.sub(g.sub(g.mul(g.matmul(query, part.scaled.T.copy()), 2.0),
                                  g.op("Unsqueeze", g.sum_rows(g.square(query)),
-                                      g.const([1], np.int64))), part.norms[None])
+                                      g.const([1], np.int64))),
+                           (2.0 * part.half_norms)[None])  # the training norms, exactly
             factor = g.exp(g.mul(g.min(factor, 0.0), 0.5))
         else:
             factor = None
