@@ -19,6 +19,9 @@ Outside = Literal["tangent", "hold"]
 
 _KEY_STRIDE = 1e4  # curves' knot ranges are laid side by side at this spacing for one search
 _KEY_RANGE = 4e3  # |x| is clipped below this for the search only (x are logarithms)
+#: curves with at most this many inner knots (all but the first and the last) find a query's
+#: segment by comparing its key with each of them; curves with more, by a binary search
+COMPARED_KNOTS = 8
 
 
 class CurveSet:
@@ -62,6 +65,17 @@ class CurveSet:
         self._keys = np.repeat(np.arange(len(self.n)) * _KEY_STRIDE, self.n) + self.x
         self.lower = self.x[self.start]
         self.upper = self.x[self.start + self.n - 1]
+        # row j: each curve's key of its inner knot j + 1, +inf where the curve has none. A
+        # query's segment is how many of its curve's inner keys lie at or below the query's
+        # key: the binary search's answer clipped to the curve's segments, without a search
+        # through the whole set for a curve of a few knots
+        inner = int(self.n.max()) - 2
+        self._inner_keys = None
+        if inner <= COMPARED_KNOTS:
+            self._inner_keys = np.full((inner, len(self.n)), np.inf)
+            for j in range(inner):
+                has = self.n > j + 2
+                self._inner_keys[j, has] = self._keys[self.start[has] + j + 1]
         # each segment as a cubic in s = x − x0: y = c0 + c1·s + c2·s² + c3·s³ (the last knot of
         # each curve gets a dummy segment that is never selected)
         h = np.append(np.diff(self.x), 1.0)
@@ -81,11 +95,16 @@ class CurveSet:
         # at a fraction of the overhead, which the grid maps pay at every solver iteration
         curve = np.asarray(curve, dtype=np.intp)
         x = np.asarray(x, float)
-        start, n = self.start.take(curve), self.n.take(curve)
+        start = self.start.take(curve)
         keys = curve * _KEY_STRIDE + np.minimum(np.maximum(x, -_KEY_RANGE), _KEY_RANGE)
-        segment = np.searchsorted(self._keys, keys, side="right") - 1 - start
         # flat index of the segment's left knot
-        first = start + np.minimum(np.maximum(segment, 0), n - 2)
+        if self._inner_keys is None:
+            segment = np.searchsorted(self._keys, keys, side="right") - 1 - start
+            first = start + np.minimum(np.maximum(segment, 0), self.n.take(curve) - 2)
+        else:  # a NaN x lands on the first segment instead of the last: its y is NaN on either
+            first = start
+            for inner in self._inner_keys:
+                first += inner.take(curve) <= keys
         x0, x1 = self.x.take(first), self.x.take(first + 1)
         offset = np.minimum(np.maximum(x, x0), x1) - x0
         c0, c1, c2, c3 = (row.take(first) for row in self._c)

@@ -69,7 +69,7 @@ from .base import FlowMap, ForceMap
 from .cavitation import CavitationLaw
 from .coverage import DP_OUTSIDE, Coverage
 from .crossval import calibrate, cross_validate, summary
-from .curves import CurveSet
+from .curves import COMPARED_KNOTS, CurveSet
 from .grid_calibration import shipped_calibrations, shipped_summary
 from .package import file_hash
 from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register,
@@ -278,8 +278,13 @@ def _bracket_shared(knots: np.ndarray, value: np.ndarray):
     clamped = np.minimum(np.maximum(value, knots[0]), knots[count - 1])
     excess = value - clamped
     # the knots after the first at or below the value: _bracket's count of them
-    lower = np.minimum(np.searchsorted(knots[1:], clamped, side="right"), max(count - 2, 0))
-    lower = np.where(np.isnan(clamped), 0, lower)  # as _bracket counts for NaN (no knot below)
+    if count - 2 <= COMPARED_KNOTS:  # the few inner knots compared one by one: no search
+        lower = np.zeros(len(clamped), np.intp)
+        for knot in knots[1:count - 1]:
+            lower += clamped >= knot  # False for NaN, as _bracket counts (no knot below)
+    else:
+        lower = np.minimum(np.searchsorted(knots[1:], clamped, side="right"), count - 2)
+        lower = np.where(np.isnan(clamped), 0, lower)  # as _bracket counts for NaN
     upper = np.minimum(lower + 1, count - 1)
     low, high = knots.take(lower), knots.take(upper)
     with np.errstate(invalid="ignore", divide="ignore"):

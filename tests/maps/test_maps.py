@@ -156,6 +156,12 @@ def test_grid_shared_openings_search_gives_the_general_brackets(grid_maps, valve
     single = _bracket(rows[:, :1], np.ones(len(values), int), values)
     for mine, theirs in zip(_bracket_shared(knots[:1], values), single):
         np.testing.assert_array_equal(mine, theirs)
+    # more inner knots than are compared one by one: the binary search answers alike
+    many = np.log(np.geomspace(0.02, 1.0, 14) * MM)
+    rows = np.broadcast_to(many, (len(values), len(many)))
+    general = _bracket(rows, np.full(len(values), len(many)), values)
+    for mine, theirs in zip(_bracket_shared(many, values), general):
+        np.testing.assert_array_equal(mine, theirs)
     # the general path (levels with openings of their own) answers alike
     rng = np.random.default_rng(3)
     n = 400
@@ -169,3 +175,31 @@ def test_grid_shared_openings_search_gives_the_general_brackets(grid_maps, valve
                force_map.force(p_L, 5 * BAR, u, fluid))
     np.testing.assert_array_equal(shared[0], general[0])
     np.testing.assert_array_equal(shared[1], general[1])
+
+
+def test_curve_segments_compared_as_searched():
+    """A curve set of few knots finds each query's segment by comparing it with the inner
+    knots; the binary search over the whole set gives the same values to the bit, on and
+    between knots, beyond them, far away (clipped keys) and for NaN (NaN either way)."""
+    from surrogate.maps.curves import CurveSet
+
+    rng = np.random.default_rng(5)
+    sets = []
+    for knots in (2, 3, 7, 12):
+        x = [np.sort(rng.uniform(-12.0, -3.0, knots)) for _ in range(5)]
+        sets.append([(xc, np.cumsum(rng.uniform(0.1, 1.0, knots))) for xc in x])
+    for curves in sets:
+        for outside in ("tangent", "hold"):
+            compared = CurveSet(curves, outside)
+            searched = CurveSet(curves, outside)
+            searched._inner_keys = None
+            knots = np.concatenate([xc for xc, _ in curves])
+            x = np.concatenate([knots, np.nextafter(knots, np.inf), np.nextafter(knots, -np.inf),
+                                rng.uniform(-14.0, -1.0, 400), [np.nan, np.inf, -np.inf, 5e3,
+                                                                 -5e3]])
+            curve = rng.integers(0, len(curves), len(x))
+            with np.errstate(invalid="ignore"):  # an infinite x on its tangent: NaN either way
+                np.testing.assert_array_equal(compared(curve, x), searched(curve, x))
+    # sweeps of up to seven flows (the shipped grid's) are compared; twelve are searched
+    assert CurveSet(sets[2], "hold")._inner_keys is not None
+    assert CurveSet(sets[3], "hold")._inner_keys is None
