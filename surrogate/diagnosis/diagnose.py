@@ -128,12 +128,13 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
     exclude = set(exclude)
     say = progress or (lambda message: None)
     base = base or replay_log(model, log)
-    problem = DiagnosisProblem(log, base)
+    problem = DiagnosisProblem(log, base, model)
     floor = noise_floor(base.residual, base.runs, source=base.log.source)
     own = free_parameters(model)
     if own_columns is None or [c.key for c in own_columns] != [key for key, _ in own]:
         say(f"linearising the replay in the model's {len(own)} free parameter(s)")
-        own_columns = probe_columns(model, [key for key, _ in own], base, workers=workers)
+        own_columns = probe_columns(model, [key for key, _ in own], base, workers=workers,
+                                    alike=problem.alike)
     own_columns = [column for column in own_columns if column.felt]
     classes = [cls for cls in candidate_effects(model, library, candidates)
                if not getattr(cls, "shape_free", False) and cls.name not in exclude]

@@ -23,7 +23,7 @@ import numpy as np
 from ..data.loaders import BenchLog
 from ..effects import Effect, PerRunEffect
 from ..fitting.heldout import Linearised
-from ..fitting.logfit import Column, probe_column
+from ..fitting.logfit import Column, ReadAlike, probe_column
 from ..fitting.residuals import LogReplay, effective_samples, noise_floor, replay_log
 from ..leastsquares import Evaluation, FitProblem, Minimizer
 from ..model import ValveModel
@@ -47,7 +47,9 @@ def refit_candidates(model: ValveModel, classes: list[type[Effect]],
     def linearise(cls: type[Effect]) -> tuple[Minimizer, list[Column]]:
         trial = model.copy()
         trial.effects.append(cls.for_runs(problem.log.run_ids))
-        columns = [problem.column_of(trial, f"{cls.name}.{name}")
+        # the model's own replay read from the tables, where it is also the trial's off
+        alike = problem.alike and problem.alike.extended_by(trial.effect(cls.name))
+        columns = [problem.column_of(trial, f"{cls.name}.{name}", alike)
                    for name, parameter in trial.effect(cls.name).params.items() if parameter.vary]
         # a parameter the data do not feel (a run's pilot offset while its piston sits on the
         # stop) stays where it is: an empty column leaves the linear step undetermined
@@ -103,10 +105,14 @@ def candidate_of(cls: type[Effect], minimizer: Minimizer, extra: int,
 
 class DiagnosisProblem(FitProblem):
     """The log's residual on the samples the model solves, every replay warm-started from the
-    model's own (the candidates' refits never move it, so they do not depend on each other)."""
+    model's own (the candidates' refits never move it, so they do not depend on each other).
+    With ``model`` (the model ``base`` replays), its replay read from the fit's tables is made
+    once for the probes that difference against it (:class:`~surrogate.fitting.logfit.
+    ReadAlike`)."""
 
-    def __init__(self, log: BenchLog, base: LogReplay):
+    def __init__(self, log: BenchLog, base: LogReplay, model: ValveModel | None = None):
         self.log, self.base = log, base
+        self.alike = None if model is None else ReadAlike(model, log, base)
         self.ok = np.isfinite(base.residual)
         self.rss_before = float(np.sum(base.residual[self.ok] ** 2))
         self.rms_before = float(np.sqrt(self.rss_before / self.ok.sum()))
@@ -121,10 +127,12 @@ class DiagnosisProblem(FitProblem):
     def effective_samples(self, evaluation: Evaluation) -> float:
         return self.n_eff
 
-    def column_of(self, model: ValveModel, key: str) -> Column:
+    def column_of(self, model: ValveModel, key: str, alike: ReadAlike | None = None
+                  ) -> Column:
         """∂Δp/∂parameter · step by a forward difference, warm-started from the base replay
-        (:func:`~surrogate.fitting.logfit.probe_column`)."""
-        return probe_column(model, key, self.log, self.base, self.ok)
+        (:func:`~surrogate.fitting.logfit.probe_column`; ``alike``: ``model``'s replay read
+        from the tables, if shared)."""
+        return probe_column(model, key, self.log, self.base, self.ok, alike)
 
 
 def front_runners(candidates: list[Candidate]) -> list[int]:

@@ -27,7 +27,7 @@ import pandas as pd
 from ..effects import BalanceState, Effect, FlowState, Parameter
 from ..effects.shapes import NU_REFERENCE, PRESSURE_DROP, SHAPE_FREE, ShapeFreeEffect
 from ..fitting.heldout import HEADLINE, POOLED, Linearised, RunBlocks
-from ..fitting.logfit import probe_change
+from ..fitting.logfit import ReadAlike, probe_change
 from ..fitting.residuals import LogReplay
 from ..leastsquares import Minimizer, bounded_linear_fit, compress
 from ..model import ValveModel
@@ -105,12 +105,16 @@ def probe_of(cls: type[ShapeFreeEffect]) -> type[_Probe]:
     return _PROBES[cls.kind]
 
 
-def sensitivity(model: ValveModel, probe: type[_Probe], base: LogReplay) -> np.ndarray:
+def sensitivity(model: ValveModel, probe: type[_Probe], base: LogReplay,
+                alike: ReadAlike | None = None) -> np.ndarray:
     """Δp's change [Pa] per SI unit of the probe's uniform output at every sample of ``base``'s
-    log (0 where the model has no solution), from one replay warm-started at ``base``."""
+    log (0 where the model has no solution), from one replay warm-started at ``base``;
+    ``alike``: the model's replay read from the tables, shared where it is the trial's too
+    (:meth:`~surrogate.fitting.logfit.ReadAlike.extended_by`)."""
     trial = model.copy()
     trial.effects.append(probe())
-    step, change = probe_change(trial, probe.name, "v", base.log, base)
+    alike = alike and alike.extended_by(trial.effect(probe.name))
+    step, change = probe_change(trial, probe.name, "v", base.log, base, alike)
     return np.where(np.isfinite(change), change, 0.0) / step
 
 
@@ -313,7 +317,7 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
     probes = [probe for probe in probes if probe not in sensitivities]
     say(f"probing how Δp answers {len(probes)} kind(s) of shape-free term")
     sensitivities.update(zip(probes, map_threads(
-        lambda probe: sensitivity(model, probe, base), probes, workers=workers)))
+        lambda probe: sensitivity(model, probe, base, problem.alike), probes, workers=workers)))
 
     def linear(cls):
         columns = shape_columns(cls, state, sensitivities[probe_of(cls)], ok,

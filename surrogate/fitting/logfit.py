@@ -11,6 +11,7 @@ from functools import cached_property
 import numpy as np
 
 from ..data.loaders import BenchLog
+from ..effects import Effect
 from ..leastsquares import Evaluation, FitProblem, FitResult, Minimizer, free_parameters, split_key
 from ..model import ValveModel
 from ..parallel import blas_limited, map_threads, single_threaded
@@ -173,6 +174,18 @@ class ReadAlike:
                                           diagnostics=False)
             return self._played
 
+    def extended_by(self, effect: Effect) -> "ReadAlike | None":
+        """This replay when it is also that of the model with ``effect`` added at its off
+        values (its defaults), else None. An effect that only adds a force, or a friction to a
+        model that has one already, adds exact zeros to the balance's sums when off, so the
+        two replays are the same to the bit, and a diagnosis' candidates of that kind share
+        one; an input correction or a change of the flow takes other paths through the maps
+        (a leak's shared pressure drop), and a first friction makes the replay a play."""
+        alone = self.model.with_effects([effect])
+        if alone.may_change_the_flow or (alone.has_friction and not self.model.has_friction):
+            return None
+        return self
+
 
 @dataclass
 class Column:
@@ -211,13 +224,14 @@ def probe_column(model: ValveModel, key: str, log: BenchLog, base: LogReplay,
     return Column(key, step, np.where(np.isfinite(change), change, 0.0)[ok], determined)
 
 
-def probe_columns(model: ValveModel, keys, base: LogReplay,
-                  workers: int | None = None) -> list[Column]:
+def probe_columns(model: ValveModel, keys, base: LogReplay, workers: int | None = None,
+                  alike: ReadAlike | None = None) -> list[Column]:
     """The :func:`probe_column` of every parameter of ``keys`` at the samples ``base`` (the
     model's replay of its log) solves, side by side on threads: one replay each, and one of the
-    model read from the tables that they share (:class:`ReadAlike`)."""
+    model read from the tables that they share (:class:`ReadAlike`; ``alike``, when the caller
+    shares it further)."""
     ok = np.isfinite(base.residual)
-    alike = ReadAlike(model, base.log, base)
+    alike = alike or ReadAlike(model, base.log, base)
     return list(map_threads(lambda key: probe_column(model, key, base.log, base, ok, alike),
                             keys, workers=workers))
 

@@ -90,3 +90,29 @@ def test_every_effects_column_matches_a_replay(name, setting):
             continue
         agree = np.abs(linear[both, j] - replayed[both]) <= AGREE * scale
         assert agree.mean() >= AGREEING, (key, agree.mean())
+
+
+@pytest.mark.parametrize("name", [name for name in LIBRARY if name not in
+                                  ("friction_constant", "friction_load_pressure",
+                                   "flow_force_scale")])
+def test_a_shared_read_alike_replay_is_the_candidates_own(name, setting):
+    """A diagnosis differences its candidates' probes against the model's replay read from the
+    tables (ReadAlike) wherever the model with the candidate added, off, replays the same to
+    the bit; a candidate that changes the flow or brings the first friction gets its own."""
+    from surrogate.fitting.logfit import ReadAlike
+
+    log, cfda = setting
+    base = replay_log(cfda, log)  # asks the maps, as a diagnosis' base replay does
+    frictionless = cfda.with_effects([e for e in cfda.effects if e.kind != "friction"])
+    assert not frictionless.has_friction
+    for model in (cfda, frictionless):
+        alike = ReadAlike(model, log, base)
+        trial = model.copy()
+        trial.effects.append(LIBRARY[name].for_runs(log.run_ids))
+        shared = alike.extended_by(trial.effect(name))
+        if shared is None:
+            assert trial.may_change_the_flow or not model.has_friction, name
+            continue
+        own = ReadAlike(trial, log, base)()
+        np.testing.assert_array_equal(shared().replay.dp, own.replay.dp)
+        np.testing.assert_array_equal(shared().replay.u, own.replay.u)
