@@ -18,8 +18,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..fitting.discrepancy import Discrepancy, map_discrepancy, map_error_with_cfd
-from ..fitting.heldout import (HEADLINE, Linearised, RunBlocks, bootstrap_weights, held_at_bounds,
-                               run_groups)
+from ..fitting.heldout import (HEADLINE, Linearised, RunBlocks, RunIndex, bootstrap_weights,
+                               held_at_bounds, run_groups)
 from ..fitting.residuals import LogReplay
 from ..model import ValveModel
 from .refit import Column, DiagnosisProblem
@@ -57,6 +57,7 @@ class Judge:
         self.rule = rule
         ok = problem.ok
         self.runs = problem.base.runs[ok]
+        self.run_index = RunIndex.of(self.runs)  # for every refit's RunBlocks
         self.discrepancy: Discrepancy | None = map_discrepancy(model, problem.base, ok)
         self.penalty = floor**2 * ok.sum() / problem.n_eff
         self.schemes = run_groups(problem.log)
@@ -71,7 +72,7 @@ class Judge:
         #: the model's linearisation at its optimum, parameters on a bound held
         self.fit = Linearised(problem.base_evaluation.residual, own, self.own_roughness
                               ).held(held)
-        self.base = RunBlocks(self.fit, self.discrepancy, self.runs, self.penalty)
+        self.base = RunBlocks(self.fit, self.discrepancy, self.run_index, self.penalty)
         self.ones = np.ones(len(self.base.labels))
         self.objective_before = self.base.objective(self.ones)
         self.heldout = self.base.heldout_rms(self.schemes)  # per scheme [Pa]
@@ -85,7 +86,7 @@ class Judge:
         (``shape``), and the parameters it counts in ΔBIC are then their effective number (the
         trace of their block of the hat matrix, the discrepancy refitted with them), not their
         count."""
-        blocks = RunBlocks(candidate.linearised, self.discrepancy, self.runs, self.penalty)
+        blocks = RunBlocks(candidate.linearised, self.discrepancy, self.run_index, self.penalty)
         if shape is not None:
             candidate = replace(candidate, extra=blocks.effective_parameters(shape))
         self.blocks[candidate.name] = (blocks, candidate.extra)
@@ -126,7 +127,7 @@ class Judge:
         size = self.discrepancy.size
         fit = (self.fit if fit is None else fit).beside(
             self.discrepancy.columns, np.sqrt(self.penalty) * np.eye(size), np.zeros(size))
-        blocks = RunBlocks(fit, None, self.runs, 0.0)
+        blocks = RunBlocks(fit, None, self.run_index, 0.0)
         # about the whole log's optimum, as a candidate's refit is
         return blocks.moved(blocks.step(self.ones)).heldout_rms(self.schemes)
 

@@ -26,7 +26,7 @@ import pandas as pd
 
 from ..effects import BalanceState, Effect, FlowState, Parameter
 from ..effects.shapes import NU_REFERENCE, PRESSURE_DROP, SHAPE_FREE, ShapeFreeEffect
-from ..fitting.heldout import HEADLINE, POOLED, Linearised, RunBlocks
+from ..fitting.heldout import HEADLINE, POOLED, Linearised, RunBlocks, RunIndex
 from ..fitting.logfit import ReadAlike, probe_change
 from ..fitting.residuals import LogReplay
 from ..leastsquares import Minimizer, bounded_linear_fit, compress
@@ -234,7 +234,7 @@ class RoughnessChoice:
 
 
 def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
-                     runs: np.ndarray, discrepancy, prior: float, schemes: dict,
+                     runs: np.ndarray | RunIndex, discrepancy, prior: float, schemes: dict,
                      weights: tuple[float, ...] = ROUGHNESS_WEIGHTS,
                      own_roughness: tuple[np.ndarray, np.ndarray] | None = None
                      ) -> RoughnessChoice:
@@ -323,8 +323,8 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
         columns = shape_columns(cls, state, sensitivities[probe_of(cls)], ok,
                                 base.replay.moving, base.runs)
         choice = choose_roughness(columns, problem.base_evaluation.residual, judge.own,
-                                  judge.runs, judge.discrepancy, judge.penalty, judge.schemes,
-                                  own_roughness=judge.own_roughness)
+                                  judge.run_index, judge.discrepancy, judge.penalty,
+                                  judge.schemes, own_roughness=judge.own_roughness)
         return cls, columns, choice
 
     def linear_bic(fit) -> float:

@@ -67,6 +67,8 @@ class Discrepancy:
     names: list[str]
     #: N_runᵀ·N_run per run, by the runs' labels (:meth:`run_grams`)
     _grams: dict = field(default_factory=dict, compare=False, repr=False)
+    #: each run's rows of the columns, by the runs' labels (:meth:`run_columns`)
+    _run_columns: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def size(self) -> int:
@@ -81,6 +83,14 @@ class Discrepancy:
         if key not in self._grams:
             self._grams[key] = np.stack([self.columns[m].T @ self.columns[m] for m in rows])
         return self._grams[key]
+
+    def run_columns(self, labels: list[str], positions: list[np.ndarray]) -> list[np.ndarray]:
+        """Each run's rows of the columns, for the runs' samples ``positions`` labelled
+        ``labels``: kept, as :meth:`run_grams` are, for every held-out refit on these columns."""
+        key = tuple(labels)
+        if key not in self._run_columns:
+            self._run_columns[key] = [self.columns.take(rows, axis=0) for rows in positions]
+        return self._run_columns[key]
 
     def rows(self, index) -> "Discrepancy":
         return Discrepancy(self.columns[index], self.names)

@@ -153,6 +153,34 @@ class Linearised:
                           (rows, offset))
 
 
+@dataclass(frozen=True)
+class RunIndex:
+    """The samples of each run, the runs in the order they first appear: what
+    :class:`RunBlocks` sums over, made once for the many refits a diagnosis makes on one log's
+    samples (comparing labels costs more than the sums).
+
+    Attributes
+    ----------
+    labels : list of str
+    rows : list of numpy.ndarray
+        Each run's samples, as a mask.
+    positions : list of numpy.ndarray
+        Each run's samples, as their positions.
+    """
+
+    labels: list[str]
+    rows: list[np.ndarray]
+    positions: list[np.ndarray]
+
+    @classmethod
+    def of(cls, runs: np.ndarray) -> "RunIndex":
+        """The index of each sample's run label ``runs``."""
+        runs = np.asarray(runs).astype(str)
+        labels = list(dict.fromkeys(runs.tolist()))  # a list iterates faster than NumPy
+        rows = [runs == run for run in labels]
+        return cls(labels, rows, [np.flatnonzero(m) for m in rows])
+
+
 class RunBlocks:
     """Per-run sums of squares and cross products of [J, N] and r, for fast refits.
 
@@ -161,8 +189,8 @@ class RunBlocks:
     fit : Linearised
     discrepancy : Discrepancy or None
         The maps' nuisance columns at the same samples (None: no nuisance).
-    runs : numpy.ndarray
-        Each sample's run.
+    runs : numpy.ndarray or RunIndex
+        Each sample's run, or their index (:meth:`RunIndex.of`).
     penalty : float
         s² [Pa²]: the prior's weight on the nuisance coefficients.
     roughness : tuple of numpy.ndarray, optional
@@ -173,32 +201,37 @@ class RunBlocks:
         fit's own (:attr:`Linearised.roughness`).
     """
 
-    def __init__(self, fit: Linearised, discrepancy: Discrepancy | None, runs: np.ndarray,
-                 penalty: float, roughness: tuple[np.ndarray, np.ndarray] | None = None):
-        nuisance = np.zeros((len(fit.residual), 0)) if discrepancy is None \
-            else discrepancy.columns
-        x = np.column_stack([fit.jacobian, nuisance])
+    def __init__(self, fit: Linearised, discrepancy: Discrepancy | None,
+                 runs: np.ndarray | RunIndex, penalty: float,
+                 roughness: tuple[np.ndarray, np.ndarray] | None = None):
         jacobian = fit.jacobian
         self.p = jacobian.shape[1]
-        runs = np.asarray(runs).astype(str)
-        self.labels = list(dict.fromkeys(runs.tolist()))  # a list iterates faster than NumPy
+        index = runs if isinstance(runs, RunIndex) else RunIndex.of(runs)
+        self.labels = index.labels
         r = fit.residual
-        rows = [runs == run for run in self.labels]
         # [J, N]ᵀ[J, N] per run, its nuisance block shared with every other refit on the same
-        # discrepancy (Discrepancy.run_grams)
-        k = nuisance.shape[1]
-        self.gram = np.empty((len(rows), self.p + k, self.p + k))
-        self.cross = np.empty((len(rows), self.p + k))
-        for index, m in enumerate(rows):
-            part = x[m]
-            self.gram[index, :self.p, :] = jacobian[m].T @ part
-            self.gram[index, self.p:, :self.p] = self.gram[index, :self.p, self.p:].T
-            self.cross[index] = part.T @ r[m]
+        # discrepancy (Discrepancy.run_grams), and so are the runs' rows of N
+        k = 0 if discrepancy is None else discrepancy.size
+        nuisance = ([None] * len(index.labels) if discrepancy is None
+                    else discrepancy.run_columns(index.labels, index.positions))
+        self.gram = np.empty((len(index.labels), self.p + k, self.p + k))
+        self.cross = np.empty((len(index.labels), self.p + k))
+        squares = []
+        for number, (rows, run_nuisance) in enumerate(zip(index.rows, nuisance)):
+            run_jacobian, run_residual = jacobian[rows], r[rows]
+            part = np.empty((len(run_residual), self.p + k))  # the run's [J, N]
+            part[:, :self.p] = run_jacobian
+            if k:
+                part[:, self.p:] = run_nuisance
+            self.gram[number, :self.p, :] = run_jacobian.T @ part
+            self.gram[number, self.p:, :self.p] = self.gram[number, :self.p, self.p:].T
+            self.cross[number] = part.T @ run_residual
+            squares.append(float(run_residual @ run_residual))
         if k:
-            self.gram[:, self.p:, self.p:] = discrepancy.run_grams(self.labels, rows)
-        self.squares = np.array([float(r[m] @ r[m]) for m in rows])
-        self.counts = np.array([int(m.sum()) for m in rows])
-        self.penalty = penalty * np.eye(x.shape[1] - self.p)
+            self.gram[:, self.p:, self.p:] = discrepancy.run_grams(index.labels, index.rows)
+        self.squares = np.array(squares)
+        self.counts = np.array([len(rows) for rows in index.positions])
+        self.penalty = penalty * np.eye(k)
         # a parameter the data do not feel has a zero column: a whisper of ridge keeps the solve
         # defined without moving anything the data determine
         diagonal = np.einsum("kii->i", self.gram)[:self.p]
