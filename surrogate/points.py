@@ -84,8 +84,14 @@ class OperatingPoints:
         return len(self.q)
 
     def __getitem__(self, index) -> "OperatingPoints":
-        arrays = (self.q[index], self.p_P[index], self.p_B[index], self.temperature[index],
-                  self.direction[index], None if self.run is None else self.run[index])
+        if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and index.ndim == 1:
+            # positions, as the solver takes its subsets: np.take gathers the same elements
+            # at a third of fancy indexing's time on the run labels' text
+            arrays = tuple(None if array is None else array.take(index) for array in (
+                self.q, self.p_P, self.p_B, self.temperature, self.direction, self.run))
+        else:
+            arrays = (self.q[index], self.p_P[index], self.p_B[index], self.temperature[index],
+                      self.direction[index], None if self.run is None else self.run[index])
         if arrays[0].ndim != 1 or not all(a is None or a.flags.c_contiguous for a in arrays):
             return OperatingPoints(*arrays)  # a scalar or a strided subset: made flat as ever
         # a flat subset of checked arrays is as __post_init__ would leave it: the solver takes
