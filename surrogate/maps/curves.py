@@ -110,8 +110,14 @@ class CurveSet:
         c0, c1, c2, c3 = (row.take(first) for row in self._c)
         y = c0 + offset * (c1 + offset * (c2 + offset * c3))
         if self.outside == "tangent":
-            below, above = np.minimum(x - x0, 0.0), np.maximum(x - x1, 0.0)
-            y = y + self.slope.take(first) * below + self.slope.take(first + 1) * above
+            # the tangents add exact zeros within the knots, which leave y as it is but for a
+            # zero's sign: they are added where a query lies outside, or y is zero
+            beyond = np.flatnonzero((x < x0) | (x > x1) | (y == 0.0))
+            if beyond.size:
+                at, left, right = x[beyond], x0[beyond], x1[beyond]
+                below, above = np.minimum(at - left, 0.0), np.maximum(at - right, 0.0)
+                y[beyond] = (y[beyond] + self.slope.take(first[beyond]) * below
+                             + self.slope.take(first[beyond] + 1) * above)
         return y
 
     def inside(self, curve: np.ndarray, x: np.ndarray, rtol: float = 1e-9) -> np.ndarray:

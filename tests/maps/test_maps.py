@@ -188,6 +188,8 @@ def test_curve_segments_compared_as_searched():
     for knots in (2, 3, 7, 12):
         x = [np.sort(rng.uniform(-12.0, -3.0, knots)) for _ in range(5)]
         sets.append([(xc, np.cumsum(rng.uniform(0.1, 1.0, knots))) for xc in x])
+    sets.append([(np.array([-5.0, -4.0, -3.0]), np.array([1.0, 0.0, -1.0])),  # a zero, falling
+                 (np.array([-6.0, -4.0]), np.array([-0.0, 2.0]))])
     for curves in sets:
         for outside in ("tangent", "hold"):
             compared = CurveSet(curves, outside)
@@ -200,6 +202,27 @@ def test_curve_segments_compared_as_searched():
             curve = rng.integers(0, len(curves), len(x))
             with np.errstate(invalid="ignore"):  # an infinite x on its tangent: NaN either way
                 np.testing.assert_array_equal(compared(curve, x), searched(curve, x))
+                np.testing.assert_array_equal(compared(curve, x), _every_tangent(compared,
+                                                                                 curve, x))
     # sweeps of up to seven flows (the shipped grid's) are compared; twelve are searched
     assert CurveSet(sets[2], "hold")._inner_keys is not None
     assert CurveSet(sets[3], "hold")._inner_keys is None
+
+
+def _every_tangent(curves, curve, x):
+    """A curve set's values with the end tangents' terms added at every query, as the sum
+    was first written (they add zeros within the knots)."""
+    from surrogate.maps.curves import _KEY_RANGE, _KEY_STRIDE
+
+    start, n = curves.start[curve], curves.n[curve]
+    keys = curve * _KEY_STRIDE + np.minimum(np.maximum(x, -_KEY_RANGE), _KEY_RANGE)
+    segment = np.searchsorted(curves._keys, keys, side="right") - 1 - start
+    first = start + np.minimum(np.maximum(segment, 0), n - 2)
+    x0, x1 = curves.x[first], curves.x[first + 1]
+    offset = np.minimum(np.maximum(x, x0), x1) - x0
+    c0, c1, c2, c3 = (row[first] for row in curves._c)
+    y = c0 + offset * (c1 + offset * (c2 + offset * c3))
+    if curves.outside == "tangent":
+        below, above = np.minimum(x - x0, 0.0), np.maximum(x - x1, 0.0)
+        y = y + curves.slope[first] * below + curves.slope[first + 1] * above
+    return y
