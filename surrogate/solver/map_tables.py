@@ -551,33 +551,34 @@ def _slopes(nodes, kink, values, begin, count) -> np.ndarray:
         return out
 
     x_next, x_prev = shifted(x, 1), shifted(x, -1)
-    x_next2, x_prev2 = shifted(x, 2), shifted(x, -2)
     f, f_next, f_prev = values, shifted(values, 1), shifted(values, -1)
-    f_next2, f_prev2 = shifted(values, 2), shifted(values, -2)
     with np.errstate(invalid="ignore", divide="ignore"):
         a, b = x - x_prev, x_next - x
         central = (-b / (a * (a + b)) * f_prev + (b - a) / (a * b) * f
                    + a / (b * (a + b)) * f_next)
-        c, d = x_next - x, x_next2 - x_next
-        forward = (-(2 * c + d) / (c * (c + d)) * f + (c + d) / (c * d) * f_next
-                   - c / (d * (c + d)) * f_next2)
-        e, g = x - x_prev, x_prev - x_prev2
-        backward = ((2 * e + g) / (e * (e + g)) * f - (e + g) / (e * g) * f_prev
-                    + e / (g * (e + g)) * f_prev2)
-        secant_right = (f_next - f) / (x_next - x)
-        secant_left = (f - f_prev) / (x - x_prev)
     short = np.repeat(count < 3, count)
     # the right slope: one-sided forward at a window's start or a kink, the secant where no
-    # forward stencil fits before the window's end or the next kink; the left one mirrored
+    # forward stencil fits before the window's end or the next kink; the left one mirrored.
+    # The one-sided stencils and secants are formed only at the few nodes that take them
     kink_next = np.append(at_kink[1:], False)
     kink_prev = np.insert(at_kink[:-1], 0, False)
     cramped_right = (position >= np.repeat(count - 2, count)) | kink_next
     cramped_left = (position < 2) | kink_prev
-    right = np.where(at_start | at_kink, np.where(cramped_right, secant_right, forward),
-                     central)
-    left = np.where(at_end | at_kink, np.where(cramped_left, secant_left, backward), central)
-    right = np.where(short, secant_right, right)
-    left = np.where(short, secant_left, left)
+    right_end, left_end = at_start | at_kink, at_end | at_kink
+    right, left = central, central.copy()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        i = np.flatnonzero(~short & right_end & ~cramped_right)  # a forward stencil fits
+        c, d = x_next[i] - x[i], x[i + 2] - x_next[i]
+        right[:, i] = (-(2 * c + d) / (c * (c + d)) * f[:, i] + (c + d) / (c * d) * f_next[:, i]
+                       - c / (d * (c + d)) * f[:, i + 2])
+        i = np.flatnonzero(~short & left_end & ~cramped_left)  # a backward one fits
+        e, g = x[i] - x_prev[i], x_prev[i] - x[i - 2]
+        left[:, i] = ((2 * e + g) / (e * (e + g)) * f[:, i] - (e + g) / (e * g) * f_prev[:, i]
+                      + e / (g * (e + g)) * f[:, i - 2])
+        i = np.flatnonzero(short | (right_end & cramped_right))
+        right[:, i] = (f_next[:, i] - f[:, i]) / (x_next[i] - x[i])
+        i = np.flatnonzero(short | (left_end & cramped_left))
+        left[:, i] = (f[:, i] - f_prev[:, i]) / (x[i] - x_prev[i])
     return np.vstack([right, left])
 
 
