@@ -20,7 +20,6 @@ Dask is optional (the ``fleet`` extra) and imported only when ``--scheduler`` as
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
 import os
 import signal
 import socket
@@ -28,7 +27,6 @@ import sys
 import time
 import traceback
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from .. import parallel
 from ..data.errors import DataFileError
@@ -148,6 +146,10 @@ class LocalPool:
         """Each task's record, in the order they complete."""
         if not tasks:
             return
+        # imported here: every command's start would otherwise pay for the process machinery
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
         pool = ProcessPoolExecutor(min(self.workers, len(tasks)),
                                    mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_worker_start)
