@@ -48,7 +48,10 @@ class FluidState:
 
     def __getitem__(self, index) -> "FluidState":
         """The fluid state at a subset of points (same indexing as numpy)."""
-        nu, rho = self.nu[index], self.rho[index]
+        if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and self.nu.ndim == 1:
+            nu, rho = self.nu.take(index), self.rho.take(index)  # positions: as the solver asks
+        else:
+            nu, rho = self.nu[index], self.rho[index]
         if np.ndim(nu) == 0:  # one point: 0-d arrays, as the constructor makes them
             return FluidState(nu, rho)
         # a subset of checked states needs no check: the solver takes subsets at every step

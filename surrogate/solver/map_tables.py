@@ -436,7 +436,9 @@ class TableView:
         return self.store.snapshots(self.generation) or []
 
     def __getitem__(self, index) -> "TableView":
-        return TableView(self.row[index], self.store, self.generation)
+        rows = (self.row.take(index) if isinstance(index, np.ndarray) and index.dtype.kind in "iu"
+                else self.row[index])
+        return TableView(rows, self.store, self.generation)
 
     def tile(self, times: int) -> "TableView":
         """The view of the points repeated ``times`` over, as a replay stacks a band's edges."""
@@ -450,17 +452,21 @@ class TableView:
         u = np.asarray(u, float)
         with np.errstate(divide="ignore", invalid="ignore"):
             x = np.log(u)
+        pending = np.flatnonzero((self.row >= 0) & np.isfinite(x))
+        levels = self.levels[: coarsest + 1]
+        finest = None
+        if levels and pending.size == u.size:  # every point (a fit's usual case): no gathers
+            finest = _interpolate(levels[0], self.row, x.ravel(), expansions)
+            if finest[0].all():
+                return finest
         values = np.full((2, u.size), np.nan)
         expanded = np.full((_EXPANSIONS, u.size), np.nan) if expansions else None
         inside = np.zeros(u.size, bool)
-        pending = np.flatnonzero((self.row >= 0) & np.isfinite(x))
-        for level in self.levels[: coarsest + 1]:
+        for level in levels:
             if not pending.size:
                 break
-            if pending.size == u.size:  # every point (a fit's usual case): no gathers
-                found, main, extra = _interpolate(level, self.row, x.ravel(), expansions)
-                if found.all():
-                    return found, main, extra
+            if finest is not None:  # the finest level, read above for every point
+                (found, main, extra), finest = finest, None
             else:
                 found, main, extra = _interpolate(level, self.row[pending], x[pending],
                                                   expansions)
