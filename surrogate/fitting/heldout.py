@@ -247,6 +247,7 @@ class RunBlocks:
         self.ridge = np.diag(1e-10 * max(float(diagonal.mean()) if self.p else 1.0, 1e-300)
                              * np.ones(self.p))
         self.rough = None
+        self._regular_matrix = None  # :meth:`_regular`, once asked
         roughness = fit.roughness if roughness is None else roughness
         if roughness is not None:
             matrix, offset = roughness
@@ -306,12 +307,16 @@ class RunBlocks:
         return self._joint_step(ones, weighted_sum(ones, self.cross))[self.p:]
 
     def _regular(self) -> np.ndarray:
-        """What the solves add to the Gram matrix: the ridge, the roughness, the prior on a."""
-        p = self.p
-        regular = np.zeros_like(self.gram[0])
-        regular[:p, :p] = self.ridge + (0.0 if self.rough is None else self.rough[0])
-        regular[p:, p:] = self.penalty
-        return regular
+        """What the solves add to the Gram matrix: the ridge, the roughness, the prior on a
+        (made once: every resample's solve adds the same; :meth:`moved` keeps the roughness's
+        matrix, and so this)."""
+        if self._regular_matrix is None:
+            p = self.p
+            regular = np.zeros_like(self.gram[0])
+            regular[:p, :p] = self.ridge + (0.0 if self.rough is None else self.rough[0])
+            regular[p:, p:] = self.penalty
+            self._regular_matrix = regular
+        return self._regular_matrix
 
     def _joint_step(self, weights: np.ndarray, cross: np.ndarray) -> np.ndarray:
         """(θ, a) minimising the weighted objective, whose cross products are ``cross``."""
