@@ -77,11 +77,11 @@ from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register
 from .splits import group_keys
 
 _TINY_OPENING = 1e-12  # [m] openings below this are treated as this, to keep logarithms finite
-#: queries interpolated at a time. Each query asks four sweeps' curves, and their dozens of
-#: temporaries then stay in the processor's cache: a replay of the shipped log that asks the
-#: grid (11,000 samples, both band edges at once) took 0.17-0.18 CPU s instead of 0.23-0.24.
-#: Every step is elementwise, so the values are the same to the bit whatever the block
-_BLOCK = 2048
+#: queries interpolated at a time: each query asks four sweeps' curves, and a block's
+#: temporaries (a few dozen arrays of four times its length) then stay in the processor's cache,
+#: which a whole log's would not. Every step is elementwise, so the values are the same to the
+#: bit whatever the block
+_BLOCK = 4096
 #: the range the exponent of the flow-force fraction's power of u below the smallest opening is
 #: kept in: it may fall toward the seat as fast as the opening, never grow (the jet's momentum,
 #: and so the flow force, vanishes as the valve closes)
