@@ -138,7 +138,9 @@ def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = No
     # diagnosis replays its log from the model's own replay some eighty times)
     same = guess is not None and guess.log is log
     points = guess.replay.points if same else OperatingPoints.from_bench(log.frame)
-    played = replay(model, points, log.frame["run"].to_numpy(),
+    # the points' run labels, as fixed-width text: the log's column is made of objects,
+    # slower to read out and to compare
+    played = replay(model, points, points.run,
                     guess=None if guess is None else guess.replay, diagnostics=diagnostics,
                     smoothing=state_smoothing_samples(log), progress=progress)
     measured = guess.measured if same else measured_dp(log)
