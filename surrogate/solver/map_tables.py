@@ -248,6 +248,10 @@ class MapTables:
         self._keys: dict[bytes, int] = {}
         self._known: dict[bytes, np.ndarray] = {}
         self._expanded = np.empty(0, bool)  # per row: whether it holds expansions
+        # per row: the maps with the piston on its stop, as they answer there (Δp at the
+        # measured flow, the flow force at that Δp): a replay asks the balance of every sample
+        # on the stop there at each step, and no window holds the stroke itself
+        self._at_stroke = np.empty((0, 2))
         # counts the stores' clearings: a view of an earlier generation finds no rows
         self.generation = 0
 
@@ -301,6 +305,7 @@ class MapTables:
             sub = points[todo[part]]
             tables = [_tabulate(model, sub, level, begin[part], count[part], expansions)
                       for level, (begin, count) in zip(self.levels, windows)]
+            at_stroke = _maps_at_stroke(model, sub, self.stroke)
             with self._lock:
                 self._known = {}
                 start = self.levels[0].rows
@@ -309,6 +314,7 @@ class MapTables:
                     level.append(begin[part], count[part], values, expanded)
                 self._expanded = np.concatenate([self._expanded,
                                                  np.full(len(sub), expansions)])
+                self._at_stroke = np.concatenate([self._at_stroke, at_stroke])
                 for i, key in enumerate(keys[part]):  # a renewed row replaces the old one
                     self._keys[key] = start + i
 
@@ -331,6 +337,12 @@ class MapTables:
                     self._known.clear()
                 self._known[digest] = rows
             return TableView(rows, self, self.generation)
+
+    def maps_at_stroke(self, generation: int) -> np.ndarray | None:
+        """(rows, 2): each row's Δp [Pa] and flow force [N] with the piston on the stop, as the
+        maps answer there; None after a clearing since ``generation``."""
+        with self._lock:
+            return self._at_stroke if generation == self.generation else None
 
     def snapshots(self, generation: int) -> list[_Snapshot] | None:
         """The levels as they are now, or None after a clearing since ``generation``."""
@@ -358,6 +370,7 @@ class MapTables:
             level.append(first, count, values, expansions)
         self._keys = {key: renumber[row] for key, row in self._keys.items()}
         self._expanded = self._expanded[live]
+        self._at_stroke = self._at_stroke[live]
         self._known = {}
         self.generation += 1
 
@@ -365,6 +378,7 @@ class MapTables:
         for level in self.levels:
             level.clear()
         self._keys, self._known, self._expanded = {}, {}, np.empty(0, bool)
+        self._at_stroke = np.empty((0, 2))
         self.generation += 1
 
 
@@ -400,6 +414,16 @@ def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, 
                                                             [h**4]])
     expanded = np.vstack([differences @ around, differences @ ratios]).T
     return records, np.ascontiguousarray(expanded, np.float32)
+
+
+def _maps_at_stroke(model: ValveModel, points: OperatingPoints, stroke: float) -> np.ndarray:
+    """(len(points), 2): Δp [Pa] at each (measured) point's flow with the piston on the stop
+    (``stroke`` [m]), and the flow force [N] at that Δp, asked of the maps as
+    :class:`TabulatedMaps` asks them for a point no window holds: the same values."""
+    fluid = model.fluid(points)
+    u = np.full(len(points), stroke)
+    dp = model.flow_map.pressure_drop(points.q, points.p_B, u, fluid)
+    return np.column_stack([dp, model.flow_force(u, dp, points, fluid)])
 
 
 def _maps_at(model: ValveModel, points: OperatingPoints, which: np.ndarray, u: np.ndarray,
@@ -439,6 +463,11 @@ class TableView:
         rows = (self.row.take(index) if isinstance(index, np.ndarray) and index.dtype.kind in "iu"
                 else self.row[index])
         return TableView(rows, self.store, self.generation)
+
+    def maps_at_stroke(self) -> np.ndarray | None:
+        """The store's maps with the piston on the stop, per row
+        (:meth:`MapTables.maps_at_stroke`); None after a clearing."""
+        return self.store.maps_at_stroke(self.generation)
 
     def tile(self, times: int) -> "TableView":
         """The view of the points repeated ``times`` over, as a replay stacks a band's edges."""
@@ -634,6 +663,20 @@ class TabulatedMaps:
         self.expansions = model.may_change_the_flow
         self.inside, (self.log_dp, self.ratio), self.expanded = view.read(u, coarsest,
                                                                           self.expansions)
+        self.rows, self.stroke, self.at_stroke = view.row, view.store.stroke, None
+        if not self.inside.all():
+            self.at_stroke = view.maps_at_stroke()
+
+    def _on_stop(self, where: np.ndarray) -> np.ndarray:
+        """The rows of the points ``where`` (positions) on the stop whose row holds the maps
+        there; −1 for the others."""
+        rows = np.full(len(where), -1)
+        if self.at_stroke is not None and where.size:
+            held = self.rows[where]
+            on_stop = ((self.u[where] == self.stroke) & (held >= 0)
+                       & (held < len(self.at_stroke)))
+            rows[on_stop] = held[on_stop]
+        return rows
 
     def pressure_drop(self, q: np.ndarray, index=slice(None)) -> np.ndarray:
         """Δp [Pa] that passes the flow ``q`` [m^3/s] through the restriction at the points
@@ -655,8 +698,15 @@ class TabulatedMaps:
         if not inside.all():
             away = np.flatnonzero(~inside)
             where = np.arange(len(self.u))[index][away]
-            dp[away] = self.model.flow_map.pressure_drop(
-                q[away], self.points.p_B[where], self.u[where], self.fluid[where])
+            # on the stop at the measured flow: the maps' answer there, kept
+            rows = self._on_stop(where)
+            kept = (rows >= 0) & (q[away] == reference[away])
+            if kept.any():
+                dp[away[kept]] = self.at_stroke[rows[kept], 0]
+                away, where = away[~kept], where[~kept]
+            if away.size:
+                dp[away] = self.model.flow_map.pressure_drop(
+                    q[away], self.points.p_B[where], self.u[where], self.fluid[where])
         return dp
 
     def flow_force(self, dp: np.ndarray) -> np.ndarray:
@@ -677,8 +727,16 @@ class TabulatedMaps:
         force = ratio * dp
         if not inside.all():
             away = np.flatnonzero(~inside)
-            force[away] = self.model.flow_force(self.u[away], dp[away], self.points[away],
-                                                self.fluid[away])
+            # on the stop at the Δp kept there: the maps' answer there, kept
+            rows = self._on_stop(away)
+            kept = rows >= 0
+            if kept.any():
+                kept[kept] = dp[away[kept]] == self.at_stroke[rows[kept], 0]
+                force[away[kept]] = self.at_stroke[rows[kept], 1]
+                away = away[~kept]
+            if away.size:
+                force[away] = self.model.flow_force(self.u[away], dp[away], self.points[away],
+                                                    self.fluid[away])
         return force
 
 

@@ -57,6 +57,38 @@ def test_a_grid_maps_pressure_drop_is_tabulated_exactly_and_its_flow_force_close
     assert np.quantile(force_error, 0.99) < 5e-3 * BAR
 
 
+def test_on_the_stop_the_tables_give_the_maps_own_answers(setting):
+    """No window holds the stroke itself: there a tabulated balance gives the maps' answers,
+    kept per row when tabulated (Δp at the measured flow, the flow force at that Δp), to the
+    bit; at another flow or Δp, and at another opening outside the windows, it asks the maps."""
+    from surrogate.solver.map_tables import TabulatedMaps
+
+    log, model, played = setting
+    points = OperatingPoints.from_bench(log.frame)
+    tables = MapTables(model)
+    tables.tabulate(model, points, played.replay.band)
+    view = tables.view(points)
+    fluid = model.fluid(points)
+    rng = np.random.default_rng(5)
+    stroke = model.valve.U_max
+    u = np.where(rng.random(len(points)) < 0.7, stroke, stroke * rng.uniform(1e-6, 1.0,
+                                                                             len(points)))
+    kept = TabulatedMaps(model, view, points, fluid, u)
+    asked = TabulatedMaps(model, view, points, fluid, u)
+    asked.at_stroke = None  # every point outside the windows asks the maps
+    assert kept.at_stroke is not None and not kept.inside[u == stroke].any()
+    q = points.q * np.where(rng.random(len(points)) < 0.8, 1.0, 1.01)  # some at another flow
+    dp = kept.pressure_drop(q)
+    np.testing.assert_array_equal(dp, asked.pressure_drop(q))
+    np.testing.assert_array_equal(kept.pressure_drop(points.q), asked.pressure_drop(points.q))
+    for drops in (dp, dp * np.where(rng.random(len(points)) < 0.8, 1.0, 1.01)):
+        np.testing.assert_array_equal(kept.flow_force(drops), asked.flow_force(drops))
+    on_stop = (u == stroke) & (view.row >= 0) & (points.q > 0)
+    np.testing.assert_array_equal(kept.pressure_drop(points.q)[on_stop],
+                                  model.flow_map.pressure_drop(points.q, points.p_B, u,
+                                                               fluid)[on_stop])
+
+
 def test_outside_its_window_a_sample_is_not_in_the_table(setting):
     log, model, played = setting
     points = OperatingPoints.from_bench(log.frame)
