@@ -159,3 +159,37 @@ def test_each_group_left_out_has_the_refit_that_its_held_out_rms_is_made_of():
     explicit = np.linalg.lstsq(jacobian[keep], -residual[keep], rcond=None)[0]
     whole = np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
     assert held == [0] and np.allclose(shift, explicit - whole, atol=1e-6)
+
+
+def test_run_blocks_sum_and_index_the_runs_as_before():
+    """The runs' weighted sums are tensordot's own product, and blocks made from an index of
+    the runs (as a diagnosis makes them once) are those made from the labels, to the bit."""
+    from surrogate.fitting.heldout import RunIndex, weighted_sum
+
+    rng = np.random.default_rng(7)
+    for shape in [(12, 9, 9), (12, 9), (5, 3, 4)]:
+        blocks = rng.normal(size=shape)
+        weights = rng.integers(0, 4, shape[0]).astype(float)
+        for part in (blocks, blocks[:, :2]):
+            np.testing.assert_array_equal(weighted_sum(weights, part),
+                                          np.tensordot(weights, part, axes=1))
+    runs = np.repeat(np.array([f"R{i:02d}" for i in range(6)], dtype=object), 40)
+    jacobian = rng.normal(size=(len(runs), 3))
+    fit = _at_optimum(rng.normal(size=len(runs)), jacobian)
+    discrepancy = Discrepancy(rng.normal(size=(len(runs), 4)), ["a", "b", "c", "d"])
+    for nuisance in (None, discrepancy):
+        by_labels = RunBlocks(fit, nuisance, runs, 2.0)
+        by_index = RunBlocks(fit, nuisance, RunIndex.of(runs), 2.0)
+        for name in ("gram", "cross", "squares", "counts", "penalty", "ridge"):
+            np.testing.assert_array_equal(getattr(by_labels, name), getattr(by_index, name))
+        ones = np.ones(len(by_index.labels))
+        assert by_labels.objective(ones) == by_index.objective(ones)
+        # each run's blocks as [J, N] over the whole log gave them
+        stacked = jacobian if nuisance is None else np.column_stack([jacobian,
+                                                                     nuisance.columns])
+        for k, label in enumerate(by_index.labels):
+            rows = runs == label
+            np.testing.assert_array_equal(by_index.gram[k, :3], jacobian[rows].T
+                                          @ stacked[rows])
+            np.testing.assert_array_equal(by_index.cross[k], stacked[rows].T
+                                          @ fit.residual[rows])
