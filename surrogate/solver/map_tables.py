@@ -34,6 +34,11 @@ eval/map_tables_accuracy.py`` compares the tables with the maps over the shipped
 grid map's Δp, linear in ln u between kinks that are nodes, is exact) and a replay read from
 them with one that asks the maps.
 
+A row also keeps the maps' own answers with the piston on its stop (Δp at the sample's flow,
+and the flow force at that Δp), asked of the maps when the row is tabulated: no window holds the
+stroke itself, and a replay asks the balance there for every sample on the stop at each step, so
+it reads them there instead of asking again (the same values, to the bit).
+
 Who reads them: the replays of a fit's inner loop (a guess, no diagnostics) and their
 sensitivities (:mod:`.replay`, :mod:`.sensitivities`); what is reported (a replay without a
 guess, or with diagnostics) asks the maps. Rows are keyed by the measured inputs that fix a
