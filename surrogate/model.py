@@ -181,6 +181,9 @@ class ValveModel:
                           points.temperature, fluid, self.valve)
         flow_effects = [e for e in self.effects if _uses(e, "restriction_flow")]
         leaks = [e for e in self.effects if _uses(e, "leakage")]
+        # a leak's split asks the restriction about these openings at many flows
+        restriction = (self.flow_map.at_openings(state.p_B, state.u, fluid)
+                       if leaks and maps is None else None)
 
         def through_restriction(q, index=slice(None)):
             sub = state if isinstance(index, slice) else state.subset(index)
@@ -188,6 +191,8 @@ class ValveModel:
                 q = effect.restriction_flow(q, sub)
             if maps is not None:
                 return maps.pressure_drop(q, index)
+            if restriction is not None:
+                return restriction(q, index)
             return self.flow_map.pressure_drop(q, sub.p_B, sub.u, sub.fluid)
 
         dp = through_restriction(points.q)

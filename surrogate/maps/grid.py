@@ -399,11 +399,57 @@ class GridFlowMap(_SweepGrid, FlowMap):
         dp = np.where(flowing & (u <= 0), np.inf, dp)
         return dp.reshape(shape)
 
+    def at_openings(self, p_B, u, fluid: FluidState):
+        """:meth:`FlowMap.at_openings`: the points' brackets in opening and viscosity, and the
+        sweeps they read, found once; each flow then reads and blends the sweeps as
+        :meth:`pressure_drop` does (the same values, to the bit)."""
+        u = np.asarray(u, float)
+        if u.ndim != 1 or self._shared_log_u is None:
+            return super().at_openings(p_B, u, fluid)
+        return _FlowAtOpenings(self, u, fluid)
+
     def calibration_inputs(self, q, p_B, u, fluid: FluidState):
         if self.uncertainty is None:
             return None
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         return self.uncertainty.inputs(self, p_B, u, fluid)
+
+
+class _FlowAtOpenings:
+    """A flow grid at fixed openings and fluid states (:meth:`GridFlowMap.at_openings`), for
+    flows to come: what :meth:`_SweepGrid._interpolate_block` finds from the opening and the
+    viscosity, found once per point (for grids whose fluid levels share their openings)."""
+
+    def __init__(self, grid: GridFlowMap, u: np.ndarray, fluid: FluidState):
+        self.grid, self.u = grid, u
+        log_u = np.log(np.maximum(u, _TINY_OPENING))
+        k0, k1, t, _ = _bracket_shared(grid.log_nu, np.log(np.ravel(fluid.nu)))
+        j0, j1, s, excess = _bracket_shared(grid._shared_log_u, log_u)
+        widest = grid._curve.shape[1]
+        flat = grid._curve.ravel()
+        # the four sweeps each point reads, and the blend's weights, as the block computes them
+        self.curves = np.stack([flat.take(k0 * widest + j0), flat.take(k0 * widest + j1),
+                                flat.take(k1 * widest + j0), flat.take(k1 * widest + j1)])
+        self.s, self.t = s, t
+        self.rest, self.extra = 1.0 - s, grid.excess_slope * excess
+
+    def __call__(self, q: np.ndarray, index=slice(None)) -> np.ndarray:
+        """Δp [Pa] at the flows ``q`` [m^3/s] of the points ``index``."""
+        q = np.asarray(q, float)
+        curves, s, t = self.curves[:, index], self.s[index], self.t[index]
+        rest, extra, u = self.rest[index], self.extra[index], self.u[index]
+        flowing = q > 0
+        x = np.log(np.where(flowing, q, 1.0))
+        log_dp = np.empty(len(q))
+        for start in range(0, len(q), _BLOCK):  # as pressure_drop's blocks, for the cache
+            part = slice(start, start + _BLOCK)
+            values = self.grid.curves(curves[:, part].ravel(),
+                                      np.concatenate([x[part]] * 4)).reshape(4, -1)
+            level0 = rest[part] * values[0] + s[part] * values[1] + extra[part]
+            level1 = rest[part] * values[2] + s[part] * values[3] + extra[part]
+            log_dp[part] = (1.0 - t[part]) * level0 + t[part] * level1
+        dp = np.where(flowing, np.exp(log_dp), 0.0)
+        return np.where(flowing & (u <= 0), np.inf, dp)
 
 
 class GridForceMap(_SweepGrid, ForceMap):

@@ -226,3 +226,28 @@ def _every_tangent(curves, curve, x):
         below, above = np.minimum(x - x0, 0.0), np.maximum(x - x1, 0.0)
         y = y + curves.slope[first] * below + curves.slope[first + 1] * above
     return y
+
+
+def test_grid_at_fixed_openings_answers_as_asked_afresh(cfd_samples, valve):
+    """A flow grid prepared for fixed openings and fluid states (a leak's split asks it at
+    many flows) gives pressure_drop's values to the bit, for all points or some, at flows that
+    vanish, openings at or below zero and far outside the sweeps."""
+    from surrogate.maps.grid import GridFlowMap, _FlowAtOpenings
+
+    flow_map = GridFlowMap.from_samples(cfd_samples)  # its own: a test above unshares one
+    rng = np.random.default_rng(11)
+    n = 9000  # more than a block
+    u = rng.uniform(0.0, 1.2, n) * MM
+    u[:5] = [0.0, -1e-6, 1e-9, 2.0 * MM, np.nan]
+    fluid = valve.oil.state(rng.uniform(0.0, 110.0, n) + ZERO_CELSIUS)
+    p_B = np.full(n, 5 * BAR)
+    prepared = flow_map.at_openings(p_B, u, fluid)
+    assert isinstance(prepared, _FlowAtOpenings)
+    for _ in range(3):
+        q = rng.uniform(0.0, 14.0, n) * LPM
+        q[5:9] = [0.0, 1e-12, 40 * LPM, np.nan]
+        with np.errstate(invalid="ignore"):
+            np.testing.assert_array_equal(prepared(q), flow_map.pressure_drop(q, p_B, u, fluid))
+            index = np.flatnonzero(rng.random(n) < 0.3)
+            np.testing.assert_array_equal(prepared(q[index], index), flow_map.pressure_drop(
+                q[index], p_B[index], u[index], fluid[index]))
