@@ -74,6 +74,7 @@ def instrument() -> Counts:
 
     import surrogate.fitting.residuals as residuals
     from surrogate.maps.base import FlowMap, ForceMap
+    from surrogate.maps.grid import _FlowAtOpenings
     from surrogate.model import ValveModel
 
     counts = Counts()
@@ -83,6 +84,8 @@ def instrument() -> Counts:
     for cls in FlowMap.__subclasses__():
         if "pressure_drop" in vars(cls):
             counts.wrap(cls, "pressure_drop", "flow map", lambda self, q, *rest: np.size(q))
+    # a grid prepared at fixed openings (a leak's split) answers its flows itself
+    counts.wrap(_FlowAtOpenings, "__call__", "flow map", lambda self, q, *rest: np.size(q))
     for cls in ForceMap.__subclasses__():
         if "force" in vars(cls):
             counts.wrap(cls, "force", "force map", lambda self, p_L, *rest: np.size(p_L))
