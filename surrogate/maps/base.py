@@ -212,16 +212,6 @@ class ForceMap(ABC):
         """f_sim [N], positive in the opening direction."""
         raise NotImplementedError
 
-    def at_openings(self, p_B, u, fluid: FluidState):
-        """``pressure_drop(q, index)``: :meth:`pressure_drop` at the flows ``q`` [m^3/s] of the
-        points ``index`` (all by default) of these back pressures [Pa], openings [m] and fluid
-        states (1-D, one per point): a leak's split asks the restriction about the same
-        openings at many flows (:func:`surrogate.leakage.shared_pressure_drop`). A map may
-        prepare what does not depend on the flow once; here it is asked afresh each time."""
-        def pressure_drop(q, index=slice(None)):
-            return self.pressure_drop(q, p_B[index], u[index], fluid[index])
-        return pressure_drop
-
     def opening_knots(self) -> np.ndarray:
         """Openings [m] where the map has a kink along u (at a fixed flow, or Δp): none for a
         smooth map. A fit's tables of the map put nodes there
