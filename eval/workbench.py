@@ -137,10 +137,10 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
                                 "withheld": withheld_claims(workflow),
                                 "final_summary": summarise(workflow.final_diagnosis),
                                 "clean": ok, "seconds": round(outcome.seconds, 1)})
-        print(f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
-              f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'} "
-              f"{chosen_in or ''}"
-              + "".join(f"; withheld {claim}" for claim in record["cases"][-1]["withheld"]))
+        line = (f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
+                f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'} "
+                f"{chosen_in or ''}").rstrip()
+        print(line + "".join(f"; withheld {claim}" for claim in record["cases"][-1]["withheld"]))
     record["clean_rate"] = (float(np.mean([c["clean"] for c in record["cases"]]))
                             if record["cases"] else None)
     record["false_additions"] = sum(len(c["invented"]) for c in record["controls"])
