@@ -54,12 +54,8 @@ def shipped_calibrations(samples: CfdSamples, valve: ValveParameters,
                          path: Path = SHIPPED_GRID_CALIBRATION) -> dict | None:
     """{"flow": ..., "force": ...} :class:`~.calibration.Calibration` stored at ``path`` for
     exactly these samples and valve, or None (no file, another format, other data)."""
-    try:
-        stored = json.loads(Path(path).read_text())
-    except (OSError, ValueError):
-        return None
-    if (stored.get("format_version") != FORMAT_VERSION
-            or stored.get("fingerprint") != fingerprint(samples, valve)):
+    stored = _stored_for(samples, valve, path)
+    if stored is None:
         return None
     return {name: Calibration.from_dict(stored[name]) for name in ("flow", "force")}
 
@@ -69,6 +65,13 @@ def shipped_summary(samples: CfdSamples, valve: ValveParameters,
     """The cross-validation summary stored at ``path`` for exactly these samples and valve
     (per scheme, as :func:`.crossval.summary` gives it), or None (no file or no summary in it,
     another format, other data)."""
+    stored = _stored_for(samples, valve, path)
+    return None if stored is None else stored.get("cross_validation")
+
+
+def _stored_for(samples: CfdSamples, valve: ValveParameters, path: Path) -> dict | None:
+    """The file at ``path`` as stored, if it is of this format and for exactly these samples
+    and valve; else None (no file, unreadable, another format, other data)."""
     try:
         stored = json.loads(Path(path).read_text())
     except (OSError, ValueError):
@@ -76,7 +79,7 @@ def shipped_summary(samples: CfdSamples, valve: ValveParameters,
     if (stored.get("format_version") != FORMAT_VERSION
             or stored.get("fingerprint") != fingerprint(samples, valve)):
         return None
-    return stored.get("cross_validation")
+    return stored
 
 
 def write_calibrations(path: Path, samples: CfdSamples, valve: ValveParameters,
