@@ -1,7 +1,7 @@
 """The main job on whole virtual-valve logs, as a user would run it: `simulate --mismatch`, then
 `workflow`.
 
-The stress suite (tests/workbench/test_mismatch.py, `eval/workbench.py --only-mismatch`) runs on every 8th
+The stress suite (tests/synthetic/test_mismatch.py, `eval/workbench.py --only-mismatch`) runs on every 8th
 sample of the test sequence and starts from the reference valve's CFDA. A user's log is the
 whole sequence, and the main job starts from the paper's basic model. This script does what a
 user would: for each case it writes the log that

@@ -103,7 +103,7 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
                     mismatch: MapMismatch = MapMismatch(), only_weak: bool = False,
                     folder: str | None = None) -> dict:
     """The workflow on virtual-valve logs (the same settings and seeds as
-    tests/workbench/test_mismatch.py with its defaults): clean identifications over randomised
+    tests/synthetic/test_mismatch.py with its defaults): clean identifications over randomised
     cases, and the physics or sensor effects added where nothing is hidden. ``only_weak``: the
     weak leakages' cases alone; ``folder``: a learned kind's trained surrogate other than the
     committed one (an earlier version's, say)."""

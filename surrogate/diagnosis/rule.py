@@ -47,16 +47,16 @@ NOISE_MARGIN = 1.1  # the residual must exceed the noise floor by 10 %
 #: and a candidate must remove at least this share of the noise floor of in-sample RMS: a guard
 #: against slivers that a huge effective sample count would call significant. Small, as the
 #: held-out gain is the real test: a pilot-transducer offset of 0.6 bar, hidden in a log whose
-#: maps err like a real valve's (tests/workbench/test_mismatch.py), lowers the in-sample RMS by 0.02–0.03
+#: maps err like a real valve's (tests/synthetic/test_mismatch.py), lowers the in-sample RMS by 0.02–0.03
 #: noise floors once the model's own free parameters have taken their share
 GAIN_FRACTION = 0.02
 #: a discovery must lower the RMS on held-out runs by at least this share of it. Real effects on
-#: the shipped log lower it by 20–33 %; on virtual valves (tests/workbench/test_mismatch.py) a leakage term
+#: the shipped log lower it by 20–33 %; on virtual valves (tests/synthetic/test_mismatch.py) a leakage term
 #: added after the hidden friction, patching the maps, lowered it by 2.8 %
 HELDOUT_GAIN = 0.03
 #: a discovery (or the group it cannot be told from) must be the one added in at least this
 #: share of those resamples: the majority. A finding that depends on which runs happen to be in
-#: the log is not one. On the stress suite's virtual valves (tests/workbench/test_mismatch.py) the hidden
+#: the log is not one. On the stress suite's virtual valves (tests/synthetic/test_mismatch.py) the hidden
 #: effects were chosen in 62–100 % of resamples, the terms that stood in for map error where
 #: nothing of their kind was hidden in 35–57 %
 INCLUSION_MIN = 0.5
@@ -98,9 +98,9 @@ class SignificanceRule:
         A shape-free term is chosen from a dozen families, its roughness from a grid, and its
         effective parameter count does not see either choice: the handicap is that search's
         price. Without it, a leakage of free shape soaked up 7 % of the held-out RMS of a log
-        whose pilot transducer drifted from run to run (ΔBIC −14; tests/workbench/test_hidden_effects.py),
+        whose pilot transducer drifted from run to run (ΔBIC −14; tests/synthetic/test_hidden_effects.py),
         and flow-force and discharge shapes were added beside hidden library terms under map
-        mismatch (tests/workbench/test_mismatch.py)."""
+        mismatch (tests/synthetic/test_mismatch.py)."""
         return -self.bic if getattr(candidate, "shape_free", False) else 0.0
 
     def rank(self, candidate) -> tuple[float, float]:

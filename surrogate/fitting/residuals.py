@@ -107,7 +107,7 @@ def measured_dp(log) -> np.ndarray:
 #: time over which the friction state ignores the inputs' sample-to-sample noise [s] (see
 #: :mod:`surrogate.solver.replay`): 7 samples at 25 Hz. On a noisy ramp that already removes the
 #: ratchet's bias; longer windows round the turns of the ramps, and the state then turns short
-#: of the real piston (tests/model/test_solver.py::test_smoothed_state_does_not_ratchet_on_pilot_noise)
+#: of the real piston (tests/solver/test_solver.py::test_smoothed_state_does_not_ratchet_on_pilot_noise)
 STATE_SMOOTHING = 0.28
 
 

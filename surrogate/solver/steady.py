@@ -44,7 +44,7 @@ The rule does not depend on the guess; the check's reach does: an interval where
 sign that holds none of the samples is not seen (a narrow one, as near the parameters where a
 pair of equilibria is born, or one far from the root found), and a guess that lands the first
 root elsewhere can then change the answer. On a made-up family of models with a force bump (and
-half of them a leak; tests/model/test_solver.py has some), the one sample returns the rule's
+half of them a leak; tests/solver/test_solver.py has some), the one sample returns the rule's
 equilibrium whatever the guess at 62 % of the points that have several, without the check 7 %
 (``python eval/equilibria.py``). Two samples (u*/2 and u*/6) would reach 76 %, but each costs an
 evaluation of h per point and solve, and a fit spends most of its time there: two made the

@@ -321,7 +321,7 @@ STRESS_SETTINGS = (2026, 2027)
 
 def stress_suite(cases: int = 20, controls: int = 5,
                  settings: tuple[int, ...] = STRESS_SETTINGS) -> list[StressCase]:
-    """The cases of the workbench's stress test (tests/workbench/test_mismatch.py, eval/workbench.py):
+    """The cases of the workbench's stress test (tests/synthetic/test_mismatch.py, eval/workbench.py):
     for each settings seed, ``cases`` randomised hidden effects and ``controls`` logs with
     nothing hidden, every one with its own seed."""
     suite = []
@@ -394,7 +394,7 @@ def identified(diagnosis, hidden: str, library: EffectLibrary = LIBRARY) -> bool
     first, and is the effect or a candidate the data cannot tell from it. A per-run effect never
     joins a model (it cannot predict another run): it is found when no candidate is significant
     and the diagnosis' sensor checks flag a run for it (they flag none where nothing is hidden:
-    tests/workbench/test_hidden_effects.py)."""
+    tests/synthetic/test_hidden_effects.py)."""
     best = diagnosis.best
     if _per_run(hidden, library):
         return best is None and any(check.effect == hidden for check in diagnosis.sensor_checks)
