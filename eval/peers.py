@@ -46,7 +46,7 @@ import pandas as pd
 
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
-from surrogate.maps.calibration import Calibration
+from surrogate.maps.sigma import SigmaCalibration
 from surrogate.maps.crossval import SCHEMES, cross_validate, flow_force_score, summary
 from surrogate.maps.learned import trained_folder
 from surrogate.maps.peer import fit_peer_maps
@@ -356,7 +356,7 @@ def settings_label(settings: dict) -> str:
 def error_summary(errors) -> dict:
     """Per scheme: relative RMS error of q and of the flow force (``summary`` without the
     coverage, which needs a calibrated σ a peer does not have)."""
-    result = summary(errors, Calibration(), Calibration())
+    result = summary(errors, SigmaCalibration(), SigmaCalibration())
     for row in result.values():
         for key in ("q_coverage_2sigma", "flow_force_coverage_2sigma"):
             row.pop(key)

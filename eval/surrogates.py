@@ -34,7 +34,7 @@ from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.learn.monotonicity import random_states, violations
-from surrogate.maps.calibration import Calibration
+from surrogate.maps.sigma import SigmaCalibration
 from surrogate.maps.crossval import SCHEMES, standard_deviations
 from surrogate.maps.learned import trained_folder
 from surrogate.maps.package import read_manifest
@@ -49,7 +49,7 @@ TRAINING_BUDGET = 120.0  # [s] for every learned kind, on 2 cores
 THROUGHPUT_TARGET = 200_000  # map evaluations per second, each kind
 
 
-def errors_of(kind: str, valve) -> tuple[pd.DataFrame, Calibration, Calibration]:
+def errors_of(kind: str, valve) -> tuple[pd.DataFrame, SigmaCalibration, SigmaCalibration]:
     """The cross-validated errors of a kind and its calibrations."""
     flow_map, force_map = build_maps(kind, valve)
     if kind == "grid":

@@ -37,7 +37,7 @@ from surrogate.learn.reproducibility import environment
 from surrogate.learn.training import KINDS, learned_maps_on, recalibrate, train_surrogate
 from surrogate.maps.crossval import calibrate, cross_validate, summary
 from surrogate.maps.grid import GridUncertainty
-from surrogate.maps.grid_calibration import SHIPPED_GRID_CALIBRATION, write_calibrations
+from surrogate.maps.grid_sigma import SHIPPED_GRID_CALIBRATION, write_calibrations
 from surrogate.maps.package import file_hash
 from surrogate.errors import InputError
 from surrogate.outputs import Output, check_outputs
@@ -50,7 +50,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--kinds", nargs="+", choices=[*KINDS, "grid"], default=[*KINDS, "grid"],
                         help="learned kinds to train; grid: only the grid maps' calibration "
-                        "(surrogate.maps.grid_calibration)")
+                        "(surrogate.maps.grid_sigma)")
     parser.add_argument("--out", type=Path, default=SHIPPED_SURROGATES,
                         help="parent folder of the surrogates")
     parser.add_argument("--cfd", type=Path, default=SHIPPED_CFD_SAMPLES, help="CFD-sample file")

@@ -4,12 +4,12 @@ The built-in :data:`LIBRARY` holds physically distinct candidates an engineer wo
 a model and bench data disagree; users add their own with :func:`custom_effect` in a file of
 their own, loaded as a library of its own (``LIBRARY + load_effects_file(path)``). The
 shape-free terms (:mod:`.shapes`, :data:`SHAPES`) are no library candidates: a diagnosis tries
-them beside the library; nor are the maps' calibration per opening (:mod:`.calibration`), which
+them beside the library; nor are the maps' calibration per opening (:mod:`.per_opening`), which
 the workflow fits last. A model file may name either (:data:`KNOWN`).
 """
 
 from .base import CATEGORIES, KINDS, BalanceState, Effect, FlowState
-from .calibration import CALIBRATIONS
+from .per_opening import CALIBRATIONS
 from .custom import custom_effect, load_effects_file
 from .flow import DischargeScale, LaminarLeakage
 from .flow_force import BackPressureFlowForce, FlowForceScale, NearSeatFlowForce

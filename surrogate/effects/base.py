@@ -114,7 +114,7 @@ class Effect:
     parameter_specs: ClassVar[tuple[Parameter, ...]] = ()
     validity: ClassVar[str] = ""
     #: whether a diagnosis tries it among the library's candidates by default (the maps'
-    #: calibration per opening is fitted once, last, under its prior: :mod:`.calibration`)
+    #: calibration per opening is fitted once, last, under its prior: :mod:`.per_opening`)
     candidate: ClassVar[bool] = True
     #: a user's effect (from an effects file), and the file it came from: model files record it
     #: as a hint, since they never run code

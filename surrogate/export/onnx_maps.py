@@ -1,7 +1,7 @@
 """The learned maps (NN ensembles, Gaussian processes) as ONNX graphs, built with ``onnx.helper``.
 
 Each map kind's own NumPy inference (:mod:`surrogate.maps.network`, :mod:`surrogate.maps.gp`,
-:mod:`surrogate.maps.learned`, :mod:`surrogate.features`, :mod:`surrogate.maps.calibration`) is
+:mod:`surrogate.maps.learned`, :mod:`surrogate.features`, :mod:`surrogate.maps.sigma`) is
 written out operation by operation, in double precision, so that onnxruntime reproduces the
 package to rounding (``tests/export/test_export_onnx.py`` checks 1e-6 relative on 10,000 states):
 
@@ -15,7 +15,7 @@ package to rounding (``tests/export/test_export_onnx.py`` checks 1e-6 relative o
 * ``onnx.json``: what they are, their inputs and outputs with units, the opset.
 
 The σ are the maps' calibrated standard deviations (the ensemble's spread or the GP's posterior
-σ, with the distances from the CFD samples, :mod:`surrogate.maps.calibration`). A GP's posterior
+σ, with the distances from the CFD samples, :mod:`surrogate.maps.sigma`). A GP's posterior
 variance needs a triangular solve, which ONNX lacks: the inverse of the Cholesky factor is
 computed once at export time (NumPy, double) and the graph multiplies by it.
 """
@@ -377,7 +377,7 @@ def _target(g: Graph, predictor, latent: str) -> str:
     raise InputError(f"no ONNX export for the target {name!r}")
 
 
-# --- calibrated σ (surrogate.maps.calibration) ---------------------------------------------------
+# --- calibrated σ (surrogate.maps.sigma) ---------------------------------------------------
 
 def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: str) -> str:
     """σ [ln units] against the valve = sqrt(floor² + cfd_error² + (scale·spread)²

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..effects.calibration import hat_basis
+from ..effects.per_opening import hat_basis
 from ..model import ValveModel
 from ..solver.replay import Replay
 from ..units import P_ATM

@@ -17,7 +17,7 @@ from ..maps.gp import GaussianProcessPredictor
 from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.nn import NetworkEnsemble
 from ..maps.opening_offsets import OpeningOffsets
-from ..maps.calibration import Calibration
+from ..maps.sigma import SigmaCalibration
 from ..maps.coverage import Coverage
 from ..maps.domain import FeatureDomain
 from ..maps.package import seal, write_manifest
@@ -123,7 +123,7 @@ class TrainedSurrogate:
     seconds: float
     details: dict = field(default_factory=dict)
 
-    def calibrate(self, flow: Calibration, force: Calibration) -> None:
+    def calibrate(self, flow: SigmaCalibration, force: SigmaCalibration) -> None:
         """Attach the calibrations found by cross-validation (:mod:`surrogate.maps.crossval`)."""
         self.flow_map.calibration, self.force_map.calibration = flow, force
 
@@ -164,7 +164,8 @@ class TrainedSurrogate:
                                         float_format="%.6g")
 
 
-def recalibrate(folder: str | Path, samples: CfdSamples) -> tuple[Calibration, Calibration]:
+def recalibrate(folder: str | Path, samples: CfdSamples
+                ) -> tuple[SigmaCalibration, SigmaCalibration]:
     """Fit a trained folder's calibrations again from the cross-validated errors it keeps
     (``cross_validation.csv``, made on ``samples``) and write them, with the summary per scheme,
     into its ``surrogate.json``; the weights stay as they are. For a change in how σ is fitted

@@ -14,7 +14,7 @@ A subclass implements one direction of the flow map, :meth:`FlowMap.flow` or
 Every map built from data says where, and why, a query lies outside that data
 (``extrapolation_reasons``, bit flags of :mod:`.coverage`; ``extrapolating`` where any is set),
 and how uncertain it is (``log_discharge_std`` and ``flow_std``; ``force_std``): a subclass gives
-``calibration_inputs`` and a ``calibration`` fitted on cross-validation (:mod:`.calibration`),
+``calibration_inputs`` and a ``calibration`` fitted on cross-validation (:mod:`.sigma`),
 which measures how well it reproduces the CFD; the CFD's own error against the valve
 (``cfd_error``, :mod:`.cfd_error`) is added in quadrature, and σ is never below what no mesh
 says across an unsampled gap or below the smallest opening. Maps without data (the orifice
@@ -65,7 +65,7 @@ class FlowMap(ABC):
     kind = "flow map"
     #: where the samples are (maps built from data); None for maps without data
     coverage = None
-    #: turns :meth:`calibration_inputs` into a standard deviation (:mod:`.calibration`)
+    #: turns :meth:`calibration_inputs` into a standard deviation (:mod:`.sigma`)
     calibration = None
     #: σ of ln C_d that the CFD itself adds, each opening's mesh biased its own way [1]
     cfd_error = FLOW_CFD_ERROR
@@ -146,7 +146,7 @@ class FlowMap(ABC):
     def calibration_inputs(self, q, p_B, u, fluid: FluidState):
         """What the map's standard deviation of ln C_d at flow ``q`` [m^3/s] is computed from:
         (own spread or None, distance to the data, back-pressure distance), see
-        :mod:`.calibration`; None for maps without data."""
+        :mod:`.sigma`; None for maps without data."""
         return None
 
     def log_discharge_std(self, q, p_B, u, fluid: FluidState) -> np.ndarray | None:

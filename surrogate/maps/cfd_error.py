@@ -10,7 +10,7 @@ called its flow certain to 0.05 % where it was 0.3 % off a virtual valve
 (``eval/valve_coverage.py``).
 
 So every map built from CFD samples reports σ² = σ_interpolation² + σ_CFD²: the first from its
-calibration (:mod:`.calibration`, fitted on cross-validation), the second from here, as
+calibration (:mod:`.sigma`, fitted on cross-validation), the second from here, as
 :attr:`~.base.FlowMap.cfd_error` and :attr:`~.base.ForceMap.cfd_error` in the calibrations' ln
 units. σ at a sampled opening is then never smaller than the CFD's own error there. The
 workbench's allowance for the maps' error (:mod:`surrogate.fitting.discrepancy`) reads the same σ.

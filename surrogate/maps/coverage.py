@@ -94,7 +94,7 @@ class Coverage:
         """How far ``p_B`` [Pa] lies from the nearest sampled back pressure, as |ln| of the ratio
         of absolute pressures [-]: the CFD runs at few back pressures, and between or beyond
         them cavitation changes the flow and its force in ways the features do not fully carry
-        (:mod:`.calibration`)."""
+        (:mod:`.sigma`)."""
         absolute = np.asarray(p_B, float)[..., None] + P_ATM
         return np.min(np.abs(np.log(absolute / (self.back_pressures + P_ATM))), axis=-1)
 
@@ -110,7 +110,7 @@ class Coverage:
         closest spacing of two sampled openings in ln u, at most 1 [-]: 0 on a sampled opening,
         1 anywhere between openings from halfway to the closest neighbour on (the reach of the
         flow network's opening offsets, :mod:`.opening_offsets`). Every opening is a mesh of its
-        own, and between openings a map has only its features to go by (:mod:`.calibration`).
+        own, and between openings a map has only its features to go by (:mod:`.sigma`).
         The bound is what cross-validation can calibrate: a left-out opening lies a whole
         spacing from the others (at 1 here, in every fold), so the errors tell how unsure a map
         is between openings but not how that grows across a gap three times as wide (unbounded,

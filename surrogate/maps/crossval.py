@@ -12,7 +12,7 @@ in four schemes:
 For each left-out sample the errors are the relative errors of C_d at the sample's flow (δln C_d,
 which is δln q at its pressure drop up to the map's slope) and of the flow force at its pressure
 drop, together with the kind's own spread and the distance to the training data there; a
-:class:`~surrogate.maps.calibration.Calibration` fitted to all of them makes the kind's ±2σ bands
+:class:`~surrogate.maps.sigma.SigmaCalibration` fitted to all of them makes the kind's ±2σ bands
 honest, and the coverage per scheme says whether they are.
 """
 
@@ -29,7 +29,7 @@ from ..features import FeatureSpec
 from ..fluid import FluidState
 from ..valve import ValveParameters
 from . import splits
-from .calibration import Calibration, coverage_of
+from .sigma import SigmaCalibration, coverage_of
 from .cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR, mesh_bias_share
 from .registry import MAP_KINDS, cross_validation_summary, map_kind
 
@@ -167,15 +167,15 @@ def _run_fold(job) -> pd.DataFrame:
 
 
 def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None
-              ) -> tuple[Calibration, Calibration]:
+              ) -> tuple[SigmaCalibration, SigmaCalibration]:
     """The flow and force calibrations that make the cross-validated errors most likely, each
     scheme weighted alike, with ±2σ holding 90-98 % of every scheme's errors
-    (:meth:`~surrogate.maps.calibration.Calibration.fit`). Given the CFD ``samples`` the errors
+    (:meth:`~surrogate.maps.sigma.SigmaCalibration.fit`). Given the CFD ``samples`` the errors
     were made on, the meshes' biases they carry are known variance, not the map's
     (:func:`meshes_in_errors`)."""
     weights = 1.0 / errors.groupby("scheme")["case"].transform("size").to_numpy()
     known = (None, None) if samples is None else meshes_in_errors(errors, samples)
-    return tuple(Calibration.fit(errors[error], errors[f"{name}_spread"],
+    return tuple(SigmaCalibration.fit(errors[error], errors[f"{name}_spread"],
                                  _distances(errors, name), weights=weights,
                                  use_spread=use_spread, groups=errors["scheme"].to_numpy(),
                                  known=variance)
@@ -200,13 +200,13 @@ def meshes_in_errors(errors: pd.DataFrame, samples: CfdSamples) -> tuple[np.ndar
     return FLOW_CFD_ERROR ** 2 * carried, FORCE_CFD_ERROR ** 2 * carried
 
 
-def standard_deviations(errors: pd.DataFrame, flow: Calibration, force: Calibration):
+def standard_deviations(errors: pd.DataFrame, flow: SigmaCalibration, force: SigmaCalibration):
     """The calibrated standard deviations (of ln C_d, of the flow force) at each row."""
     return tuple(np.asarray(calibration.std(errors[f"{name}_spread"], _distances(errors, name)))
                  for name, calibration in (("flow", flow), ("force", force)))
 
 
-def summary(errors: pd.DataFrame, flow: Calibration, force: Calibration, *,
+def summary(errors: pd.DataFrame, flow: SigmaCalibration, force: SigmaCalibration, *,
             samples: CfdSamples | None = None) -> dict:
     """Per scheme: relative RMS error of q and of the flow force, and the share of left-out
     samples inside the calibrated ±2σ bands (of ln C_d, i.e. of q at its Δp, and of the flow

@@ -292,7 +292,7 @@ class GaussianProcessPredictor:
     """A fitted GP and the transform from its latent output to the map's target."""
 
     #: its posterior σ grows between the sampled openings by itself, so its calibration reads no
-    #: opening distance (:mod:`.calibration`): given one, the force calibration leaned on it
+    #: opening distance (:mod:`.sigma`): given one, the force calibration leaned on it
     #: instead of the posterior (scale 0.93 -> 0.81, or 0.41 with the distance bounded) for no
     #: better coverage, and on the stress suite's ten nothing-hidden logs the workflow then added
     #: two physics terms (a spring-preload offset, a progressive spring) where it had added none

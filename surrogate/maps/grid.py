@@ -70,7 +70,7 @@ from .cavitation import CavitationLaw
 from .coverage import DP_OUTSIDE, Coverage
 from .crossval import calibrate, cross_validate, summary
 from .curves import COMPARED_KNOTS, CurveSet
-from .grid_calibration import shipped_calibrations, shipped_summary
+from .grid_sigma import shipped_calibrations, shipped_summary
 from .package import file_hash
 from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register,
                        resolve_file, sha256_hex)
@@ -537,7 +537,7 @@ class GridUncertainty:
     A grid has no spread of its own: its standard deviation (of ln C_d; of the flow force,
     relative) grows with the distances it interpolates over, from the nearest sampled opening and
     fluid state (:meth:`_SweepGrid.sweep_distances`), and with the distance of the back pressure
-    from the sampled one (:mod:`.calibration`). The constants come from the grid's own errors on
+    from the sampled one (:mod:`.sigma`). The constants come from the grid's own errors on
     samples left out of it (:mod:`.crossval`); rebuilding the grid for every fold takes
     a second, so that runs when a standard deviation is first asked for.
     """
@@ -568,8 +568,8 @@ class GridUncertainty:
 
     @property
     def calibrations(self) -> dict:
-        """{"flow": ..., "force": ...} :class:`~.calibration.Calibration`: the shipped one for
-        the shipped samples and valve (:mod:`.grid_calibration`), otherwise fitted on first
+        """{"flow": ..., "force": ...} :class:`~.sigma.SigmaCalibration`: the shipped one for
+        the shipped samples and valve (:mod:`.grid_sigma`), otherwise fitted on first
         use."""
         if self._calibrations is None:
             self._calibrations = shipped_calibrations(self.samples, self.valve)
@@ -589,7 +589,7 @@ class GridUncertainty:
 
     def summary(self) -> dict:
         """The cross-validation summary per scheme (:func:`.crossval.summary`): the shipped one
-        for the shipped samples and valve (:mod:`.grid_calibration`), otherwise computed."""
+        for the shipped samples and valve (:mod:`.grid_sigma`), otherwise computed."""
         return shipped_summary(self.samples, self.valve) or self.computed_summary()
 
     def computed_summary(self) -> dict:

@@ -8,7 +8,7 @@
 
 The predictor is a neural network ensemble (:mod:`.nn`) or a Gaussian process (:mod:`.gp`); both
 expose ``predict(features)`` and ``latent(features, return_std=True)``, the spread that, with the
-distance to the data, makes the calibrated standard deviation (:mod:`.calibration`). A query is
+distance to the data, makes the calibrated standard deviation (:mod:`.sigma`). A query is
 *extrapolating* for the reasons of :mod:`.coverage`, or when its features lie in a hole of the
 training data (:class:`~surrogate.maps.domain.FeatureDomain`).
 
@@ -37,7 +37,7 @@ from ..fluid import FluidState, broadcast_query
 from ..paths import SHIPPED_SURROGATES
 from . import package
 from .base import FlowMap, ForceMap
-from .calibration import Calibration
+from .sigma import SigmaCalibration
 from .coverage import DP_OUTSIDE, FEATURES_SPARSE, Coverage
 from .domain import FeatureDomain
 from .registry import (SHIPPED, MapKind, Option, learned_kinds, map_kind, resolve_path,
@@ -50,7 +50,7 @@ class LearnedFlowMap(FlowMap):
     """Flow map whose discharge coefficient comes from a learned predictor of ln C_d.
 
     ``calibration`` turns the predictor's own spread into a calibrated standard deviation of
-    ln C_d (:mod:`.calibration`; none, i.e. the spread itself, before one is fitted);
+    ln C_d (:mod:`.sigma`; none, i.e. the spread itself, before one is fitted);
     ``coverage`` says where the training samples are.
     """
 
@@ -59,12 +59,12 @@ class LearnedFlowMap(FlowMap):
     smooth = True
 
     def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str,
-                 calibration: Calibration | None = None, coverage: Coverage | None = None):
+                 calibration: SigmaCalibration | None = None, coverage: Coverage | None = None):
         self.spec = spec
         self.predictor = predictor
         self.domain = domain
         self.kind = kind
-        self.calibration = calibration or Calibration()
+        self.calibration = calibration or SigmaCalibration()
         self.coverage = coverage
 
     def __repr__(self) -> str:
@@ -104,12 +104,12 @@ class LearnedForceMap(ForceMap):
     smooth = True
 
     def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str,
-                 calibration: Calibration | None = None, coverage: Coverage | None = None):
+                 calibration: SigmaCalibration | None = None, coverage: Coverage | None = None):
         self.spec = spec
         self.predictor = predictor
         self.domain = domain
         self.kind = kind
-        self.calibration = calibration or Calibration()
+        self.calibration = calibration or SigmaCalibration()
         self.coverage = coverage
 
     def __repr__(self) -> str:
@@ -160,7 +160,7 @@ class LearnedForceMap(ForceMap):
 
 
 def _inputs(learned_map, features: np.ndarray, p_B: np.ndarray, u: np.ndarray):
-    """(latent mean, spread, distances) of a learned map at its features (:mod:`.calibration`)."""
+    """(latent mean, spread, distances) of a learned map at its features (:mod:`.sigma`)."""
     latent, spread = learned_map.predictor.latent(features, return_std=True)
     distances = {"features": learned_map.domain.distance(features)}
     if learned_map.coverage is not None:
@@ -194,7 +194,7 @@ def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceM
         count = len(package.feature_names(entry, name, f"{where}: {name}"))
         maps.append(cls(spec, load(folder, entry["predictor"], count),
                         FeatureDomain.from_dict(entry["domain"]), manifest["kind"],
-                        Calibration.from_dict(entry.get("calibration")), coverage))
+                        SigmaCalibration.from_dict(entry.get("calibration")), coverage))
     return tuple(maps)
 
 

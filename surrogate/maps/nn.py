@@ -36,7 +36,7 @@ class NetworkEnsemble:
     """Mean correction of several networks, turned into the map's target."""
 
     #: the members agree between openings about as well as on them, so the calibration also
-    #: reads the opening's distance from the sampled ones (:mod:`.calibration`)
+    #: reads the opening's distance from the sampled ones (:mod:`.sigma`)
     spread_knows_openings = False
 
     def __init__(self, architecture, states: list[dict[str, np.ndarray]],

@@ -13,7 +13,7 @@ by where the bench actually operates:
    (:mod:`surrogate.features`, standardised over the log's states): cov(x, c) =
    s(x)·s(c)·exp(−|z_x − z_c|²/(2ℓ²)), with ℓ = :data:`CORRELATION_LENGTH` and s² = σ² − floor²
    the part of the calibrated variance more CFD runs can remove: the calibration's floor is the
-   error that remains next to the samples (:mod:`surrogate.maps.calibration`), which no run
+   error that remains next to the samples (:mod:`surrogate.maps.sigma`), which no run
    removes.
 3. A CFD run at c observes both maps there, up to the CFD's own scatter τ (the calibration's
    floor, at least :data:`CFD_SCATTER`). It lowers the error variance at x by

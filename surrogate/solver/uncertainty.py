@@ -1,6 +1,6 @@
 """The pressure drop's standard deviation that the maps' uncertainty implies, through the balance.
 
-Each map reports a calibrated standard deviation (:mod:`surrogate.maps.calibration`): σ_C of
+Each map reports a calibrated standard deviation (:mod:`surrogate.maps.sigma`): σ_C of
 ln C_d, which moves the flow map's pressure drop at a given flow and opening by
 δΔp_map = 2·Δp·σ_C, and σ_f of the flow force. Neither moves the computed Δp one for one: the
 piston answers. Linearised about a solution (u, Δp) of the balance N(u, Δp) = 0, where N is the

@@ -11,8 +11,8 @@ Steps
    the best significant
    candidate, refit every free parameter together.
 6. ``calibrated maps``: what the maps' own error explains of the rest, fitted as map corrections
-   per opening within the maps' uncertainty (:mod:`.calibration`), kept only if it predicts the
-   held-out runs better.
+   per opening within the maps' uncertainty (:mod:`.bench_calibration`), kept only if it
+   predicts the held-out runs better.
 7. The final model diagnosed: when the calibration was kept, the final model is not the one the
    loop's last diagnosis saw, so it is diagnosed again (the same call, nothing added); that is
    the workflow's final diagnosis, of the model its report and model file hold.
@@ -54,7 +54,7 @@ from ..reporting.verdict import summary_text, verdict
 from ..solver.map_tables import release_tables
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
-from .calibration import calibrate_maps
+from .bench_calibration import calibrate_maps
 
 MAX_ADDITIONS = 8  # effects the loop may add after the paper's steps
 #: candidates refused on their full refit after which a step is diagnosed no more
@@ -221,8 +221,8 @@ class _Staircase:
                diagnosis: Diagnosis | None = None, near: LogReplay | None = None,
                calibration=None) -> Step:
         """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step
-        (``calibration``: the :class:`.calibration.Calibration` it adds, which its held-out
-        figure refits too)."""
+        (``calibration``: the :class:`.bench_calibration.BenchCalibration` it adds, which its
+        held-out figure refits too)."""
         if near is None and self.steps and self.last.model.flow_map is model.flow_map:
             near = self.last.played
         fitted = None
@@ -313,8 +313,8 @@ class _Staircase:
             refused, kinds = [], set()
 
     def calibrate(self) -> bool:
-        """Add the maps' calibration (:mod:`.calibration`) unless it predicts the held-out runs
-        no better than the step before; return whether it was added."""
+        """Add the maps' calibration (:mod:`.bench_calibration`) unless it predicts the held-out
+        runs no better than the step before; return whether it was added."""
         current = self.last
         self.say(f"calibrating the maps of {current.model.name} to the bench ...")
         calibration = calibrate_maps(current.model, self.log, current.played)
@@ -358,8 +358,8 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     max_additions : int
         Effects added by diagnosis at most.
     calibrate : bool
-        End with the maps calibrated to the bench (:mod:`.calibration`), when that predicts the
-        held-out runs better.
+        End with the maps calibrated to the bench (:mod:`.bench_calibration`), when that predicts
+        the held-out runs better.
     shapes : bool
         Whether the diagnoses try terms of free shape beside the library
         (:mod:`surrogate.diagnosis.shapes`).

@@ -20,7 +20,7 @@ from surrogate.learn.monotonicity import random_states, violations
 from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_one_ulp,
                                              prediction_difference)
 from surrogate.learn.training import CROSS_VALIDATION_FILE
-from surrogate.maps.calibration import Calibration, coverage_of
+from surrogate.maps.sigma import SigmaCalibration, coverage_of
 from surrogate.maps.crossval import SCHEMES, cross_validate, folds, meshes_in_errors, summary
 from surrogate.maps.domain import FeatureDomain
 from surrogate.maps.gp import BRIDGE, MATERN, NumpyGP
@@ -76,7 +76,7 @@ def test_learned_flow_force_is_right_between_openings_and_at_other_back_pressure
 @pytest.mark.parametrize("kind", ("grid", *LEARNED))
 def test_two_sigma_bands_hold_90_to_98_percent_in_every_scheme(kind, accuracy, cfd_samples):
     """Calibrated bands: ±2σ holds 90-98 % of the cross-validated samples of every scheme (the
-    calibration's constraint, surrogate/maps/calibration.py; of the back-pressure set's 16, 15).
+    calibration's constraint, surrogate/maps/sigma.py; of the back-pressure set's 16, 15).
     Above 98 % only where the CFD meshes' biases that the errors carry hold more by themselves
     (a left-out opening's, :func:`surrogate.maps.crossval.meshes_in_errors`): there no σ of the
     map's own can do less."""
@@ -118,7 +118,7 @@ def test_the_gp_cross_validation_is_what_the_manifest_records(cfd_samples, valve
                                 partial(learned_maps_on, "gp", cfd_samples, valve))
     finally:
         crossval.folds = original
-    flow, force = (Calibration.from_dict(recorded[name]["calibration"])
+    flow, force = (SigmaCalibration.from_dict(recorded[name]["calibration"])
                    for name in ("flow", "force"))
     fresh = summary(errors, flow, force)[scheme]
     expected = recorded["metrics"]["cross_validation"][scheme]

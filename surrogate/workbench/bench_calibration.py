@@ -3,7 +3,7 @@
 Every diagnosis judges a candidate against the maps' discrepancy, nuisance terms as large as the
 maps' error can be (:mod:`surrogate.fitting.discrepancy`). When no physics is left to find, the
 residual still holds that error: a real valve is never its CFD. This step fits it, once, as two
-map corrections of the opening (:mod:`surrogate.effects.calibration`): the flow force and the
+map corrections of the opening (:mod:`surrogate.effects.per_opening`): the flow force and the
 discharge coefficient, each scaled by a value per knot of the discrepancy.
 
 The values are fitted with the discrepancy's own prior: each N(0, σ_b²), σ_b the maps' relative
@@ -17,7 +17,7 @@ The columns come from two probe replays (:func:`surrogate.diagnosis.shapes.sensi
 shape-free term's do; Gauss–Newton steps with real replays then settle the values, which the
 model keeps fixed: the workflow refits the model's own parameters beside them, and judges the
 step on held-out runs with the calibration refitted without each run under the same prior
-(:meth:`Calibration.heldout_rms`).
+(:meth:`BenchCalibration.heldout_rms`).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import numpy as np
 from ..data.loaders import BenchLog
 from ..diagnosis.refit import DiagnosisProblem
 from ..diagnosis.shapes import (probe_of, sensitivity, shape_columns, state_at_samples)
-from ..effects.calibration import CALIBRATIONS, hat_basis
+from ..effects.per_opening import CALIBRATIONS, hat_basis
 from ..fitting.discrepancy import knots
 from ..fitting.heldout import HEADLINE, Prior, replayed_heldout_rms
 from ..fitting.residuals import LogReplay
@@ -44,7 +44,7 @@ MAP_ROW = {"calibrated_flow_force": 1, "calibrated_discharge": 0}
 
 
 @dataclass(frozen=True)
-class Calibration:
+class BenchCalibration:
     """The calibrated model and what judging it on held-out runs needs.
 
     Attributes
@@ -120,7 +120,7 @@ def prior_sigma(name: str, replay, ok: np.ndarray, at: np.ndarray) -> np.ndarray
 
 
 def calibrate_maps(model: ValveModel, log: BenchLog, played: LogReplay, *,
-                   workers: int | None = None) -> Calibration | None:
+                   workers: int | None = None) -> BenchCalibration | None:
     """The maps of ``model`` (fitted to ``log``, replayed as ``played`` with diagnostics)
     calibrated per opening (module docstring); None for maps without samples or uncertainty
     (an orifice equation), or when the model already has a calibration."""
@@ -157,5 +157,5 @@ def calibrate_maps(model: ValveModel, log: BenchLog, played: LogReplay, *,
     values = np.concatenate([calibrated.effect(cls.name).coefficients for cls in CALIBRATIONS])
     everywhere = np.zeros((len(ok), len(names)))
     everywhere[ok] = columns
-    return Calibration(calibrated, evaluation.payload, [cls.name for cls in CALIBRATIONS],
+    return BenchCalibration(calibrated, evaluation.payload, [cls.name for cls in CALIBRATIONS],
                        everywhere, prior, values, sigma)

@@ -64,7 +64,7 @@ _RESTARTS = 10
 
 
 @dataclass(frozen=True)
-class Calibration:
+class SigmaCalibration:
     """σ² = (scale·s)² + floor² + Σ_i (slope_i·d_i^power)² [ln units] (see the module
     docstring); ``slopes`` maps each distance's name to its slope."""
 
@@ -89,7 +89,7 @@ class Calibration:
                 "power": self.power}
 
     @classmethod
-    def from_dict(cls, data: dict | None) -> "Calibration":
+    def from_dict(cls, data: dict | None) -> "SigmaCalibration":
         data = data or {}
         return cls(float(data.get("scale", 1.0)), float(data.get("floor", 0.0)),
                    {str(k): float(v) for k, v in data.get("slopes", {}).items()},
@@ -98,7 +98,7 @@ class Calibration:
     @classmethod
     def fit(cls, errors, spread, distances: Mapping[str, np.ndarray], *, weights=None,
             use_spread: bool = True, groups=None,
-            band: tuple[float, float] = COVERAGE_BAND, known=None) -> "Calibration":
+            band: tuple[float, float] = COVERAGE_BAND, known=None) -> "SigmaCalibration":
         """The constants that make ``errors`` (ln prediction − ln truth) most likely as zero-mean
         Gaussians of standard deviation σ, each error's log-likelihood weighted by ``weights``
         (default alike); ``use_spread=False`` for kinds without a spread of their own. A
@@ -123,7 +123,7 @@ class Calibration:
         known = np.zeros_like(errors) if known is None else np.asarray(known, float)
         low, high = _POWER
 
-        def unpack(theta) -> "Calibration":
+        def unpack(theta) -> "SigmaCalibration":
             scale, floor, *slopes = np.exp(theta[:-1])
             with np.errstate(over="ignore"):  # exp(−θ) → ∞ is the power's lower end
                 power = low + (high - low) / (1.0 + np.exp(-theta[-1]))

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from surrogate.maps.calibration import COVERAGE_BAND, Calibration, coverage_of
+from surrogate.maps.sigma import COVERAGE_BAND, SigmaCalibration, coverage_of
 
 
 def light_and_heavy_tailed_errors(seed: int = 0):
@@ -29,7 +29,7 @@ def test_likelihood_alone_lets_a_light_tailed_group_sit_wholly_inside():
     """The case the constraint exists for: without groups the fit is plain likelihood, whose
     σ (of the RMS) holds every light-tailed error within ±2σ."""
     errors, groups = light_and_heavy_tailed_errors()
-    calibration = Calibration.fit(errors, None, {"d": np.zeros_like(errors)}, use_spread=False)
+    calibration = SigmaCalibration.fit(errors, None, {"d": np.zeros_like(errors)}, use_spread=False)
     assert shares_inside(calibration, errors, groups)["light"] == 1.0
 
 
@@ -37,7 +37,7 @@ def test_each_group_is_held_within_the_band():
     errors, groups = light_and_heavy_tailed_errors()
     # a distance that only the light group has lets σ differ between the groups
     distance = np.where(groups == "light", 1.0, 0.0)
-    calibration = Calibration.fit(errors, None, {"d": distance}, use_spread=False,
+    calibration = SigmaCalibration.fit(errors, None, {"d": distance}, use_spread=False,
                                   groups=groups)
     std = calibration.std(None, {"d": distance})
     for label in ("light", "heavy"):
@@ -52,12 +52,12 @@ def test_a_fit_already_inside_the_band_is_the_likelihood_fit(seed):
     rng = np.random.default_rng(seed)
     errors = rng.normal(0.0, 0.03, 400)
     groups = np.repeat(["a", "b"], 200)
-    plain = Calibration.fit(errors, None, {}, use_spread=False)
+    plain = SigmaCalibration.fit(errors, None, {}, use_spread=False)
     std = plain.std(None, {})
     if not all(COVERAGE_BAND[0] <= coverage_of(errors[groups == g], np.full(200, std))
                <= COVERAGE_BAND[1] for g in ("a", "b")):
         pytest.skip("this draw's likelihood fit is outside the band")
-    grouped = Calibration.fit(errors, None, {}, use_spread=False, groups=groups)
+    grouped = SigmaCalibration.fit(errors, None, {}, use_spread=False, groups=groups)
     assert grouped == plain
 
 
@@ -67,8 +67,8 @@ def test_variance_known_to_be_in_the_errors_is_not_learned_again():
     rng = np.random.default_rng(5)
     own, known = 0.01, np.full(4000, 0.02 ** 2)
     errors = rng.normal(0.0, np.sqrt(own ** 2 + known))
-    told = Calibration.fit(errors, None, {}, use_spread=False, known=known)
-    untold = Calibration.fit(errors, None, {}, use_spread=False)
+    told = SigmaCalibration.fit(errors, None, {}, use_spread=False, known=known)
+    untold = SigmaCalibration.fit(errors, None, {}, use_spread=False)
     assert told.floor == pytest.approx(own, rel=0.15)
     assert untold.floor == pytest.approx(np.sqrt(own ** 2 + 0.02 ** 2), rel=0.05)
 
@@ -95,7 +95,7 @@ def test_sixteen_errors_in_a_group_leave_one_outside():
     """Of 16 errors, 15 inside is the only count in 90-98 %; 16 of 16 is refused."""
     rng = np.random.default_rng(3)
     errors = rng.uniform(-1.0, 1.0, 16) * 0.02
-    calibration = Calibration.fit(errors, None, {}, use_spread=False,
+    calibration = SigmaCalibration.fit(errors, None, {}, use_spread=False,
                                   groups=np.zeros(16, int))
     std = np.full(16, calibration.floor)
     assert np.sum(np.abs(errors) > 2 * std) == 1
@@ -107,10 +107,10 @@ def test_a_group_too_small_for_the_band_is_left_to_the_likelihood():
     rng = np.random.default_rng(5)
     errors = np.concatenate([rng.normal(0.0, 0.03, 300), rng.uniform(-0.01, 0.01, 5)])
     groups = np.array(["many"] * 300 + ["few"] * 5)
-    plain = Calibration.fit(errors, None, {}, use_spread=False)
+    plain = SigmaCalibration.fit(errors, None, {}, use_spread=False)
     share = coverage_of(errors[:300], np.full(300, plain.floor))
     assert COVERAGE_BAND[0] <= share <= COVERAGE_BAND[1]
-    assert Calibration.fit(errors, None, {}, use_spread=False, groups=groups) == plain
+    assert SigmaCalibration.fit(errors, None, {}, use_spread=False, groups=groups) == plain
 
 
 def test_the_opening_distance_is_zero_on_a_sampled_opening_and_grows_into_a_gap():
@@ -161,7 +161,7 @@ def test_the_shipped_grid_calibration_is_what_the_shipped_samples_give(tmp_path)
     from surrogate import load_valve
     from surrogate.data import load_cfd_samples
     from surrogate.maps.grid import GridUncertainty
-    from surrogate.maps.grid_calibration import (shipped_calibrations, shipped_summary,
+    from surrogate.maps.grid_sigma import (shipped_calibrations, shipped_summary,
                                                  write_calibrations)
     from surrogate.paths import SHIPPED_CFD_SAMPLES
 

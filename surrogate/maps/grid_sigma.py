@@ -29,7 +29,7 @@ import numpy as np
 from ..data.loaders import CfdSamples
 from ..paths import SHIPPED_SURROGATES
 from ..valve import ValveParameters
-from .calibration import Calibration
+from .sigma import SigmaCalibration
 
 #: where the shipped grid calibration lives
 SHIPPED_GRID_CALIBRATION = SHIPPED_SURROGATES / "grid" / "calibration.json"
@@ -52,12 +52,12 @@ def fingerprint(samples: CfdSamples, valve: ValveParameters) -> str:
 
 def shipped_calibrations(samples: CfdSamples, valve: ValveParameters,
                          path: Path = SHIPPED_GRID_CALIBRATION) -> dict | None:
-    """{"flow": ..., "force": ...} :class:`~.calibration.Calibration` stored at ``path`` for
+    """{"flow": ..., "force": ...} :class:`~.sigma.SigmaCalibration` stored at ``path`` for
     exactly these samples and valve, or None (no file, another format, other data)."""
     stored = _stored_for(samples, valve, path)
     if stored is None:
         return None
-    return {name: Calibration.from_dict(stored[name]) for name in ("flow", "force")}
+    return {name: SigmaCalibration.from_dict(stored[name]) for name in ("flow", "force")}
 
 
 def shipped_summary(samples: CfdSamples, valve: ValveParameters,

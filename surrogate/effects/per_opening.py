@@ -15,7 +15,7 @@ CFD's sampled openings, points inside its unsampled gaps, one below its smallest
 held beyond the end knots: an error shared by nearby openings, not by far ones. Their values are
 fitted with a prior, each N(0, σ²) with σ the maps' relative error near that knot (their
 calibrated σ and the CFD's own error in quadrature), so that the maps move as far as their own
-uncertainty allows and no further (:mod:`surrogate.workbench.calibration`). The workflow fits
+uncertainty allows and no further (:mod:`surrogate.workbench.bench_calibration`). The workflow fits
 them last, after the physics, and keeps them only when they predict held-out runs better.
 """
 
@@ -46,7 +46,7 @@ class _PerOpening(ShapeFreeEffect):
 
     shape_free = False
     candidate = False  # no diagnosis candidate: the workflow fits it once, last, with its prior
-    smoothed = False  # its prior is the calibration's (surrogate.workbench.calibration)
+    smoothed = False  # its prior is the calibration's (surrogate.workbench.bench_calibration)
     category = "map correction"
     variable = VARIABLES["u"]
     value_unit = "1"

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from surrogate.effects import KNOWN
-from surrogate.effects.calibration import CALIBRATIONS, hat_basis
+from surrogate.effects.per_opening import CALIBRATIONS, hat_basis
 from surrogate.fitting.discrepancy import knots
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log
@@ -24,7 +24,7 @@ from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 from surrogate.testing import check_effect
 from surrogate.units import from_si
-from surrogate.workbench.calibration import calibrate_maps
+from surrogate.workbench.bench_calibration import calibrate_maps
 from surrogate.workbench.workflow import run_workflow
 
 KNOTS = np.array([0.015e-3, 0.05e-3, 0.08e-3, 0.2e-3, 0.31e-3, 0.63e-3])
