@@ -41,34 +41,9 @@ def chandrupatla(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], x1: np.ndar
     frtol = 0.0 * np.minimum(np.abs(f1), np.abs(f2))  # SciPy scales frtol = 0 by the ends
     x3 = f3 = None
     t = 0.5
-
-    def check(x1, f1, x2, f2, status, frtol):
-        """SciPy's termination tests: (stop, xmin, dx, tol), ``status`` set in place."""
-        i = np.abs(f1) < np.abs(f2)
-        xmin = np.where(i, x1, x2)
-        fmin = np.where(i, f1, f2)
-        stop = np.zeros(x1.shape, dtype=bool)
-        i = np.abs(fmin) <= fatol + frtol
-        status[i] = CONVERGED
-        stop[i] = True
-        i = (np.sign(f1) == np.sign(f2)) & ~stop
-        xmin[i], fmin[i], status[i] = np.nan, np.nan, SIGN_ERROR
-        stop[i] = True
-        x_nonfinite = ~(np.isfinite(x1) & np.isfinite(x2))
-        f_nan = np.isnan(f1) & np.isnan(f2)
-        i = (x_nonfinite | f_nan) & ~stop
-        xmin[i], fmin[i], status[i] = np.nan, np.nan, VALUE_ERROR
-        stop[i] = True
-        dx = np.abs(x2 - x1)
-        tol = np.abs(xmin) * xrtol + xatol
-        i = dx < tol
-        status[i] = CONVERGED
-        stop[i] = True
-        return stop, xmin, dx, tol
-
     nit = 0
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        stop, xmin, dx, tol = check(x1, f1, x2, f2, status, frtol)
+        stop, xmin, dx, tol = _check(x1, f1, x2, f2, status, frtol, fatol, xatol, xrtol)
         while True:
             if stop.any():  # record the finished points and drop them from the work
                 done, keep = active[stop], ~stop
@@ -84,16 +59,7 @@ def chandrupatla(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], x1: np.ndar
             if not active.size:
                 break
             if nit:  # the next step, as SciPy's post_termination_check
-                xi1 = (x1 - x2) / (x3 - x2)
-                phi1 = (f1 - f2) / (f3 - f2)
-                alpha = (x3 - x1) / (x2 - x1)
-                j = ((1 - np.sqrt(1 - xi1)) < phi1) & (phi1 < np.sqrt(xi1))
-                f1j, f2j, f3j, alphaj = f1[j], f2[j], f3[j], alpha[j]
-                t = np.full_like(alpha, 0.5)
-                t[j] = (f1j / (f1j - f2j) * f3j / (f3j - f2j)
-                        - alphaj * f1j / (f3j - f1j) * f2j / (f2j - f3j))
-                tl = 0.5 * tol / dx
-                t = np.clip(t, tl, 1 - tl)
+                t = _step_fraction(x1, f1, x2, f2, x3, f3, dx, tol)
             if nit >= maxiter:
                 break
             x = x1 + t * (x2 - x1)
@@ -105,7 +71,49 @@ def chandrupatla(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], x1: np.ndar
             x2[nj], f2[nj] = x1[nj], f1[nj]
             x1, f1 = x, f
             nit += 1
-            stop, xmin, dx, tol = check(x1, f1, x2, f2, status, frtol)
+            stop, xmin, dx, tol = _check(x1, f1, x2, f2, status, frtol, fatol, xatol,
+                                         xrtol)
     # those still running at the iteration limit
     x_out[active], status_out[active] = xmin, NOT_CONVERGED
     return x_out, status_out
+
+
+def _check(x1, f1, x2, f2, status, frtol, fatol: float, xatol: float, xrtol: float):
+    """SciPy's termination tests: (stop, xmin, dx, tol), ``status`` set in place."""
+    i = np.abs(f1) < np.abs(f2)
+    xmin = np.where(i, x1, x2)
+    fmin = np.where(i, f1, f2)
+    stop = np.zeros(x1.shape, dtype=bool)
+    i = np.abs(fmin) <= fatol + frtol
+    status[i] = CONVERGED
+    stop[i] = True
+    i = (np.sign(f1) == np.sign(f2)) & ~stop
+    xmin[i], fmin[i], status[i] = np.nan, np.nan, SIGN_ERROR
+    stop[i] = True
+    x_nonfinite = ~(np.isfinite(x1) & np.isfinite(x2))
+    f_nan = np.isnan(f1) & np.isnan(f2)
+    i = (x_nonfinite | f_nan) & ~stop
+    xmin[i], fmin[i], status[i] = np.nan, np.nan, VALUE_ERROR
+    stop[i] = True
+    dx = np.abs(x2 - x1)
+    tol = np.abs(xmin) * xrtol + xatol
+    i = dx < tol
+    status[i] = CONVERGED
+    stop[i] = True
+    return stop, xmin, dx, tol
+
+
+def _step_fraction(x1, f1, x2, f2, x3, f3, dx, tol) -> np.ndarray:
+    """Where in [x1, x2] the next point lies, as a fraction of the bracket: inverse quadratic
+    interpolation through the three last points where it is safe (Chandrupatla's test), the
+    bisection's 0.5 elsewhere, kept a half tolerance inside the bracket's ends."""
+    xi1 = (x1 - x2) / (x3 - x2)
+    phi1 = (f1 - f2) / (f3 - f2)
+    alpha = (x3 - x1) / (x2 - x1)
+    j = ((1 - np.sqrt(1 - xi1)) < phi1) & (phi1 < np.sqrt(xi1))
+    f1j, f2j, f3j, alphaj = f1[j], f2[j], f3[j], alpha[j]
+    t = np.full_like(alpha, 0.5)
+    t[j] = (f1j / (f1j - f2j) * f3j / (f3j - f2j)
+            - alphaj * f1j / (f3j - f1j) * f2j / (f2j - f3j))
+    tl = 0.5 * tol / dx
+    return np.clip(t, tl, 1 - tl)
