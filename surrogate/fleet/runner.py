@@ -86,7 +86,7 @@ def keep_freed_memory() -> None:
     Dask's nanny starts its workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which hands freed
     memory back to the system almost at once; a replay allocates and frees arrays of the log's
     size thousands of times, and each fit then ran 1.6 times slower than in a plain process
-    (eval/fleet.py: a 2-worker LocalCluster fitted 1.3 times as many valves a minute as one
+    (eval/virtual_fleet.py: a 2-worker LocalCluster fitted 1.3 times as many valves a minute as one
     worker, against 1.9 times with the threshold raised). The memory kept is a few arrays of one
     log, bounded by the threshold."""
     if not sys.platform.startswith("linux"):

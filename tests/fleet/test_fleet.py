@@ -50,7 +50,7 @@ def samples():
 
 def write_valves(folder: Path, valves, sequence, samples) -> None:
     from surrogate.data.writer import write_bench_log
-    from surrogate.synthetic.fleet import virtual_log
+    from surrogate.synthetic.batch import virtual_log
 
     folder.mkdir(parents=True, exist_ok=True)
     for valve in valves:
@@ -61,7 +61,7 @@ def write_valves(folder: Path, valves, sequence, samples) -> None:
 def logs(tmp_path_factory, sequence, samples) -> Path:
     """Three virtual valves' logs (V1 to V3, no fault) and a refused one: a copy of V1's with
     the flow of its line 5 broken."""
-    from surrogate.synthetic.fleet import draw_fleet
+    from surrogate.synthetic.batch import draw_fleet
 
     folder = tmp_path_factory.mktemp("fleet") / "logs"
     write_valves(folder, draw_fleet(3, seed=11, fault_share=0.0), sequence, samples)
@@ -278,7 +278,7 @@ def test_an_interrupted_batch_leaves_whole_files_and_resumes(logs, tmp_path):
 @pytest.mark.slow  # a whole fleet command: seconds
 def test_diagnose_records_the_top_candidate_of_a_faulty_valve(sequence, samples, tmp_path,
                                                               capsys):
-    from surrogate.synthetic.fleet import VirtualValve
+    from surrogate.synthetic.batch import VirtualValve
 
     valve = VirtualValve("S1", K1=6.3, K2=0.08, preload=226.0, spring_rate=114.0,
                          flow_force_scale=0.83, fault="friction_seal_pressure",

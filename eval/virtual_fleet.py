@@ -1,6 +1,6 @@
 """A virtual fleet through the `fleet` command: parameters recovered, faults flagged, throughput.
 
-The fleet (:mod:`surrogate.synthetic.fleet`): ``--valves`` virtual valves of one design, each with
+The fleet (:mod:`surrogate.synthetic.batch`): ``--valves`` virtual valves of one design, each with
 its own draws of Coulomb friction K1 and K2, spring preload F_cr, spring rate K_f and flow-force
 scale, all on the design's CFD-size map mismatch (one draw for the whole fleet: the CFD errs for
 the design), each bench run with its own sensor noise, on the shipped test sequence subsampled
@@ -31,7 +31,7 @@ false flags; >= 1.7x from 1 to 2 workers.
 
 Writes OUT/logs/ (the virtual logs), OUT/fit/ and OUT/diagnose/ (the command's outputs),
 OUT/throughput/ and OUT/fleet_eval.json. Run:
-``python eval/fleet.py [--valves 200] [--every 8] [--diagnose] [--throughput-valves 60]``
+``python eval/virtual_fleet.py [--valves 200] [--every 8] [--diagnose] [--throughput-valves 60]``
 (200 valves: about 6 minutes fit-only, 20 with --diagnose, on 2 cores).
 """
 
@@ -56,7 +56,7 @@ from surrogate.effects import LIBRARY
 from surrogate.paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 from surrogate.presets import preset
 from surrogate.spec import EffectSpec
-from surrogate.synthetic.fleet import draw_fleet, virtual_log
+from surrogate.synthetic.batch import draw_fleet, virtual_log
 from surrogate.synthetic.simulate import noise_free_sequence, reference_spec
 
 #: the model every valve is fitted with: CFDA, a spring-preload offset and a laminar leakage
@@ -87,7 +87,7 @@ def write_fleet(out: Path, valves: int, every: int, seed: int) -> tuple[list, Pa
     model = preset("cfda").adding(*(EffectSpec.start(LIBRARY.effect(name))
                                     for name in MODEL_EFFECTS), name="fleet model")
     path = out / "fleet_model.toml"
-    model.write(path, "the model eval/fleet.py fits to every virtual valve")
+    model.write(path, "the model eval/virtual_fleet.py fits to every virtual valve")
     return fleet, path
 
 
