@@ -63,6 +63,11 @@ INCLUSION_MIN = 0.5
 #: a physics claim must predict the held-out runs better than each look-alike of another kind
 #: by at least this share of the look-alike's held-out RMS (the gain asked of any discovery)
 OTHER_KIND_GAIN = HELDOUT_GAIN
+#: beside a library finding, a shape-free term is refitted for real only when its linear fit's
+#: ΔBIC comes within this many thresholds of the finding's: the linear fit, made at the model
+#: without the shape, understates a large shape's gain (a detent's linear ΔBIC was less than half
+#: its refitted one, docs/validation.md), and each real refit costs a dozen replays
+SHAPE_REFIT_REACH = 4
 
 
 @dataclass(frozen=True)

@@ -31,11 +31,11 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 
 from ..data.loaders import BenchLog
-from ..diagnosis.diagnose import diagnose
+from ..diagnosis.diagnose import Diagnoser
 from ..diagnosis.result import Diagnosis
 from ..effects import LIBRARY, DischargeScale, EffectLibrary, FlowForceScale
 from ..fitting.heldout import HEADLINE, replayed_heldout_rms, run_groups
@@ -207,8 +207,9 @@ def heldout_rms(fitted: FitResult | None, played: LogReplay,
 class _Staircase:
     """The steps so far: each model fitted to the log, replayed, and reported."""
 
-    def __init__(self, log: BenchLog, say: Callable[[str], None]):
+    def __init__(self, log: BenchLog, say: Callable[[str], None], diagnoser: Diagnoser):
         self.log, self.say = log, say
+        self.diagnoser = replace(diagnoser, progress=lambda message: say(f"  {message}"))
         self.steps: list[Step] = []
         self.schemes = run_groups(log)
         self.dropped = ""
@@ -256,22 +257,19 @@ class _Staircase:
                      f"{moved.after:.4g} {moved.unit}) by {', '.join(moved.by)}")
         return step
 
-    def diagnose_last(self, library: EffectLibrary, candidates: list[str] | None,
-                      shapes: bool = True, refused: list[str] | None = None) -> Diagnosis:
-        """Diagnose the last step's model (:func:`~surrogate.diagnosis.diagnose.diagnose`, from
-        the step's replay and probe columns), without the candidates ``refused``."""
+    def diagnose_last(self, refused: list[str] | None = None) -> Diagnosis:
+        """Diagnose the last step's model (:class:`~surrogate.diagnosis.diagnose.Diagnoser`,
+        from the step's replay and probe columns), without the candidates ``refused``."""
         current, refused = self.last, refused or []
         self.say(f"diagnosing {current.model.name} ..."
                  + (f" (without {', '.join(refused)})" if refused else ""))
-        diagnosis = diagnose(current.model, self.log, library, base=current.played,
-                             candidates=candidates, exclude=refused, shapes=shapes,
-                             own_columns=list(current.columns) or None,
-                             progress=lambda message: self.say(f"  {message}"))
+        diagnosis = self.diagnoser.diagnose(current.model, self.log, base=current.played,
+                                            exclude=refused,
+                                            own_columns=list(current.columns) or None)
         self.say(f"  {summarise(diagnosis)}")
         return diagnosis
 
-    def add_diagnosed(self, library: EffectLibrary, candidates: list[str] | None,
-                      max_additions: int, shapes: bool = True) -> Diagnosis:
+    def add_diagnosed(self, max_additions: int) -> Diagnosis:
         """Diagnose the last step and add its best significant candidate, until none is left
         or ``max_additions`` were added; return the last diagnosis. A candidate whose full refit
         predicts the held-out runs worse is refused, and the step diagnosed again without it
@@ -281,7 +279,7 @@ class _Staircase:
         additions, refused, dropped, kinds = 0, [], [], set()
         while True:
             current = self.last
-            diagnosis = self.diagnose_last(library, candidates, shapes, refused)
+            diagnosis = self.diagnose_last(refused)
             summary = summarise(diagnosis)
             best = diagnosis.best
             if best is None or additions == max_additions or (kinds and best.kind not in kinds):
@@ -367,7 +365,8 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
         Called with a line of text at every stage.
     """
     began = time.perf_counter()
-    staircase = _Staircase(log, progress or (lambda message: None))
+    staircase = _Staircase(log, progress or (lambda message: None), Diagnoser(
+        library, candidates=None if candidates is None else tuple(candidates), shapes=shapes))
     maps_spec = maps_spec or maps("grid")
     if start is None:
         spec = bmbe(valve)
@@ -379,10 +378,10 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
             staircase.record(spec.build(library), added, category, reason)
     else:
         staircase.record(start, [], "", f"the starting model {start.name!r}")
-    diagnosis = loop_end = staircase.add_diagnosed(library, candidates, max_additions, shapes)
+    diagnosis = loop_end = staircase.add_diagnosed(max_additions)
     if calibrate and staircase.calibrate():
         # the final diagnosis is the final model's: what is left after the calibration too
-        diagnosis = staircase.diagnose_last(library, candidates, shapes)
+        diagnosis = staircase.diagnose_last()
     else:
         loop_end = None
     steps = staircase.steps
