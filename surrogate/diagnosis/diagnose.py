@@ -308,7 +308,7 @@ class _Ground:
             expected_rms=judge.expected_rms(problem.base), map_limits=judge.map_limits(),
             sensor_checks=checks, median_before=self.median_before,
             half_width_before=self.half_before, heldout_by_scheme=judge.heldout,
-            absorbed=mimicked, declined=withheld)
+            absorbed=mimicked, declined=withheld, rule=self.rule)
         return replace(diagnosis, separation=look_alike_separation(diagnosis, log))
 
 

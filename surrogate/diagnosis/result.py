@@ -14,6 +14,7 @@ from ..fitting.residuals import LogReplay
 from ..model import ValveModel
 from ..planning.bench_runs import Separation
 from ..units import from_si
+from .rule import RULE, SignificanceRule
 
 
 @dataclass(frozen=True)
@@ -123,7 +124,8 @@ class Rival:
     title: str
     kind: str
     category: str
-    heldout: dict  # [Pa] on held-out runs, per scheme (:func:`~surrogate.fitting.heldout.run_groups`)
+    #: [Pa] on held-out runs, per scheme (:func:`~surrogate.fitting.heldout.run_groups`)
+    heldout: dict
     #: [Pa] the same with the maps' error within their σ fitted beside it
     beside_maps: dict = field(default_factory=dict)
     model: ValveModel | None = field(default=None, repr=False)  # the model with it fitted
@@ -206,6 +208,8 @@ class Diagnosis:
     absorbed: dict = field(default_factory=dict)
     #: the physics claim withheld because look-alikes of other kinds fit as well, if any
     declined: Declined | None = None
+    #: the rule the diagnosis judged by, which its words quote (:mod:`surrogate.reporting.prose`)
+    rule: SignificanceRule = RULE
 
     @property
     def best(self) -> Candidate | None:

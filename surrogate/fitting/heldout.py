@@ -34,7 +34,8 @@ another run.
 
 The held-out RMS quoted for a model (a workflow step, a candidate) is that of every run predicted
 by a fit to the others (:data:`HEADLINE`). A candidate must also predict a whole condition left
-out better, one temperature or one pilot pressure (:func:`predicts_unseen`), not both: leaving
+out better, one temperature or one pilot pressure
+(:meth:`surrogate.diagnosis.rule.SignificanceRule.gains_on_unseen`), not both: leaving
 out the only runs that reach some part of the valve's range (the largest openings, say, which a
 test sequence reaches at one pilot pressure only) leaves a parameter acting there undetermined,
 so that condition cannot judge an effect that acts there, true or not.
@@ -64,19 +65,6 @@ HEADLINE = "run"
 CONDITIONS = ("temperature", "pilot pressure")
 #: the RMS over every scheme's held-out runs together (runs, temperatures, pilot pressures)
 POOLED = "pooled"
-
-
-def predicts_unseen(after: dict[str, float], before: dict[str, float], gain: float) -> bool:
-    """Whether a model whose held-out RMS per scheme is ``after`` [Pa] predicts runs it was not
-    fitted to better than one with ``before`` by more than the share ``gain``: every run left
-    out one at a time, and one temperature or one pilot pressure left out (either; a log with
-    neither condition varied is judged on its runs alone)."""
-    def better(scheme: str) -> bool:
-        return (scheme in after and scheme in before
-                and after[scheme] < (1.0 - gain) * before[scheme])
-
-    conditions = [scheme for scheme in CONDITIONS if scheme in before]
-    return better(HEADLINE) and (not conditions or any(map(better, conditions)))
 
 
 def run_groups(log: BenchLog) -> dict[str, dict[str, list[str]]]:

@@ -13,7 +13,6 @@ import numpy as np
 from ..diagnosis.lookalikes import MAPS_ERROR
 from ..diagnosis.naming import WITHIN, library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
-from ..diagnosis.rule import RULE
 from ..fitting.heldout import HEADLINE
 from ..leastsquares import split_key
 from ..planning.bench_runs import Separation, search_range
@@ -140,8 +139,10 @@ def summarise(diagnosis: Diagnosis) -> str:
     expected = from_si(diagnosis.expected_rms, "bar")
     best = diagnosis.best
     if best is None:
-        unstable = next((c for c in diagnosis.candidates if not c.stable and RULE.passes(
-            c, diagnosis.rms_before, diagnosis.noise_floor, diagnosis.heldout_by_scheme)), None)
+        unstable = next((c for c in diagnosis.candidates if not c.stable
+                         and diagnosis.rule.passes(c, diagnosis.rms_before,
+                                                   diagnosis.noise_floor,
+                                                   diagnosis.heldout_by_scheme)), None)
         if diagnosis.declined is not None:
             sentence = (f"The residual ({before:.2f} bar RMS) is {before / floor:.1f}x the "
                         f"noise floor ({floor:.2f} bar).")
@@ -228,8 +229,8 @@ def declined_sentence(diagnosis: Diagnosis) -> str:
                 f"({claim.name}) would lower the RMS on held-out runs from "
                 f"{held(diagnosis.heldout_before)} to {held(claim.heldout_rms)}, but "
                 + "; and ".join(reasons)
-                + f". A claim must do {100 * RULE.other_kind_gain:.0f} % better than each, on "
-                  "the runs or on a condition left out; nothing is added.")
+                + f". A claim must do {100 * diagnosis.rule.other_kind_gain:.0f} % better than "
+                  "each, on the runs or on a condition left out; nothing is added.")
     separation = declined.separation
     if separation is not None:
         run = str(separation)
@@ -311,8 +312,8 @@ def look_alike_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
     preferred, and what would decide."""
     members = diagnosis.explanations
     categories = sorted({c.category for c in members})
-    why = ("they fit it about equally well (ΔBIC within "
-           f"{-RULE.bic:.0f} of each other, a term of free shape counted with its handicap)"
+    why = (f"they fit it about equally well (ΔBIC within {-diagnosis.rule.bic:.0f} of each "
+           "other, a term of free shape counted with its handicap)"
            if any(c.shape_free for c in members) else
            "they are the same term of the force balance (their effects are collinear)")
     sentence = (f"The log holds one finding with {len(members)} explanations it cannot tell "
@@ -338,8 +339,8 @@ def maps_or_shape_sentence(diagnosis: Diagnosis) -> str:
     """When a shape-free term would predict held-out runs better but the maps' own error could
     do as much: the log cannot tell that shape from the maps' error (empty otherwise)."""
     shape = next((c for c in diagnosis.candidates if c.shape_free and not c.per_run
-                  and RULE.predicts_unseen(c, diagnosis.heldout_by_scheme)
-                  and diagnosis.rms_before - c.rms_after > RULE.gain_fraction
+                  and diagnosis.rule.predicts_unseen(c, diagnosis.heldout_by_scheme)
+                  and diagnosis.rms_before - c.rms_after > diagnosis.rule.gain_fraction
                   * diagnosis.noise_floor), None)
     if shape is None:
         return ""

@@ -17,7 +17,8 @@ PACKAGE = Path(surrogate.__file__).parent
 #: bootstrap's majority, 0.5: every midpoint is one)
 THRESHOLDS = {rule.BIC_THRESHOLD: "rule.BIC_THRESHOLD", -rule.BIC_THRESHOLD: "rule.BIC_THRESHOLD",
               rule.NOISE_MARGIN: "rule.NOISE_MARGIN", rule.GAIN_FRACTION: "rule.GAIN_FRACTION",
-              rule.HELDOUT_GAIN: "rule.HELDOUT_GAIN", prose.NOISE_LEVEL: "prose.NOISE_LEVEL", lookalikes.COLLINEAR: "lookalikes.COLLINEAR",
+              rule.HELDOUT_GAIN: "rule.HELDOUT_GAIN", prose.NOISE_LEVEL: "prose.NOISE_LEVEL",
+              lookalikes.COLLINEAR: "lookalikes.COLLINEAR",
               lookalikes.SAME_DIRECTION: "lookalikes.SAME_DIRECTION"}
 
 #: the modules that judge a candidate, a step or a log, or put the judgement into words

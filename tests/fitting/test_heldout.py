@@ -1,6 +1,6 @@
 """Held-out refits (surrogate/fitting/heldout.py): the schemes, the linearised refits against
-explicit ones, the rule a candidate must pass on runs it was not fitted to, and the judgement
-against the maps' discrepancy refitted with the parameters."""
+explicit ones, and the judgement against the maps' discrepancy refitted with the parameters (what
+a candidate must do on runs it was not fitted to is the rule's: tests/diagnosis/test_rule.py)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from surrogate.fitting.discrepancy import Discrepancy
-from surrogate.fitting.heldout import (HEADLINE, Linearised, RunBlocks, held_at_bounds,
-                                       predicts_unseen, run_groups)
+from surrogate.fitting.heldout import HEADLINE, Linearised, RunBlocks, held_at_bounds, run_groups
 from surrogate.parameters import Parameter
 
 
@@ -69,24 +68,6 @@ def test_blocks_moved_to_a_point_are_the_blocks_formed_there(rough):
     assert moved.step(ones) == pytest.approx(formed.step(ones), rel=1e-10, abs=1e-12)
     assert moved.objective(ones) == pytest.approx(formed.objective(ones), rel=1e-10)
     assert moved.heldout_rms(schemes) == pytest.approx(formed.heldout_rms(schemes), rel=1e-10)
-
-
-@pytest.mark.parametrize("after, expected", [
-    ({"run": 0.90, "temperature": 0.90, "pilot pressure": 0.90}, True),
-    ({"run": 0.90, "temperature": 0.90, "pilot pressure": 1.50}, True),  # one condition is enough
-    ({"run": 0.90, "temperature": 1.20, "pilot pressure": 0.90}, True),
-    ({"run": 0.90, "temperature": 1.00, "pilot pressure": 1.00}, False),  # no condition
-    ({"run": 0.99, "temperature": 0.80, "pilot pressure": 0.80}, False),  # not the runs (3 %)
-    ({"temperature": 0.80, "pilot pressure": 0.80}, False),  # no run scheme: nothing to judge
-])
-def test_a_candidate_must_predict_unseen_runs_and_one_unseen_condition(after, expected):
-    before = {HEADLINE: 1.0, "temperature": 1.0, "pilot pressure": 1.0}
-    assert predicts_unseen(after, before, 0.03) is expected
-
-
-def test_a_log_without_conditions_is_judged_on_its_runs():
-    assert predicts_unseen({"run": 0.9}, {"run": 1.0}, 0.03)
-    assert not predicts_unseen({"run": 0.99}, {"run": 1.0}, 0.03)
 
 
 def test_the_discrepancy_is_refitted_with_the_parameters_so_undoing_a_bend_gains_nothing():
