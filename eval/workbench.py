@@ -45,6 +45,7 @@ from surrogate.fitting.residuals import (measured_dp, noise_floor, replay_log,
 from surrogate.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.presets import cfda, maps
+from surrogate.reporting.documents import workflow_document
 from surrogate.reporting.prose import summarise
 from surrogate.solver import replay
 from surrogate.synthetic.mismatch import MapMismatch
@@ -280,7 +281,7 @@ def main() -> None:
         "free_blas_over_one_thread": round(blas_free_seconds / diagnose_seconds, 2),
         "free_blas_same_results": same,
         "workflow_seconds": round(workflow_seconds, 1),
-        "workflow": workflow.to_json(),
+        "workflow": workflow_document(workflow),
         "control_true_model": control,
         "identification_rate": rate, "cases": cases, "every": args.every,
         "mismatch": mismatch,

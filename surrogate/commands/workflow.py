@@ -14,7 +14,8 @@ from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
 from ..progress import duration
-from ..reporting.prose import naming_words, shape_words, workflow_summary
+from ..reporting.documents import workflow_document
+from ..reporting.prose import naming_words, shape_words, summarise, workflow_summary
 from ..reporting.kinds import compare_kinds, comparison_sentences
 from ..reporting.verdict import verdict
 from ..spec import ValveSource
@@ -95,7 +96,8 @@ def run(args) -> int:
         workflows[kind] = run_workflow(
             log, library=library, valve=valve, max_additions=args.max_additions,
             calibrate=not args.no_calibration, shapes=kind == main,
-            maps_spec=main_maps if kind == main else maps(kind), progress=progress)
+            maps_spec=main_maps if kind == main else maps(kind), progress=progress,
+            narrate=summarise)
         if kind == main or number == len(kinds):
             # the main result as soon as it is known; the report again once the comparison
             # kinds beside it are done
@@ -159,11 +161,12 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
     final = workflow.final
     comparison = compare(final.model, log, played=final.played)
     with atomic_directory(out) as staging:
-        document = {**workflow.to_json(),
+        document = {**workflow_document(workflow),
                     "maps_flow_force_cv_error": None if scores is None else {
                         kind: round(score, 4) if np.isfinite(score) else None
                         for kind, score in scores.items()},
-                    "other_kinds": {kind: other.to_json() for kind, other in workflows.items()
+                    "other_kinds": {kind: workflow_document(other)
+                                    for kind, other in workflows.items()
                                     if kind != main},
                     "kinds_compared": (compare_kinds(workflows, main).to_json()
                                        if len(workflows) > 1 else None)}

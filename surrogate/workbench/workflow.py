@@ -49,8 +49,6 @@ from ..memory import release_freed
 from ..model import ValveModel
 from ..parallel import blas_limited, single_threaded
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
-from ..reporting.prose import summarise
-from ..reporting.verdict import summary_text, verdict
 from ..solver.map_tables import release_tables
 from ..spec import ModelSpec, ValveSource
 from ..units import from_si
@@ -72,7 +70,9 @@ class Step:
     added : list of str
         Effects added in this step ([] for the starting model).
     reason : str
-        Why (the paper's step, or the diagnosis' sentence).
+        What the step is, for the steps no diagnosis chose (the paper's, the starting model,
+        the maps' calibration); "" for a diagnosed step, whose reason is its diagnosis
+        (:func:`surrogate.reporting.documents.step_reason` words it).
     played : LogReplay
         Its replay of the log.
     rms : float
@@ -119,17 +119,6 @@ class Step:
         best = None if self.diagnosis is None else self.diagnosis.best
         return best is not None and best.shape_free and best.name in self.added
 
-    def to_json(self) -> dict:
-        parameters = self.model.parameters().to_records(free_only=True)
-        return {"model": self.model.name, "added": self.added, "category": self.category,
-                "shape_free": self.shape_free,
-                "rms_bar": round(float(from_si(self.rms, "bar")), 4),
-                "heldout_rms_bar": round(float(from_si(self.heldout_rms, "bar")), 4),
-                "heldout_check_bar": round(float(from_si(self.heldout_check, "bar")), 4),
-                "entangled": [pair.to_json() for pair in self.entangled],
-                "pushed_to_bounds": [pushed.to_json() for pushed in self.pushed],
-                "reason": self.reason, "parameters": parameters}
-
 
 @dataclass
 class Workflow:
@@ -165,15 +154,6 @@ class Workflow:
         return [diagnosis.declined for diagnosis in [*diagnoses, *ends, self.final_diagnosis]
                 if diagnosis.declined is not None]
 
-    def to_json(self) -> dict:
-        return {"data": self.log.source, "samples": len(self.log), "maps": self.maps,
-                "noise_floor_bar": round(float(from_si(self.noise_floor, "bar")), 4),
-                "final_rms_over_noise": round(self.final.rms / self.noise_floor, 3),
-                "verdict": verdict(self).to_json(), "summary": summary_text(self),
-                "dropped_step": self.dropped or None,
-                "steps": [step.to_json() for step in self.steps],
-                "seconds": round(self.seconds, 1)}
-
 
 def paper_steps(valve: ValveSource, maps_spec: MapsSpec
                 ) -> list[tuple[Callable[[ModelSpec], ModelSpec], list[str], str, str]]:
@@ -207,8 +187,9 @@ def heldout_rms(fitted: FitResult | None, played: LogReplay,
 class _Staircase:
     """The steps so far: each model fitted to the log, replayed, and reported."""
 
-    def __init__(self, log: BenchLog, say: Callable[[str], None], diagnoser: Diagnoser):
-        self.log, self.say = log, say
+    def __init__(self, log: BenchLog, say: Callable[[str], None], diagnoser: Diagnoser,
+                 narrate: Callable[[Diagnosis], str] | None = None):
+        self.log, self.say, self.narrate = log, say, narrate
         self.diagnoser = replace(diagnoser, progress=lambda message: say(f"  {message}"))
         self.steps: list[Step] = []
         self.schemes = run_groups(log)
@@ -266,7 +247,8 @@ class _Staircase:
         diagnosis = self.diagnoser.diagnose(current.model, self.log, base=current.played,
                                             exclude=refused,
                                             own_columns=list(current.columns) or None)
-        self.say(f"  {summarise(diagnosis)}")
+        if self.narrate is not None:
+            self.say(f"  {self.narrate(diagnosis)}")
         return diagnosis
 
     def add_diagnosed(self, max_additions: int) -> Diagnosis:
@@ -280,14 +262,13 @@ class _Staircase:
         while True:
             current = self.last
             diagnosis = self.diagnose_last(refused)
-            summary = summarise(diagnosis)
             best = diagnosis.best
             if best is None or additions == max_additions or (kinds and best.kind not in kinds):
                 return diagnosis
             # the diagnosis already refitted every parameter with the effect added: polish that
             categories = dict.fromkeys(c.category for c in diagnosis.explanations)
             step = self.record(best.model.copy(name=f"{current.model.name}+{best.name}"),
-                               [best.name], " or ".join(categories), summary, diagnosis,
+                               [best.name], " or ".join(categories), "", diagnosis,
                                near=best.replay)
             if step.heldout_check > current.heldout_check:
                 # the diagnosis judged the term on its own linearised refit; refitted for real
@@ -336,8 +317,8 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
                  library: EffectLibrary = LIBRARY, candidates: list[str] | None = None,
                  valve: ValveSource | None = None, maps_spec: MapsSpec | None = None,
                  max_additions: int = MAX_ADDITIONS, calibrate: bool = True,
-                 shapes: bool = True,
-                 progress: Callable[[str], None] | None = None) -> Workflow:
+                 shapes: bool = True, progress: Callable[[str], None] | None = None,
+                 narrate: Callable[[Diagnosis], str] | None = None) -> Workflow:
     """Run the loop on ``log`` (see the module docstring).
 
     Parameters
@@ -363,10 +344,13 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
         (:mod:`surrogate.diagnosis.shapes`).
     progress : callable, optional
         Called with a line of text at every stage.
+    narrate : callable, optional
+        Words for a diagnosis (:func:`surrogate.reporting.prose.summarise`), said after each.
     """
     began = time.perf_counter()
     staircase = _Staircase(log, progress or (lambda message: None), Diagnoser(
-        library, candidates=None if candidates is None else tuple(candidates), shapes=shapes))
+        library, candidates=None if candidates is None else tuple(candidates), shapes=shapes),
+        narrate)
     maps_spec = maps_spec or maps("grid")
     if start is None:
         spec = bmbe(valve)
