@@ -59,7 +59,7 @@ MAX_ADDITIONS = 8  # effects the loop may add after the paper's steps
 REFUSALS = 2
 
 
-@dataclass
+@dataclass(frozen=True)
 class Step:
     """One step of the staircase.
 
@@ -67,8 +67,8 @@ class Step:
     ----------
     model : ValveModel
         The model after the step, fitted.
-    added : list of str
-        Effects added in this step ([] for the starting model).
+    added : tuple of str
+        Effects added in this step (none for the starting model).
     reason : str
         What the step is, for the steps no diagnosis chose (the paper's, the starting model,
         the maps' calibration); "" for a diagnosed step, whose reason is its diagnosis
@@ -100,7 +100,7 @@ class Step:
     """
 
     model: ValveModel
-    added: list[str]
+    added: tuple[str, ...]
     reason: str
     played: LogReplay
     rms: float
@@ -120,14 +120,14 @@ class Step:
         return best is not None and best.shape_free and best.name in self.added
 
 
-@dataclass
+@dataclass(frozen=True)
 class Workflow:
     """The staircase and the final diagnosis: the final model's (the last step's), whether the
     loop's last diagnosis or one made after a step that followed the loop (the maps'
     calibration)."""
 
     log: BenchLog
-    steps: list[Step]
+    steps: tuple[Step, ...]
     final_diagnosis: Diagnosis
     noise_floor: float  # [Pa], of the final model's residual
     seconds: float = 0.0
@@ -225,9 +225,11 @@ class _Staircase:
                  else calibration.heldout_rms(fitted, played, self.schemes, list(columns)))
         best = None if diagnosis is None else diagnosis.best
         pushed = (pushed_to_bounds(self.last.model, model, added) if self.steps else [])
-        step = Step(model, added, reason, played, played.rms(), diagnosis, category,
-                    check if best is None else best.heldout_rms, check,
-                    tuple(entangled_pairs(fitted)), tuple(pushed), columns)
+        step = Step(model=model, added=tuple(added), reason=reason, played=played,
+                    rms=played.rms(), diagnosis=diagnosis, category=category,
+                    heldout_rms=check if best is None else best.heldout_rms,
+                    heldout_check=check, entangled=tuple(entangled_pairs(fitted)),
+                    pushed=tuple(pushed), columns=columns)
         self.steps.append(step)
         self.say(f"step {len(self.steps)}: {model.name:<28} rms "
                  f"{from_si(step.rms, 'bar'):6.3f} bar, held out "
@@ -373,6 +375,8 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
                         source=steps[-1].played.log.source)
     for step in steps:  # the fits are done: their tables go (the steps' replays asked the maps)
         release_tables(step.model)
-    return Workflow(log, steps, diagnosis, floor, time.perf_counter() - began,
-                    maps_spec.flow.kind if start is None else "", staircase.dropped, loop_end)
+    return Workflow(log=log, steps=tuple(steps), final_diagnosis=diagnosis, noise_floor=floor,
+                    seconds=time.perf_counter() - began,
+                    maps=maps_spec.flow.kind if start is None else "",
+                    dropped=staircase.dropped, loop_end=loop_end)
 

@@ -79,7 +79,7 @@ def test_the_workflow_takes_the_maps_error_back_within_their_uncertainty(sequenc
                               maps_under_test=maps("grid"))
     workflow = run_workflow(case.log, start=case.start, max_additions=3)
     before, last = workflow.steps[-2], workflow.final
-    assert last.added == [cls.name for cls in CALIBRATIONS], [s.added for s in workflow.steps]
+    assert last.added == tuple(cls.name for cls in CALIBRATIONS), [s.added for s in workflow.steps]
     assert last.category == "map correction"
     assert all(step.category == "map correction" for step in workflow.steps[1:])
     assert before.rms > 1.3 * workflow.noise_floor  # the maps' error is there to take back
