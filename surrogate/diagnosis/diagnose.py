@@ -37,7 +37,6 @@ import numpy as np
 from ..data.loaders import BenchLog
 from ..effects import LIBRARY, Effect, EffectLibrary
 from ..effects.shapes import SHAPE_FREE
-from ..fitting.heldout import HEADLINE
 from ..fitting.hysteresis import hysteresis_split
 from ..fitting.logfit import probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
@@ -49,7 +48,7 @@ from .judge import Judge
 from .lookalikes import (absorbed, alike_shapes, declined, grouped, joined,
                          look_alike_separation, maps_error_rival, rival_of)
 from .refit import REFINE_STEPS, DiagnosisProblem, refit_candidates
-from .result import Candidate, Declined, Diagnosis, Rival
+from .result import Baseline, Candidate, Declined, Diagnosis, Rival
 from .rule import RULE, SHAPE_REFIT_REACH, SignificanceRule, gains_in_own_view
 from .sensors import sensor_checks
 from .shapes import shape_free_candidates
@@ -299,16 +298,16 @@ class _Ground:
         judge, problem = self.judge, self.problem
         mimicked = absorbed(results, self.own_matrix, [c.key for c in self.own_columns])
         checks = sensor_checks(results, judge.schemes)
-        diagnosis = Diagnosis(
-            model=model, base=problem.base, rms_before=problem.rms_before,
-            noise_floor=self.floor, effective_samples=problem.n_eff,
-            candidates=tuple(candidate.settled() for candidate in results),
-            correlations=residual_correlations(problem.base),
-            heldout_before=judge.heldout.get(HEADLINE, float("nan")),
-            expected_rms=judge.expected_rms(problem.base), map_limits=judge.map_limits(),
-            sensor_checks=checks, median_before=self.median_before,
-            half_width_before=self.half_before, heldout_by_scheme=judge.heldout,
-            absorbed=mimicked, declined=withheld, rule=self.rule)
+        baseline = Baseline(
+            rms_before=problem.rms_before, noise_floor=self.floor,
+            effective_samples=problem.n_eff, correlations=residual_correlations(problem.base),
+            heldout_by_scheme=judge.heldout, expected_rms=judge.expected_rms(problem.base),
+            map_limits=judge.map_limits(), median_before=self.median_before,
+            half_width_before=self.half_before)
+        diagnosis = Diagnosis(model=model, base=problem.base, baseline=baseline,
+                              candidates=tuple(candidate.settled() for candidate in results),
+                              sensor_checks=checks, absorbed=mimicked, declined=withheld,
+                              rule=self.rule)
         return replace(diagnosis, separation=look_alike_separation(diagnosis, log))
 
 

@@ -183,26 +183,51 @@ class MapLimit:
 
 
 @dataclass(frozen=True)
-class Diagnosis:
-    """The result of :func:`~surrogate.diagnosis.diagnose.diagnose`, in numbers; its summary in
-    words is :func:`surrogate.reporting.prose.summarise`."""
+class Baseline:
+    """The model's residual before any candidate, as the diagnosis judged it: its RMS, the noise
+    floor, how many independent samples it holds, its RMS on held-out runs, what the maps' σ
+    allows, where the maps' error is largest, and its hysteresis views."""
 
-    model: ValveModel
-    base: LogReplay
     rms_before: float  # [Pa]
     noise_floor: float  # [Pa]
     effective_samples: float
-    candidates: tuple[Candidate, ...]
-    correlations: dict[str, float]
-    heldout_before: float = float("nan")  # [Pa] the model's RMS on runs left out in turn
+    correlations: dict[str, float] = field(default_factory=dict)  # with the log's variables
+    heldout_by_scheme: dict = field(default_factory=dict)  # [Pa] per held-out scheme
     expected_rms: float = float("nan")  # [Pa] what noise and the maps' σ_Δp allow together
     map_limits: tuple[MapLimit, ...] = ()  # where the maps' error is largest
-    sensor_checks: tuple[SensorCheck, ...] = ()  # per-run readings off
     median_before: float = float("nan")  # [Pa] RMS of the residual's median line
     half_width_before: float = float("nan")  # [Pa] RMS of its half-width
+
+    @property
+    def heldout_before(self) -> float:
+        """[Pa] the model's RMS on runs left out in turn."""
+        return self.heldout_by_scheme.get(HEADLINE, float("nan"))
+
+
+class _FromBaseline:
+    """A figure of a diagnosis' :class:`Baseline`, read as the diagnosis' own."""
+
+    def __set_name__(self, owner, name: str):
+        self.name = name
+
+    def __get__(self, diagnosis, owner=None):
+        return self if diagnosis is None else getattr(diagnosis.baseline, self.name)
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The result of :class:`~surrogate.diagnosis.diagnose.Diagnoser`, in numbers: the residual
+    it started from (:class:`Baseline`, whose figures it reads as its own), the candidates
+    judged, and what it concluded; its summary in words is
+    :func:`surrogate.reporting.prose.summarise`."""
+
+    model: ValveModel
+    base: LogReplay
+    baseline: Baseline
+    candidates: tuple[Candidate, ...]
+    sensor_checks: tuple[SensorCheck, ...] = ()  # per-run readings off
     #: the bench run that would tell the best candidate from its first look-alike, if any
     separation: Separation | None = None
-    heldout_by_scheme: dict = field(default_factory=dict)  # [Pa] per held-out scheme
     #: candidates the model's own parameters already mimic on this log (:func:`.lookalikes.
     #: absorbed`): {candidate: (parameter, cosine of their columns)}
     absorbed: dict = field(default_factory=dict)
@@ -210,6 +235,18 @@ class Diagnosis:
     declined: Declined | None = None
     #: the rule the diagnosis judged by, which its words quote (:mod:`surrogate.reporting.prose`)
     rule: SignificanceRule = RULE
+
+    # the baseline's figures, read as the diagnosis' own
+    rms_before = _FromBaseline()  # [Pa]
+    noise_floor = _FromBaseline()  # [Pa]
+    effective_samples = _FromBaseline()
+    correlations = _FromBaseline()
+    heldout_by_scheme = _FromBaseline()  # [Pa] per scheme
+    heldout_before = _FromBaseline()  # [Pa]
+    expected_rms = _FromBaseline()  # [Pa]
+    map_limits = _FromBaseline()
+    median_before = _FromBaseline()  # [Pa]
+    half_width_before = _FromBaseline()  # [Pa]
 
     @property
     def best(self) -> Candidate | None:
@@ -232,3 +269,4 @@ class Diagnosis:
 def rounded_bar(value: float) -> float | None:
     """[Pa] -> bar to 4 decimals, None for NaN (JSON has no NaN)."""
     return round(float(from_si(value, "bar")), 4) if np.isfinite(value) else None
+

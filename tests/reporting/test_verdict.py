@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from surrogate.diagnosis.result import Candidate, Diagnosis, MapLimit
+from surrogate.diagnosis.result import Baseline, Candidate, Diagnosis, MapLimit
 from surrogate.planning.bench_runs import Separation
 from surrogate.reporting.verdict import lacks, verdict
 from surrogate.units import BAR, to_si
@@ -31,8 +31,9 @@ def _workflow(diagnosis: Diagnosis) -> SimpleNamespace:
 
 
 def _diagnosis(rms: float, candidates, **more) -> Diagnosis:
-    return Diagnosis(None, more.pop("base", None), rms, FLOOR, 500.0, tuple(candidates), {},
-                     median_before=1.2 * BAR, half_width_before=0.6 * BAR, **more)
+    baseline = Baseline(rms, FLOOR, 500.0, map_limits=more.pop("map_limits", ()),
+                        median_before=1.2 * BAR, half_width_before=0.6 * BAR)
+    return Diagnosis(None, more.pop("base", None), baseline, tuple(candidates), **more)
 
 
 def test_a_finding_is_named_with_its_size_in_bar_and_the_run_that_settles_it():

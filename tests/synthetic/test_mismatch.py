@@ -20,7 +20,7 @@ import pytest
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.diagnosis.diagnose import diagnose
-from surrogate.diagnosis.result import Candidate, Diagnosis
+from surrogate.diagnosis.result import Baseline, Candidate, Diagnosis
 from surrogate.diagnosis.rule import BIC_THRESHOLD, INCLUSION_MIN
 from surrogate.effects.shapes import FlowForceFactor, OpeningForce
 from surrogate.fitting.logfit import fit_to_log
@@ -192,8 +192,10 @@ def test_a_term_the_runs_do_not_agree_on_is_named_but_not_added():
                     -14.0, group=("progressive_spring",), heldout_rms=1.0e5,
                     heldout={"run": 1.0e5, "temperature": 1.0e5}, inclusion=0.42,
                     stable=False, own_view=True)
-    diagnosis = Diagnosis(None, None, 1.2e5, 0.8e5, 500.0, (top,), {}, 1.2e5, 2.0e5,
-                          heldout_by_scheme={"run": 1.2e5, "temperature": 1.2e5})
+    baseline = Baseline(1.2e5, 0.8e5, 500.0, heldout_by_scheme={"run": 1.2e5,
+                                                                "temperature": 1.2e5},
+                        expected_rms=2.0e5)
+    diagnosis = Diagnosis(None, None, baseline, (top,))
     assert diagnosis.best is None
     summary = summarise(diagnosis)
     assert "progressive_spring" in summary and "42 % of resamples over runs" in summary
