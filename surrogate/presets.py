@@ -42,10 +42,14 @@ def basic_maps(discharge_coefficient: float = BASIC_DISCHARGE_COEFFICIENT) -> Ma
     return MapsSpec.both("orifice", discharge_coefficient=discharge_coefficient)
 
 
+#: what the paper's basic model is, in words
+BMBE_DESCRIPTION = (f"the paper's basic model: orifice equation with "
+                    f"C_d = {BASIC_DISCHARGE_COEFFICIENT:g}, uniform pressure")
+
+
 def bmbe(valve: ValveSource | None = None) -> ModelSpec:
     """The paper's basic model BMBE."""
-    return ModelSpec("bmbe", valve or ValveSource.shipped(), basic_maps(), (),
-                     "the paper's basic model: orifice equation with C_d = 0.4, uniform pressure")
+    return ModelSpec("bmbe", valve or ValveSource.shipped(), basic_maps(), (), BMBE_DESCRIPTION)
 
 
 def cfda_effects(scale: float = CFDA_START["scale"], K1: float = CFDA_START["K1"],
@@ -91,7 +95,7 @@ def cfda_step(previous: ModelSpec) -> ModelSpec:
 
 
 PRESET_DESCRIPTIONS = {
-    "bmbe": "the paper's basic model: orifice equation with C_d = 0.4, uniform pressure",
+    "bmbe": BMBE_DESCRIPTION,
     "bmbebf": "bmbe with its discharge coefficient scaled (the workflow's step 2)",
     "cfd-maps": "grid maps, flow-force scale, no friction (the workflow's step 3)",
     "cfda": "grid maps, flow-force scale, Coulomb friction K1 + K2*p_L",

@@ -10,6 +10,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
 from ..units import from_si
 from .prose import NOISE_LEVEL
 
@@ -19,7 +20,7 @@ CATEGORY_COLOURS = {"": "0.6", "physics": "tab:green", "map correction": "tab:bl
                     "sensor": "tab:red"}
 LOOK_ALIKES = "tab:purple"
 #: the paper's starting model, named as the paper does
-STARTS = {"bmbe": "BMBE: orifice, C_d = 0.4"}
+STARTS = {"bmbe": f"BMBE: orifice, C_d = {BASIC_DISCHARGE_COEFFICIENT:g}"}
 
 
 def step_label(step, width: int = 22, lines: int = 4) -> str:

@@ -356,9 +356,7 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     maps_spec = maps_spec or maps("grid")
     if start is None:
         spec = bmbe(valve)
-        staircase.record(spec.build(library), [], "", "the paper's basic model BMBE: orifice "
-                                                      "equation with C_d = 0.4 and a uniform "
-                                                      "pressure on the piston")
+        staircase.record(spec.build(library), [], "", spec.description)
         for make, added, category, reason in paper_steps(spec.valve, maps_spec):
             spec = make(ModelSpec.of(staircase.last.model))  # from the fitted previous step
             staircase.record(spec.build(library), added, category, reason)
