@@ -12,14 +12,13 @@ from ..data import load_bench_log
 from ..effects import KNOWN, EffectLibrary, load_effects_file
 from ..errors import InputError
 from ..input_files import DEFAULT_LIMIT_MB, LIMIT_VARIABLE, megabytes
-from ..maps.registry import (MAP_KINDS, MapsSpec, MapSource, is_surrogate_folder, kind_named,
-                             refuse_ambiguous_kind)
+from ..maps.registry import MAP_KINDS, MapChoice
 from ..model import ValveModel
 from ..modelfile import PRESETS, load_spec, model_name
+from ..spec import ModelSpec
 from ..outputs import Output, check_outputs
 from ..paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES,
                      shipped)
-from ..presets import maps
 from ..progress import Progress
 from ..valve import shipped_valve_path
 
@@ -175,12 +174,10 @@ def model_option(text: str) -> str:
     return model_name(text)
 
 
-def maps_option(text: str) -> str:
-    """argparse type of --maps: a kind in any case is read as its name (``GP`` is gp), unless a
-    folder of that name here holds a trained surrogate: :func:`maps_from_args` refuses that as
-    ambiguous, naming the folder as the user wrote it."""
-    kind = kind_named(text)
-    return kind if kind is not None and not is_surrogate_folder(text, Path.cwd()) else text
+def maps_option(text: str) -> MapChoice:
+    """argparse type of --maps: the maps it names, read once (:class:`~surrogate.maps.registry.
+    MapChoice`); a kind in any case is read as its name (``GP`` is gp)."""
+    return MapChoice.read(text)
 
 
 def maps_help_text() -> str:
@@ -188,21 +185,9 @@ def maps_help_text() -> str:
     return MAPS_HELP.format(kinds=", ".join(MAP_KINDS))
 
 
-def maps_from_args(kind: str, cfd: str | None = None) -> MapsSpec:
-    """The maps a --maps option names: a kind (with --cfd for maps built from CFD samples) or
-    the folder of a trained surrogate.
-
-    A value that is both a kind and a folder here holding a trained surrogate (``--maps nn``
-    beside the ``nn`` folder ``training/train.py --out .`` writes) is refused as ambiguous
-    (:func:`~surrogate.maps.registry.refuse_ambiguous_kind`): either reading would surprise
-    someone, and ``./nn`` or the shipped folder's path says which is meant.
-    """
-    refuse_ambiguous_kind(kind, Path.cwd(), "--maps")
-    if kind_named(kind) is not None:
-        return maps(kind_named(kind), cfd)
-    # the folder of a trained surrogate: its kind, with the folder and its hash recorded
-    folder = MapSource.from_dict(kind, "--maps", Path.cwd())
-    return maps(folder.kind, cfd, folder=folder.settings["folder"])
+def on_maps(spec: ModelSpec, choice: MapChoice, cfd: str | None = None) -> ModelSpec:
+    """``spec`` on the maps ``choice`` names (an option such as --maps), named for them."""
+    return spec.with_maps(choice.spec(cfd), f"{spec.name} ({choice} maps)")
 
 
 def guard_outputs(args, *outputs: Output) -> None:
@@ -231,7 +216,7 @@ def run_inputs(args) -> list[tuple[Path | str, str]]:
                    load_spec(model, getattr(args, "valve", None)).inputs()]
     if getattr(args, "maps", None):
         inputs += [(path, f"{role}, given by --maps {args.maps}") for path, role in
-                   maps_from_args(args.maps, getattr(args, "cfd", None)).inputs()]
+                   args.maps.spec(getattr(args, "cfd", None)).inputs()]
     return inputs
 
 
@@ -283,7 +268,7 @@ def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, Ef
         spec = load_spec(args.model, args.valve)
         where = args.model if args.model not in PRESETS else f"preset {args.model!r}"
         if getattr(args, "maps", None):
-            spec = spec.with_maps(maps_from_args(args.maps), f"{spec.name} ({args.maps} maps)")
+            spec = on_maps(spec, args.maps)
         model = spec.build(library, where)
     log = load_bench_log(data, progress)
     progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")

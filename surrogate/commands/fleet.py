@@ -42,11 +42,11 @@ from .common import (
     EXIT_CODES,
     add_command,
     effect_library,
-    maps_from_args,
     maps_help_text,
     maps_option,
     model_option,
     notice,
+    on_maps,
     positive_int,
     print_json,
     progress_for,
@@ -130,7 +130,7 @@ def run(args) -> int:
     library = effect_library(args, progress)
     spec = load_spec(args.model, args.valve)
     if args.maps:
-        spec = spec.with_maps(maps_from_args(args.maps), f"{spec.name} ({args.maps} maps)")
+        spec = on_maps(spec, args.maps)
     where = args.model if args.model not in PRESETS else f"preset {args.model!r}"
     model = spec.build(library, where)  # a model that cannot be built stops here, exit 2
     model_toml = spec.to_toml()  # its paths absolute: a worker reads it anywhere

@@ -8,7 +8,7 @@ from ..data import load_bench_log
 from ..outputs import Output
 from ..paper.comparison import reproduce
 from ..spec import ValveSource
-from .common import (add_command, bench_log_path, guard_outputs, maps_from_args, maps_help_text,
+from .common import (add_command, bench_log_path, guard_outputs, maps_help_text,
                      maps_option, progress_for)
 
 DEFAULT_OUT = "results/paper"
@@ -36,14 +36,14 @@ def run(args) -> int:
     progress = progress_for(args)
     valve = ValveSource.read(args.valve)
     log = load_bench_log(bench_log_path(args, progress), progress)
-    comparison = reproduce(valve, maps_from_args(args.maps, args.cfd), log, progress)
+    comparison = reproduce(valve, args.maps.spec(args.cfd), log, progress)
     if out:
         # the figures draw with matplotlib, half a second of a start: only when written
         from ..paper.report import write_report
 
         progress(f"writing tables and figures to {out}")
-        written = write_report(comparison, out, args.maps)
+        written = write_report(comparison, out, str(args.maps))
         progress(f"wrote {len(written)} files")
     if args.json:
-        print(json.dumps({"maps": args.maps, **comparison.to_json()}, indent=2))
+        print(json.dumps({"maps": str(args.maps), **comparison.to_json()}, indent=2))
     return 0

@@ -14,8 +14,8 @@ from ..errors import InputError
 from ..outputs import Output, atomic_directory, atomic_file
 from ..units import from_si
 from ..valve import load_valve
-from .common import (add_command, guard_outputs, legacy_option, maps_from_args,
-                     maps_help_text, maps_option, notice, print_json, progress_for, required)
+from .common import (add_command, guard_outputs, legacy_option, maps_help_text, maps_option,
+                     notice, print_json, progress_for, required)
 
 
 def register(subparsers) -> None:
@@ -56,7 +56,7 @@ def run(args) -> int:
     guard_outputs(args, target)
     queries = load_queries(args.data)
     valve = load_valve(args.valve)
-    flow_map, force_map = build_maps(maps_from_args(args.maps, args.cfd), valve)
+    flow_map, force_map = build_maps(args.maps.spec(args.cfd), valve)
     fluid = queries.fluid(valve.oil)
     state = (queries.p_L, queries.p_B, queries.u, fluid)
     table = queries.raw.copy()
@@ -77,7 +77,7 @@ def run(args) -> int:
     extrapolating = int(table["extrapolating"].sum())
     if args.json:
         print_json({"output": str(path), "predictions": len(table),
-                    "extrapolating": extrapolating, "maps": args.maps})
+                    "extrapolating": extrapolating, "maps": str(args.maps)})
     else:
         progress_for(args)(f"wrote {len(table)} predictions ({extrapolating} extrapolating) "
                            f"with {args.maps} maps to {path}")

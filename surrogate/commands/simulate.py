@@ -11,8 +11,8 @@ from ..outputs import atomic_directory
 from ..synthetic.mismatch import MapMismatch
 from ..synthetic.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
                                   noise_free_sequence, reference_spec)
-from .common import (add_command, bench_log_path, effect_library, guard_outputs, maps_from_args,
-                     maps_help_text, maps_option, non_negative_int, output_file, positive_int,
+from .common import (add_command, bench_log_path, effect_library, guard_outputs, maps_help_text,
+                     maps_option, non_negative_int, output_file, positive_int,
                      print_json, progress_for, required)
 
 #: largest --mismatch: ten times the CFD's own error is already far beyond any real valve's
@@ -69,7 +69,7 @@ def run(args) -> int:
                                           and 0 <= args.mismatch <= MISMATCH_MAX):
         raise InputError(f"--mismatch {args.mismatch:g}: expected 0 to {MISMATCH_MAX:g} (times "
                          "the CFD's own error)")
-    maps_spec = maps_from_args(args.maps) if args.maps else None
+    maps_spec = args.maps.spec() if args.maps else None
     progress = progress_for(args)
     library = effect_library(args, progress)
     hidden = None if args.hidden in (None, "none") else args.hidden
@@ -108,5 +108,5 @@ def run(args) -> int:
     if args.json:
         print_json({"file": str(path), "samples": len(case.log),
                     "runs": len(case.log.run_ids), "truth": case.truth.name,
-                    "maps": args.maps or "grid", "mismatch": args.mismatch})
+                    "maps": str(args.maps or "grid"), "mismatch": args.mismatch})
     return 0

@@ -7,11 +7,12 @@ import json
 from ..data import load_bench_log
 from ..errors import InputError
 from ..maps.crossval import most_accurate_kind
+from ..maps.registry import MapChoice
 from ..modelfile import PRESETS, load_spec
 from ..outputs import Output, atomic_directory
 from ..planning.cfd_runs import suggest_cfd, suggestion_figure
 from .common import (add_command, add_data_options, bench_log_path, effect_library, guard_outputs,
-                     maps_from_args, model_option, positive_int, print_json, progress_for)
+                     model_option, on_maps, positive_int, print_json, progress_for)
 
 DEFAULT_RUNS = 8
 
@@ -49,8 +50,8 @@ def run(args) -> int:
     spec = load_spec(args.model, args.valve)
     kind = args.maps
     if kind is None:
-        kind, _ = most_accurate_kind(spec.valve.parameters)
-    spec = spec.with_maps(maps_from_args(kind, args.cfd), f"{spec.name} ({kind} maps)")
+        kind = MapChoice.read(most_accurate_kind(spec.valve.parameters)[0])
+    spec = on_maps(spec, kind, args.cfd)
     model = spec.build(library, args.model)
     if model.flow_map.calibration is None and model.force_map.calibration is None:
         raise InputError(f"--maps {kind}: these maps have no uncertainty to reduce; choose maps "

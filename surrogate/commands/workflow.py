@@ -22,8 +22,8 @@ from ..spec import ValveSource
 from ..units import from_si
 from ..workbench.compare import compare
 from ..workbench.workflow import MAX_ADDITIONS, run_workflow
-from .common import (add_command, add_data_options, guard_outputs, load_inputs, maps_from_args,
-                     non_negative_int, print_json, progress_for)
+from .common import (add_command, add_data_options, guard_outputs, load_inputs, non_negative_int,
+                     print_json, progress_for)
 
 DEFAULT_OUT = "results/workflow"
 #: the kinds built from CFD samples, whose staircases the report compares
@@ -75,8 +75,8 @@ def run(args) -> int:
     valve = ValveSource.read(args.valve)
     scores = None
     if args.maps:
-        main_maps = maps_from_args(args.maps)
-        main = args.maps
+        main_maps = args.maps.spec()
+        main = str(args.maps)
     else:
         main, scores = most_accurate_kind(valve.parameters)
         main_maps = maps(main)

@@ -321,6 +321,40 @@ class MapsSpec:
         return cls(source, source)
 
 
+@dataclass(frozen=True)
+class MapChoice:
+    """The maps a command line names (``--maps``), read once: a registered kind, in any case
+    (``GP`` is gp), or the folder of a trained surrogate, as the user wrote it. A value that is
+    both a kind and such a folder in ``base`` stays as written, and :meth:`spec` refuses it as
+    ambiguous (:func:`refuse_ambiguous_kind`): either reading would surprise someone, and
+    ``./nn`` or the shipped folder's path says which is meant."""
+
+    text: str  # the kind's name, or the folder as given
+    option: str = "--maps"
+    base: Path = Path(".")  # what a relative folder is read against
+
+    @classmethod
+    def read(cls, text: str, option: str = "--maps", base: Path | None = None) -> "MapChoice":
+        base = Path.cwd() if base is None else base
+        kind = kind_named(text)
+        return cls(kind if kind is not None and not is_surrogate_folder(text, base) else text,
+                   option, base)
+
+    def __str__(self) -> str:
+        return self.text
+
+    def spec(self, cfd: str | None = None) -> MapsSpec:
+        """Both maps of the kind or folder named (maps built from CFD samples read ``cfd``,
+        default the shipped ones), the folder and its hash recorded."""
+        refuse_ambiguous_kind(self.text, self.base, self.option)
+        if kind_named(self.text) is not None:
+            source = map_kind(self.text).source(cfd)
+        else:  # the folder of a trained surrogate: the learned kind it holds
+            folder = MapSource.from_dict(self.text, self.option, self.base)
+            source = map_kind(folder.kind).source(cfd, folder=folder.settings["folder"])
+        return MapsSpec(source, source)
+
+
 def build_maps(source: MapSource | MapsSpec | str, valve: ValveParameters,
                base: str | Path = ".") -> tuple[FlowMap, ForceMap]:
     """The flow and force map of a source (a kind name, a :class:`MapSource` or a

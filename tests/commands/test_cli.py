@@ -81,7 +81,7 @@ def test_per_run_parameters_of_runs_the_log_lacks_are_refused(one_run_log, tmp_p
 def test_presets_and_kinds_are_read_in_any_case_as_their_names(argv, option, expected, tmp_path,
                                                                 monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert getattr(build_parser().parse_args(argv), option) == expected
+    assert str(getattr(build_parser().parse_args(argv), option)) == expected
 
 
 def test_the_python_api_reads_names_in_any_case_too():

@@ -1403,7 +1403,7 @@ def test_the_shipped_data_is_an_input_of_every_run(target):
 def test_inputs_are_followed_through_symbolic_links(tmp_path, monkeypatch):
     """An output reached through a link to an input, or into a linked surrogate folder, is an
     input all the same."""
-    from surrogate.commands.common import guard_outputs
+    from surrogate.commands.common import guard_outputs, maps_option
     from surrogate.errors import InputError
     from surrogate.outputs import Output
 
@@ -1416,25 +1416,26 @@ def test_inputs_are_followed_through_symbolic_links(tmp_path, monkeypatch):
     Path("alias.csv").symlink_to("cfd.csv")
     Path("model.toml").write_text(model_on_cfd("cfd.csv"))
     with pytest.raises(InputError, match="--out real/flow.npz: lies inside the input folder"):
-        guard_outputs(_args(maps="./linked"), Output("--out", "real/flow.npz"))
+        guard_outputs(_args(maps=maps_option("./linked")), Output("--out", "real/flow.npz"))
     with pytest.raises(InputError, match="--out alias.csv: that is the input"):
         guard_outputs(_args(model="model.toml"), Output("--out", "alias.csv"))
-    guard_outputs(_args(model="model.toml", maps="./linked"), Output("--out", "fine.toml"))
+    guard_outputs(_args(model="model.toml", maps=maps_option("./linked")),
+                  Output("--out", "fine.toml"))
 
 
 def test_a_local_folder_named_like_a_kind_without_a_surrogate_is_no_ambiguity(tmp_path,
                                                                             monkeypatch):
-    from surrogate.commands.common import maps_from_args
+    from surrogate.commands.common import maps_option
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "nn").mkdir()
     (tmp_path / "nn" / "notes.txt").write_text("not a surrogate")
-    assert maps_from_args("nn").flow.settings["folder"] == "shipped"
+    assert maps_option("nn").spec().flow.settings["folder"] == "shipped"
     (tmp_path / "nn" / "surrogate.json").write_text(TRAINED_FILES["nn"]["surrogate.json"].decode())
     from surrogate.errors import InputError
 
     with pytest.raises(InputError, match="ambiguous"):
-        maps_from_args("nn")
+        maps_option("nn").spec()
 
 
 def test_training_refuses_an_out_folder_that_holds_its_cfd_samples(tmp_path):
