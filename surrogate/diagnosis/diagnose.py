@@ -210,7 +210,7 @@ class Diagnoser:
                                and rule.replaces(challenger, finding)):
             results = together
         else:  # reported, behind the library's finding, never added
-            behind = [replace(c, significant=False) for c in together if c.shape_free]
+            behind = [c.scored(significant=False) for c in together if c.shape_free]
             results = joined(results + behind, finding.name, alike_shapes(
                 finding, behind, ground.problem.rms_before, ground.floor, judge.heldout, rule))
         beside_maps = {c.name: judge.maps_error_heldout(c.linearised)
@@ -233,7 +233,7 @@ class Diagnoser:
             f"{r.name} {from_si(r.heldout_rms, 'bar'):.3f} bar" for r in withheld.rivals)
             + f" on held-out runs against its {from_si(claim.heldout_rms, 'bar'):.3f} bar, and"
               " as close on each condition left out")
-        return [replace(c, significant=False) for c in results], withheld
+        return [c.scored(significant=False) for c in results], withheld
 
 
 @dataclass(frozen=True)
@@ -268,7 +268,7 @@ class _Ground:
 
     def with_views(self, found: list[Candidate]) -> list[Candidate]:
         """The candidates with the RMS of the runs' median line and half-width after each."""
-        return [replace(c, **dict(zip(("median_rms", "half_width_rms"),
+        return [c.scored(**dict(zip(("median_rms", "half_width_rms"),
                                       self.split.rms(c.linearised.residual)))) for c in found]
 
     def ranked(self, found: list[Candidate]) -> list[Candidate]:
@@ -278,17 +278,17 @@ class _Ground:
         # best first by ΔBIC, which weighs the gain against the parameters it took (an offset
         # per run always fits a little better than one offset; it must fit better by enough)
         found = sorted(found, key=rule.rank)
-        found = [replace(c, own_view=gains_in_own_view(c, self.median_before, self.half_before),
+        found = [c.scored(own_view=gains_in_own_view(c, self.median_before, self.half_before),
                          significant=False, stable=True, inclusion=0.0) for c in found]
-        found = [replace(c, significant=rule.passes(c, problem.rms_before, self.floor,
+        found = [c.scored(significant=rule.passes(c, problem.rms_before, self.floor,
                                                     self.judge.heldout)) for c in found]
         found = grouped(found, rule, self.own_matrix)
         shares = self.judge.inclusion(found)
         # the last test needs every candidate's share
-        found = [replace(c, inclusion=shares[c.name],
+        found = [c.scored(inclusion=shares[c.name],
                          stable=rule.stable(sum(shares[name] for name in c.group)))
                  for c in found]
-        return [replace(c, significant=c.significant and c.stable) for c in found]
+        return [c.scored(significant=c.significant and c.stable) for c in found]
 
     def diagnosis(self, model: ValveModel, log: BenchLog, results: list[Candidate],
                   withheld: Declined | None) -> Diagnosis:

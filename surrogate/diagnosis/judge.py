@@ -94,7 +94,7 @@ class Judge:
         if not candidate.per_run:  # a run's own parameter is off for a run it never saw
             heldout = blocks.heldout_rms(self.schemes)
             scores = {"heldout": heldout, "heldout_rms": heldout.get(HEADLINE, float("nan"))}
-        return replace(candidate, **scores, delta_bic=delta_bic(
+        return candidate.scored(**scores, delta_bic=delta_bic(
             blocks.objective(self.ones), self.objective_before, self.problem.n_eff,
             candidate.extra))
 

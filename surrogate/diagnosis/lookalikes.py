@@ -35,7 +35,6 @@ Judged alone, four of the suite's twenty hidden library effects were withheld.
 
 from __future__ import annotations
 
-from dataclasses import replace
 
 import numpy as np
 
@@ -105,7 +104,7 @@ def grouped(candidates: list[Candidate], rule: SignificanceRule = RULE,
             if cosine > SAME_DIRECTION and abs(a.delta_bic - b.delta_bic) < -rule.bic:
                 groups[i].append(b.name)
                 groups[j].append(a.name)
-    return [replace(candidate, group=tuple(group))
+    return [candidate.scored(group=tuple(group))
             for candidate, group in zip(candidates, groups)]
 
 
@@ -130,7 +129,7 @@ def alike_shapes(finding: Candidate, shapes: list[Candidate], rms_before: float,
 def joined(candidates: list[Candidate], name: str, others: list[str]) -> list[Candidate]:
     """The candidates with ``name`` and ``others`` in one another's groups."""
     members = {name, *others}
-    return [replace(c, group=tuple(dict.fromkeys([*c.group, *sorted(members - {c.name})])))
+    return [c.scored(group=tuple(dict.fromkeys([*c.group, *sorted(members - {c.name})])))
             if c.name in members else c for c in candidates]
 
 

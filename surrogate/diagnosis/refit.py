@@ -29,7 +29,7 @@ from ..leastsquares import Evaluation, FitProblem, Minimizer
 from ..model import ValveModel
 from ..parallel import map_threads
 from ..progress import Stage
-from .result import Candidate
+from .result import Candidate, Label, Score
 from .rule import BIC_THRESHOLD, delta_bic
 
 REFINE_STEPS = 4  # Gauss–Newton steps per front-running candidate after the linear solution
@@ -93,13 +93,13 @@ def candidate_of(cls: type[Effect], minimizer: Minimizer, extra: int,
     change = np.zeros(len(problem.ok))
     change[problem.ok] = evaluation.residual - problem.base_evaluation.residual
     trial = minimizer.model
-    return Candidate(cls.name, cls.title, cls.describe(), cls.kind, cls.category,
-                     float(np.sqrt(rss / problem.ok.sum())),
-                     delta_bic(rss, problem.rss_before, problem.n_eff, extra),
-                     params=tuple(trial.effect(cls.name).params.values()), change=change,
-                     model=trial, replay=evaluation.payload,
-                     per_run=issubclass(cls, PerRunEffect), extra=extra,
-                     check_threshold=getattr(cls, "check_threshold", 0.0),
+    label = Label(cls.name, cls.title, cls.describe(), cls.kind, cls.category,
+                  per_run=issubclass(cls, PerRunEffect),
+                  check_threshold=getattr(cls, "check_threshold", 0.0))
+    score = Score(float(np.sqrt(rss / problem.ok.sum())),
+                  delta_bic(rss, problem.rss_before, problem.n_eff, extra))
+    return Candidate(label, score, params=tuple(trial.effect(cls.name).params.values()),
+                     extra=extra, model=trial, replay=evaluation.payload, change=change,
                      linearised=linearised, probe=probe)
 
 

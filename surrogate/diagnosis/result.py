@@ -17,40 +17,99 @@ from ..units import from_si
 from .rule import RULE, SignificanceRule
 
 
+class _Of:
+    """An attribute of one of a record's parts, read as the record's own (a candidate's name is
+    its label's, a diagnosis' noise floor its baseline's)."""
+
+    def __init__(self, part: str):
+        self.part = part
+
+    def __set_name__(self, owner, name: str):
+        self.name = name
+
+    def __get__(self, record, owner=None):
+        return self if record is None else getattr(getattr(record, self.part), self.name)
+
+
 @dataclass(frozen=True)
-class Candidate:
-    """One candidate effect, refitted together with the model's free parameters, and judged."""
+class Label:
+    """What a candidate is: its effect's name, title, description, kind and category
+    (physics, map correction or sensor, :data:`surrogate.effects.CATEGORIES`), whether it has a
+    parameter per run (a sensor check, never part of the model), and the size (display units)
+    below which a per-run value is not flagged."""
 
     name: str
     title: str
     description: str
     kind: str
-    category: str  # physics, map correction or sensor (:data:`surrogate.effects.CATEGORIES`)
+    category: str
+    per_run: bool = False
+    check_threshold: float = 0.0
+
+
+@dataclass(frozen=True)
+class Score:
+    """How a candidate scored: its fit's RMS and its ΔBIC (against the maps' discrepancy once
+    judged, :mod:`.judge`), on held-out runs, in the views of the hysteresis and over resamples
+    of runs, the candidates the data cannot tell from it, and the rule's verdict
+    (:mod:`.rule`)."""
+
     rms_after: float  # [Pa]
-    delta_bic: float  # against the maps' discrepancy once judged (:mod:`.judge`)
-    significant: bool = False
-    group: tuple[str, ...] = ()  # it and the candidates these data cannot tell from it
-    params: tuple = ()  # fitted Parameters of the candidate
-    median_rms: float = float("nan")  # [Pa] of the median line of the runs' residual after
-    half_width_rms: float = float("nan")  # [Pa] of the half-width (surrogate.fitting.hysteresis)
+    delta_bic: float
     heldout_rms: float = float("nan")  # [Pa] on held-out runs, each left out in turn
     heldout: dict = field(default_factory=dict)  # [Pa] per held-out scheme (and "pooled")
+    median_rms: float = float("nan")  # [Pa] of the median line of the runs' residual after
+    half_width_rms: float = float("nan")  # [Pa] of the half-width (surrogate.fitting.hysteresis)
     inclusion: float = 0.0  # share of bootstrap resamples over runs that select it
-    own_view: bool = True  # narrows the hysteresis view its physics acts on (rule.py)
-    stable: bool = True  # it or its group is chosen in most resamples over runs (rule.py)
-    per_run: bool = False  # a parameter per run: a sensor check, never part of the model
-    check_threshold: float = 0.0  # a per-run value below this (display units) is not flagged
-    change: np.ndarray | None = field(default=None, repr=False)  # prediction change [Pa]
+    own_view: bool = True  # narrows the hysteresis view its physics acts on
+    stable: bool = True  # it or its group is chosen in most resamples over runs
+    group: tuple[str, ...] = ()  # it and the candidates these data cannot tell from it
+    significant: bool = False
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate effect, refitted together with the model's free parameters: what it is
+    (:class:`Label`), what was fitted, and how it scored (:class:`Score`), whose figures it
+    reads as its own."""
+
+    label: Label
+    score: Score
+    params: tuple = ()  # fitted Parameters of the candidate
+    extra: float = 0  # parameters of its own the data inform (a shape's effective number)
     model: ValveModel | None = field(default=None, repr=False)  # the current model + this effect
     replay: LogReplay | None = field(default=None, repr=False)  # its replay of the log
-    extra: float = 0  # parameters of its own the data inform (a shape's effective number)
+    #: a shape-free term's fitted shape against its variable, with its band (None otherwise)
+    curve: "ShapeCurve | None" = field(default=None, repr=False)
+    change: np.ndarray | None = field(default=None, repr=False)  # prediction change [Pa]
     #: its residual and Jacobian at its fit, parameters on a bound held (and a shape's roughness)
     linearised: Linearised | None = field(default=None, repr=False)
     #: ∂Δp/∂(own parameter) at the model's point, per solved sample [Pa per unit], by forward
     #: differences (the refits' Broyden-corrected Jacobian no longer has true columns)
     probe: np.ndarray | None = field(default=None, repr=False)
-    #: a shape-free term's fitted shape against its variable, with its band (None otherwise)
-    curve: "ShapeCurve | None" = field(default=None, repr=False)
+
+    name = _Of("label")
+    title = _Of("label")
+    description = _Of("label")
+    kind = _Of("label")
+    category = _Of("label")
+    per_run = _Of("label")
+    check_threshold = _Of("label")
+    rms_after = _Of("score")  # [Pa]
+    delta_bic = _Of("score")
+    heldout_rms = _Of("score")  # [Pa]
+    heldout = _Of("score")  # [Pa] per scheme
+    median_rms = _Of("score")  # [Pa]
+    half_width_rms = _Of("score")  # [Pa]
+    inclusion = _Of("score")
+    own_view = _Of("score")
+    stable = _Of("score")
+    group = _Of("score")
+    significant = _Of("score")
+
+    def scored(self, **changes) -> "Candidate":
+        """The candidate with its :class:`Score` changed as given."""
+        return replace(self, score=replace(self.score, **changes))
 
     def settled(self) -> "Candidate":
         """The candidate as a finished diagnosis keeps it: the fitting's working arrays (its
@@ -204,16 +263,6 @@ class Baseline:
         return self.heldout_by_scheme.get(HEADLINE, float("nan"))
 
 
-class _FromBaseline:
-    """A figure of a diagnosis' :class:`Baseline`, read as the diagnosis' own."""
-
-    def __set_name__(self, owner, name: str):
-        self.name = name
-
-    def __get__(self, diagnosis, owner=None):
-        return self if diagnosis is None else getattr(diagnosis.baseline, self.name)
-
-
 @dataclass(frozen=True)
 class Diagnosis:
     """The result of :class:`~surrogate.diagnosis.diagnose.Diagnoser`, in numbers: the residual
@@ -237,16 +286,16 @@ class Diagnosis:
     rule: SignificanceRule = RULE
 
     # the baseline's figures, read as the diagnosis' own
-    rms_before = _FromBaseline()  # [Pa]
-    noise_floor = _FromBaseline()  # [Pa]
-    effective_samples = _FromBaseline()
-    correlations = _FromBaseline()
-    heldout_by_scheme = _FromBaseline()  # [Pa] per scheme
-    heldout_before = _FromBaseline()  # [Pa]
-    expected_rms = _FromBaseline()  # [Pa]
-    map_limits = _FromBaseline()
-    median_before = _FromBaseline()  # [Pa]
-    half_width_before = _FromBaseline()  # [Pa]
+    rms_before = _Of("baseline")  # [Pa]
+    noise_floor = _Of("baseline")  # [Pa]
+    effective_samples = _Of("baseline")
+    correlations = _Of("baseline")
+    heldout_by_scheme = _Of("baseline")  # [Pa] per scheme
+    heldout_before = _Of("baseline")  # [Pa]
+    expected_rms = _Of("baseline")  # [Pa]
+    map_limits = _Of("baseline")
+    median_before = _Of("baseline")  # [Pa]
+    half_width_before = _Of("baseline")  # [Pa]
 
     @property
     def best(self) -> Candidate | None:

@@ -6,7 +6,7 @@ import numpy as np
 
 from surrogate.diagnosis.lookalikes import (COLLINEAR, MAPS_ERROR, collinearity, declined, grouped,
                                            maps_error_rival, own_directions)
-from surrogate.diagnosis.result import Candidate, Rival
+from surrogate.diagnosis.result import Candidate, Label, Rival, Score
 from surrogate.diagnosis.rule import RULE
 from surrogate.fitting.identifiability import ENTANGLED, entangled_pairs, pushed_to_bounds
 from surrogate.leastsquares import FitResult
@@ -18,8 +18,9 @@ SAMPLES = 400
 
 def candidate(name, probe, delta_bic=-50.0, change=None, **fields):
     change = RNG.normal(size=SAMPLES) if change is None else change
-    return Candidate(name, name, "", "force", "physics", 1e5, delta_bic, probe=probe,
-                     change=change, **fields)
+    per_run = fields.pop("per_run", False)
+    return Candidate(Label(name, name, "", "force", "physics", per_run=per_run),
+                     Score(1e5, delta_bic, **fields), probe=probe, change=change)
 
 
 def test_terms_that_differ_only_by_what_the_model_already_does_are_look_alikes():
@@ -97,8 +98,8 @@ def test_a_rival_that_cannot_predict_a_left_out_condition_is_no_explanation():
 def test_only_physics_claims_face_look_alikes_of_other_kinds():
     close = [_rival("leak", 1.0e5), maps_error_rival(_scores(1.0e5))]
     for category in ("sensor", "map correction"):
-        claim = Candidate("c", "c", "", "sensor", category, 1e5, -50.0, heldout_rms=1.0e5,
-                          heldout=_scores(1.0e5))
+        claim = Candidate(Label("c", "c", "", "sensor", category),
+                          Score(1e5, -50.0, heldout_rms=1.0e5, heldout=_scores(1.0e5)))
         assert declined(claim, close, BEFORE, None, 1e4) is None
     assert declined(None, close, BEFORE, None, 1e4) is None
 
@@ -156,9 +157,9 @@ def test_a_shape_of_the_findings_kind_that_fits_as_well_is_named_beside_it():
     scores = _scores(1.0e5)
 
     def term(name, delta_bic, kind="friction", shape=True, heldout=scores):
-        return Candidate(name, name, "", kind, "physics", 1.0e5, delta_bic, heldout=heldout,
-                         heldout_rms=heldout["run"], curve=curve if shape else None,
-                         own_view=True)
+        return Candidate(Label(name, name, "", kind, "physics"),
+                         Score(1.0e5, delta_bic, heldout=heldout, heldout_rms=heldout["run"],
+                               own_view=True), curve=curve if shape else None)
 
     finding = term("friction_seal_pressure", -430.0, shape=False)
     tied = term("shape_friction_of_p_L", -433.0)  # -423 with its handicap: within 10

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from surrogate.diagnosis.diagnose import diagnose
-from surrogate.diagnosis.result import Candidate
+from surrogate.diagnosis.result import Candidate, Label, Score
 from surrogate.diagnosis.rule import gains_in_own_view
 from surrogate.fitting.hysteresis import hysteresis_split
 from surrogate.fitting.logfit import fit_to_log
@@ -54,8 +54,9 @@ def test_runs_that_go_one_way_only_have_no_views():
 
 
 def candidate(kind: str, median: float, half: float) -> Candidate:
-    return Candidate("trial", "a trial", "", kind, "physics", rms_after=1.0, delta_bic=-50.0,
-                     median_rms=median, half_width_rms=half)
+    return Candidate(Label("trial", "a trial", "", kind, "physics"),
+                     Score(rms_after=1.0, delta_bic=-50.0, median_rms=median,
+                           half_width_rms=half))
 
 
 @pytest.mark.parametrize("kind, median, half, passes", [

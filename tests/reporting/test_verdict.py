@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from surrogate.diagnosis.result import Baseline, Candidate, Diagnosis, MapLimit
+from surrogate.diagnosis.result import Baseline, Candidate, Diagnosis, Label, MapLimit, Score
 from surrogate.planning.bench_runs import Separation
 from surrogate.reporting.verdict import lacks, verdict
 from surrogate.units import BAR, to_si
@@ -17,9 +17,10 @@ FLOOR = 0.8 * BAR
 
 def _candidate(name: str, title: str, kind: str, rms_after: float, significant: bool,
                group: tuple[str, ...] = ()) -> Candidate:
-    return Candidate(name, title, "", kind, "physics", rms_after, -30.0 if significant else 5.0,
-                     significant=significant, group=group or (name,),
-                     median_rms=0.9 * BAR, half_width_rms=0.5 * BAR)
+    return Candidate(Label(name, title, "", kind, "physics"),
+                     Score(rms_after, -30.0 if significant else 5.0, significant=significant,
+                           group=group or (name,), median_rms=0.9 * BAR,
+                           half_width_rms=0.5 * BAR))
 
 
 def _workflow(diagnosis: Diagnosis) -> SimpleNamespace:

@@ -20,7 +20,7 @@ import pytest
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.diagnosis.diagnose import diagnose
-from surrogate.diagnosis.result import Baseline, Candidate, Diagnosis
+from surrogate.diagnosis.result import Baseline, Candidate, Diagnosis, Label, Score
 from surrogate.diagnosis.rule import BIC_THRESHOLD, INCLUSION_MIN
 from surrogate.effects.shapes import FlowForceFactor, OpeningForce
 from surrogate.fitting.logfit import fit_to_log
@@ -188,10 +188,10 @@ def test_a_nothing_hidden_log_whose_maps_err_with_the_back_pressure_gains_nothin
 def test_a_term_the_runs_do_not_agree_on_is_named_but_not_added():
     """A candidate that passes every test but the bootstrap over runs is named in the summary
     with the share of resamples that chose it, and not added."""
-    top = Candidate("progressive_spring", "progressive spring", "", "force", "physics", 1.0e5,
-                    -14.0, group=("progressive_spring",), heldout_rms=1.0e5,
-                    heldout={"run": 1.0e5, "temperature": 1.0e5}, inclusion=0.42,
-                    stable=False, own_view=True)
+    top = Candidate(Label("progressive_spring", "progressive spring", "", "force", "physics"),
+                    Score(1.0e5, -14.0, group=("progressive_spring",), heldout_rms=1.0e5,
+                          heldout={"run": 1.0e5, "temperature": 1.0e5}, inclusion=0.42,
+                          stable=False, own_view=True))
     baseline = Baseline(1.2e5, 0.8e5, 500.0, heldout_by_scheme={"run": 1.2e5,
                                                                 "temperature": 1.2e5},
                         expected_rms=2.0e5)
