@@ -139,8 +139,6 @@ class FitResult:
         Root-mean-square residual at the optimum [residual units, Pa for pressures].
     count : int
         Number of residuals.
-    aic, bic : float
-        Akaike and Bayesian information criteria, n·ln(RSS/n) + 2k and n·ln(RSS/n) + k·ln n.
     correlation : numpy.ndarray
         Correlation matrix of the fitted parameters.
     success : bool
@@ -159,8 +157,6 @@ class FitResult:
     names: list[str]
     rms: float
     count: int
-    aic: float
-    bic: float
     correlation: np.ndarray
     success: bool
     message: str
@@ -168,6 +164,16 @@ class FitResult:
     parameters: list[Parameter] = field(default_factory=list)
     evaluation: Evaluation | None = None
     jacobian: np.ndarray | None = None
+
+    @property
+    def aic(self) -> float:
+        """Akaike's information criterion, n·ln(RSS/n) + 2k."""
+        return information_criteria(self.rms, self.count, len(self.names))[0]
+
+    @property
+    def bic(self) -> float:
+        """The Bayesian information criterion, n·ln(RSS/n) + k·ln n."""
+        return information_criteria(self.rms, self.count, len(self.names))[1]
 
     def report(self) -> str:
         """A readable summary, like lmfit's ``fit_report``."""
@@ -186,11 +192,10 @@ class FitResult:
         return "\n".join(lines)
 
 
-def information_criteria(residuals: np.ndarray, parameter_count: int) -> tuple[float, float]:
-    """(AIC, BIC) of a least-squares fit with Gaussian errors of unknown variance."""
-    count = len(residuals)
-    rss = max(float(np.sum(residuals**2)), 1e-300)
-    base = count * np.log(rss / count)
+def information_criteria(rms: float, count: int, parameter_count: int) -> tuple[float, float]:
+    """(AIC, BIC) of a least-squares fit with Gaussian errors of unknown variance, from the RMS
+    of its ``count`` residuals."""
+    base = count * np.log(max(rms**2, 1e-300 / max(count, 1)))
     return base + 2 * parameter_count, base + parameter_count * np.log(count)
 
 
@@ -453,11 +458,10 @@ class Minimizer:
                 correlation = matrix / np.outer(errors, errors)
         else:
             correlation = np.zeros((0, 0))
-        aic, bic = information_criteria(residual, k)
         rms = float(np.sqrt(np.mean(residual**2))) if len(residual) else 0.0
-        return FitResult(self.model, list(self.names), rms, len(residual), aic, bic,
-                         correlation, success, message, evaluations, list(self.parameters),
-                         evaluation, None if jacobian is None else np.asarray(jacobian))
+        return FitResult(self.model, list(self.names), rms, len(residual), correlation, success,
+                         message, evaluations, list(self.parameters), evaluation,
+                         None if jacobian is None else np.asarray(jacobian))
 
 
 def fit(model: ValveModel, problem: FitProblem | object, names: Sequence[str] | None = None, *,

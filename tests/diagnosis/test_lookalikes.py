@@ -105,7 +105,7 @@ def test_only_physics_claims_face_look_alikes_of_other_kinds():
 
 
 def _fit(names, correlation):
-    return FitResult(None, names, 1.0, 10, 0.0, 0.0, np.asarray(correlation), True, "", 1)
+    return FitResult(None, names, 1.0, 10, np.asarray(correlation), True, "", 1)
 
 
 def test_entangled_pairs_are_those_beyond_the_threshold_most_entangled_first():
