@@ -18,16 +18,14 @@ from .monotone_nn import _hold, minimise
 
 #: weight decay on the hidden weights (keeps the small networks smooth)
 DECAY = 1e-4
-#: penalty on the differences of neighbouring openings' pressure-level slopes (a free slope per
-#: opening ran off where a left-out sweep left an opening with a hole in Δp: 12-19 % error
-#: across sweeps; from 1e-4 to 1e-3 the four cross-validation schemes move by < 0.1 %)
+#: penalty on the differences of neighbouring openings' pressure-level slopes: a free slope per
+#: opening runs off where a left-out sweep leaves an opening with a hole in Δp (docs/maps.md,
+#: "How the learned maps are built")
 LEVEL_SMOOTHING = 3e-4
 #: with a trend (BridgedArchitecture.trend_width): penalty on the mean square of each opening's
 #: network's departure from the mean of all openings' at the same inputs, so that the trend
 #: carries how the force changes from opening to opening (chosen by the four-scheme
-#: cross-validation of the flow force, 3 members: 0.1 left an opening out at 3.6 %, a temperature
-#: at 2.2 % and the back-pressure set at 5.0 %; kept close to the target's mean instead, 3.6 /
-#: 2.3 / 5.8 %; 0.01 or less no better than without a trend)
+#: cross-validation of the flow force, docs/maps.md)
 OPENING_SHRINK = 0.1
 
 

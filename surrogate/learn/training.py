@@ -46,68 +46,44 @@ FLOW_GROUPS = ((0, 1), (1, 2))
 FLOW_TRANSITION = 0
 FLOW_KNEE_FEATURES = (1,)
 # A decay on the hidden weights that read the opening (column 1), in both stages, bends the flow
-# network between the sampled openings (0.16 to 0.63 mm the widest gap) no more than the data
-# ask. With {1: 1e-6}, q by k-fold / left-out opening / left-out temperature / back-pressure set
-# 0.46 / 0.43 / 0.63 / 0.94 % (training/train.py --kinds nn), against 0.49 / 0.59 / 0.72 / 0.93 %
-# without. It waited on the calibration: that retrain's force members (unchanged code, float
-# differences of 0.4 % in flow force) left the force band outside 90-98 % for every constant of a
-# calibration that knew no opening distance (coverage.Coverage.opening_distance, added for it).
+# network between the sampled openings no more than the data ask (docs/maps.md, "How the learned
+# maps are built").
 FLOW_OPENING_DECAY: dict[int, float] = {1: 1e-6}
-# A network that smooth in the opening cannot follow each mesh's own bias at the sampled openings
-# (k-fold residuals by opening from +0.29 to -0.28 % in C_d); a term of its own gives each its
-# mean residual, fading to 0 halfway to the next opening (surrogate.maps.opening_offsets).
+# A network that smooth in the opening cannot follow each mesh's own bias at the sampled openings;
+# a term of its own gives each its mean residual, fading to 0 halfway to the next opening
+# (surrogate.maps.opening_offsets).
 FLOW_OPENING_OFFSETS = True
 # The flow force: ln(−α) = a(opening, Re) + m(opening)·ln(Δp/p_atm) + b(σ), the opening bridged
 # linearly between sampled openings (as the grid maps do) and the cavitation part shared by all
-# openings: the samples collapse on σ across openings and back pressures. Measured by
-# cross-validation on the shipped samples, this structure predicts a left-out opening and the
-# left-out back-pressure set within 5 %, where additive RBF parts or the monotone network over
-# (u, σ) missed by 7-12 %; the level's slope m took the error leaving a temperature out from
-# 3.5 to 2.5 % (surrogate/maps/network.py, BridgedArchitecture).
+# openings: the samples collapse on σ across openings and back pressures (surrogate/maps/
+# network.py, BridgedArchitecture).
 FORCE_BRIDGE = dict(bridge_column=1, local_column=0, shared_column=2, level_column=3)
 FORCE_WIDTH = 8
-# A trend in (opening, Re) shared by all openings, the per-opening networks kept close to one
-# another (BridgedArchitecture.trend_width, bridged_nn.OPENING_SHRINK): between openings the
-# force then bends as the trend does. Measured and not shipped (0: no trend): flow force by
-# k-fold / left-out opening / left-out temperature / back-pressure set 2.6 / 3.7 / 2.4 / 5.8 %
-# (training/train.py with 8 here), against 3.1 / 4.4 / 2.4 / 4.8 % with the straight bridge alone;
-# the left-out opening ahead of every peer (3.9 %), but the back-pressure set beyond 5 %, and by
-# 4.7 to 5.9 % depending on the members' initial weights (the trend reading Re beyond the
-# samples at the top of that set's Re).
+# No trend in (opening, Re) shared by all openings (BridgedArchitecture.trend_width): it helped
+# a left-out opening but took the back-pressure set beyond 5 %, by an amount that moved with the
+# members' initial weights.
 FORCE_TREND_WIDTH = 0
 # Between openings the bridge interpolates the openings' networks smoothed across all openings
 # by a cubic in ln u (BridgedArchitecture.smoothing_degree); on a sampled opening it is that
-# opening's own network, so only the left-out opening's error moves. Chosen by that scheme's
-# flow-force error (3 members): straight bridge 4.40 %, smoothed by a line 8.99, a quadratic 3.95,
-# a cubic 3.77 %, local linear fits 4.03-4.47 %; interpolation in u or 1/u instead of ln u
-# 4.30-4.87 %, cubic splines through the openings 4.78-8.82 % (each opening's bias bends them).
+# opening's own network, so only the left-out opening's error moves, and that error chose it.
 FORCE_SMOOTHING_DEGREE = 3
 # Beyond the samples' Reynolds number, cavitation number and pressure level (columns 0, 2, 3,
 # plus the margin, in standard deviations) both force maps hold their inputs: the flow-force
 # fraction stays near its value at the edge of the data instead of following the networks'
 # linear terms off (which made f_sim fall with p_L far outside the data), or the GP's parts
-# reverting to the mean (which made α < −1 far below the sampled pressure drops, where f_sim fell
-# as p_L rose; the GP's cross-validated errors are the same to 0.01 % with and without).
+# reverting to the mean (which made α < −1 far below the sampled pressure drops).
 FORCE_HELD = (0, 2, 3)
 FORCE_HOLD_MARGIN = 0.5
 # The GP's flow force: ln(−α) from (ln Re, ln(u/U), ln σ, ln(Δp/p_atm)) (columns 0-3): the
 # opening bridged linearly between sampled openings, its factor an RBF of Re and the pressure
 # level; plus an RBF of (Re, u) and one of σ. Chosen by the four-scheme cross-validation
-# (eval/force_gp_structures.py): 1.9/3.4/2.0/4.5 % flow-force error by k-fold / left-out opening
-# / left-out temperature / back-pressure set, where the three-feature structure had
-# 3.6/4.0/3.5/4.6 %.
+# (eval/force_gp_structures.py).
 FORCE_GP_PARTS = (("bridge", (1, 0, 3)), ("rbf", (0, 1)), ("rbf", (2,)))
 # The GP's flow map: ln C_d from (ln Re_q, ln(u/U), ln σ_q) as a linear trend plus a Matérn 3/2 in
-# the opening times an RBF of Re, plus an RBF of (u, σ). Chosen by the four-scheme
-# cross-validation (training/train.py; eval/force_gp_structures.py --flow for the structures):
-# q 0.48 / 0.41 / 0.88 / 0.89 % by k-fold / left-out opening / left-out temperature /
-# back-pressure set, where RBF(Re, u) + RBF(u, σ) without a trend had 0.56 / 0.73 / 0.87 / 0.92 %.
-# The Matérn's rougher correlation in the opening predicts a left-out opening from its
-# neighbours instead of reverting toward the mean between them; without the trend it extrapolated
-# to the coldest oil worse (1.17 % leaving a temperature out). On the workbench (docs/maps.md,
-# docs/workbench.md): the stress suite's weak leakages over 40 settings seeds 20 of 27 with the
-# model's own maps (the RBF pair 21, the GP before issue 29 20) and 7 of 16 on maps without
-# 0.13 mm (7 and 6).
+# the opening times an RBF of Re, plus an RBF of (u, σ). The Matérn's rougher correlation in the
+# opening predicts a left-out opening from its neighbours instead of reverting toward the mean
+# between them; the trend carries the coldest oil. Chosen by the four-scheme cross-validation
+# (eval/force_gp_structures.py --flow).
 FLOW_GP_PARTS = (("matern", (1, 0)), ("rbf", (1, 2)))
 FLOW_GP_TREND = True
 GP_RESTARTS = 10
@@ -304,8 +280,8 @@ def _bridged_ensemble(data: Targets, progress) -> NetworkEnsemble:
                  float(z[:, column].max()) + FORCE_HOLD_MARGIN)
         for column in FORCE_HELD}
     # the trend holds its value beyond the end openings, as the bridge does, and beyond the
-    # sampled Reynolds numbers (no margin: with the local networks' 0.5 the back-pressure set,
-    # at the top of the samples' Re, was missed by 5.5 % instead of 4.7 %)
+    # sampled Reynolds numbers with no margin: the back-pressure set lies at the top of the
+    # samples' Re
     bridge, local = FORCE_BRIDGE["bridge_column"], FORCE_BRIDGE["local_column"]
     trend_held = {bridge: (knots[0], knots[-1]),
                   local: (float(z[:, local].min()), float(z[:, local].max()))}

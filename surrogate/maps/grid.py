@@ -581,9 +581,9 @@ class GridUncertainty:
         """The calibrations fitted to this grid's cross-validated errors, never the shipped
         ones."""
         # without the meshes' biases as known variance (crossval.meshes_in_errors), unlike the
-        # learned kinds: taken out, they left the grid's flow σ across the unsampled gap at 2.9 %,
-        # whose ±2σ held 51 % of the virtual valves' q there (89 % as is), for a gain between
-        # openings only (the flow force's band 99 -> 98 %; eval/valve_coverage.py)
+        # learned kinds: taken out, they left the grid's flow σ across the unsampled gap too
+        # narrow for the virtual valves' q there (docs/maps.md, "How the learned maps are
+        # built")
         flow, force = calibrate(self.errors, use_spread=False)
         return {"flow": flow, "force": force}
 
