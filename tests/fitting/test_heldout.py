@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from surrogate.fitting.discrepancy import Discrepancy
-from surrogate.fitting.heldout import HEADLINE, Linearised, RunBlocks, held_at_bounds, run_groups
+from surrogate.fitting.heldout import (HEADLINE, Linearised, RunBlocks, bootstrap_weights,
+                                       held_at_bounds, run_groups)
 from surrogate.parameters import Parameter
 
 
@@ -174,3 +175,17 @@ def test_run_blocks_sum_and_index_the_runs_as_before():
                                           @ stacked[rows])
             np.testing.assert_array_equal(by_index.cross[k], stacked[rows].T
                                           @ fit.residual[rows])
+
+
+def test_bootstrap_resamples_draw_every_run_alike_and_the_same_every_time():
+    """The diagnosis' bootstrap over runs (its last test, the majority of resamples): each
+    resample is as many runs as the log has, drawn with replacement, the same for the same seed,
+    and no run favoured."""
+    weights = bootstrap_weights(12, 4000, seed=0)
+    assert weights.shape == (4000, 12)
+    assert np.all(weights.sum(axis=1) == 12) and np.all(weights >= 0)
+    assert np.array_equal(weights, bootstrap_weights(12, 4000, seed=0))
+    assert not np.array_equal(weights, bootstrap_weights(12, 4000, seed=1))
+    # each run is drawn once per resample on average; left out in about (11/12)^12 of them
+    assert weights.mean(axis=0) == pytest.approx(np.ones(12), abs=0.05)
+    assert np.mean(weights == 0) == pytest.approx((11 / 12) ** 12, abs=0.02)
