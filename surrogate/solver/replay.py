@@ -172,27 +172,7 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
             stage(min(count * done[0] // work, count))
     # a fit's inner loop (a guess, no diagnostics) reads each sample's maps from a table
     tables = None if guess is None or diagnostics else _tables(model, points, guess.band)
-    if model.has_friction and 2 * count <= BATCH:  # both edges of the band in one batch
-        both = concatenate([points.replace(direction=np.full(count, OPENING)),
-                            points.replace(direction=np.full(count, CLOSING))])
-        start = None if guess is None else guess.band.ravel()
-        edges = solve_steady(model, both, guess=start, positions_only=True,
-                             tables=None if tables is None else tables.tile(2))
-        u_edges, status_edges = edges.u.reshape(2, count), edges.status.reshape(2, count)
-    elif model.has_friction:  # a big log: one edge after the other, each solved in batches
-        u_edges, status_edges = np.empty((2, count)), np.empty((2, count), dtype=np.int8)
-        for row, side in enumerate((OPENING, CLOSING)):
-            edge = solve_steady(model, points.replace(direction=np.full(count, side)),
-                                guess=None if guess is None else guess.band[row],
-                                positions_only=True, solved=solved, tables=tables)
-            u_edges[row], status_edges[row] = edge.u, edge.status
-    else:
-        start = None if guess is None else guess.band[0]
-        edge = solve_steady(model, points, friction=False, guess=start, positions_only=True,
-                            solved=solved, tables=tables)
-        u_edges = np.vstack([edge.u, edge.u])
-        status_edges = np.vstack([edge.status, edge.status])
-
+    u_edges, status_edges = _band_edges(model, points, guess, tables, solved)
     starts = segment_starts(segments, count)
     u, moving, status, _ = play(u_edges[0], u_edges[1], status_edges[0], status_edges[1],
                                  starts, u_start, smoothing)
@@ -213,23 +193,60 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
     status[at_stop] = Status.AT_STOP
     map_gain = map_std = None
     if diagnostics:
-        # a sliding piston sits on the band's edge of its direction; a stuck one stays put
-        floats = moving if model.has_friction else np.ones(count, dtype=bool)
-        side = np.where(~model.has_friction | ~moving, STEADY,
-                        np.where(u <= np.fmin(u_edges[0], u_edges[1]), OPENING, CLOSING))
-        held = ~floats | (status == Status.AT_STOP)
-        for part in _batches(np.arange(count)):
-            found = map_error_gains(model, points[part], u[part], dp[part], side[part],
-                                    held[part])
-            if found is None:
-                break
-            if map_gain is None:
-                map_gain, map_std = np.empty((2, count)), np.empty((2, count))
-            map_gain[:, part], map_std[:, part] = found
-            solved(len(part) // 2)
+        map_gain, map_std = _map_errors(model, points, u, dp, moving, status, u_edges, solved)
     if stage is not None and count * done[0] // work < count:
         stage(count)
     return Replay(points, u, dp, status, moving, reasons, u_edges, map_gain, map_std, tables)
+
+
+def _band_edges(model: ValveModel, points: OperatingPoints, guess: Replay | None, tables,
+                solved) -> tuple[np.ndarray, np.ndarray]:
+    """(u, status) of the friction band's two edges at every sample, (2, samples) each: the
+    opening and the closing equilibrium (the same twice without friction), both in one batch
+    where they fit, one after the other on a big log. ``solved`` is told of the points done."""
+    count = len(points)
+    if model.has_friction and 2 * count <= BATCH:  # both edges of the band in one batch
+        both = concatenate([points.replace(direction=np.full(count, OPENING)),
+                            points.replace(direction=np.full(count, CLOSING))])
+        start = None if guess is None else guess.band.ravel()
+        edges = solve_steady(model, both, guess=start, positions_only=True,
+                             tables=None if tables is None else tables.tile(2))
+        return edges.u.reshape(2, count), edges.status.reshape(2, count)
+    if model.has_friction:  # a big log: one edge after the other, each solved in batches
+        u_edges, status_edges = np.empty((2, count)), np.empty((2, count), dtype=np.int8)
+        for row, side in enumerate((OPENING, CLOSING)):
+            edge = solve_steady(model, points.replace(direction=np.full(count, side)),
+                                guess=None if guess is None else guess.band[row],
+                                positions_only=True, solved=solved, tables=tables)
+            u_edges[row], status_edges[row] = edge.u, edge.status
+        return u_edges, status_edges
+    start = None if guess is None else guess.band[0]
+    edge = solve_steady(model, points, friction=False, guess=start, positions_only=True,
+                        solved=solved, tables=tables)
+    return np.vstack([edge.u, edge.u]), np.vstack([edge.status, edge.status])
+
+
+def _map_errors(model: ValveModel, points: OperatingPoints, u, dp, moving, status, u_edges,
+                solved) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(gains, standard deviations), (2, samples) each, of Δp to the maps' errors at the
+    replayed states (:func:`map_error_gains`), or (None, None) for maps without uncertainty.
+    ``solved`` is told of the points done."""
+    count = len(points)
+    map_gain = map_std = None
+    # a sliding piston sits on the band's edge of its direction; a stuck one stays put
+    floats = moving if model.has_friction else np.ones(count, dtype=bool)
+    side = np.where(~model.has_friction | ~moving, STEADY,
+                    np.where(u <= np.fmin(u_edges[0], u_edges[1]), OPENING, CLOSING))
+    held = ~floats | (status == Status.AT_STOP)
+    for part in _batches(np.arange(count)):
+        found = map_error_gains(model, points[part], u[part], dp[part], side[part], held[part])
+        if found is None:
+            break
+        if map_gain is None:
+            map_gain, map_std = np.empty((2, count)), np.empty((2, count))
+        map_gain[:, part], map_std[:, part] = found
+        solved(len(part) // 2)
+    return map_gain, map_std
 
 
 def _tables(model: ValveModel, points: OperatingPoints, band: np.ndarray):
