@@ -125,7 +125,7 @@ def covariance(jacobian: np.ndarray, residuals: np.ndarray, n_eff: float | None 
         return np.full((parameters, parameters), np.nan)
 
 
-@dataclass
+@dataclass(frozen=True)
 class FitResult:
     """The outcome of a fit.
 

@@ -144,7 +144,7 @@ def column_factor(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) -> n
 
 # --- the fit -------------------------------------------------------------------------------------
 
-@dataclass
+@dataclass(frozen=True)
 class ShapeColumns:
     """A shape-free effect on the log's knots and its linearised columns at the solved samples.
 
@@ -219,7 +219,7 @@ def local_sensitivity(cls: type[ShapeFreeEffect], state: dict[str, np.ndarray]) 
     return np.zeros(len(dp))
 
 
-@dataclass
+@dataclass(frozen=True)
 class RoughnessChoice:
     """The roughness weight a shape's held-out runs chose, and the linear fit at it."""
 
@@ -430,7 +430,7 @@ def front_runners(fits: list, judge, n_eff: float) -> list:
     return [fit for fit, score in zip(fits, scores) if score <= cut]
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Scores:
     """Held-out RMS per scheme, as the rule reads them off a candidate."""
 

@@ -100,7 +100,7 @@ def held_at_bounds(jacobian: np.ndarray, parameters: list) -> np.ndarray:
     return np.where(pinned, 0.0, jacobian) if pinned.any() else jacobian
 
 
-@dataclass
+@dataclass(frozen=True)
 class Linearised:
     """A fitted model's residual r [Pa] and Jacobian J (any column scaling) at its optimum, over
     the solved samples of a log, and the fit's penalty (a shape's roughness), if any: (L, p),
@@ -351,7 +351,7 @@ class RunBlocks:
         return result
 
 
-@dataclass
+@dataclass(frozen=True)
 class Prior:
     """Parameters a held-out refit moves beside a model's free ones under a prior, though no
     fit varies them (a calibration's values, fitted once under it): their keys, their columns

@@ -187,7 +187,7 @@ class ReadAlike:
         return self
 
 
-@dataclass
+@dataclass(frozen=True)
 class Column:
     """One parameter's column of a replay's Jacobian: the Δp change [Pa] at the solved samples
     for a step [SI]."""

@@ -134,7 +134,7 @@ class Outlier:
         return "; ".join(f"{name} (z = {z:+.1f})" for name, z in self.standing_out)
 
 
-@dataclass
+@dataclass(frozen=True)
 class OutlierAnalysis:
     """The robust distances of a population and its outliers.
 

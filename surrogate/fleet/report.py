@@ -37,7 +37,7 @@ LEGEND_SIZE = 13
 NAMED_VALVES = 20
 
 
-@dataclass
+@dataclass(frozen=True)
 class FleetSummary:
     """What the report shows.
 

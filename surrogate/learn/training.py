@@ -89,7 +89,7 @@ FLOW_GP_TREND = True
 GP_RESTARTS = 10
 
 
-@dataclass
+@dataclass(frozen=True)
 class TrainedSurrogate:
     """A flow map and a force map learned together, with what describes them."""
 

@@ -54,7 +54,7 @@ def find_run(log: BenchLog, p_Pe_bar: float, temperature_C: float) -> BenchRun:
                key=lambda run: abs(from_si(run.temperature, "degC") - temperature_C))
 
 
-@dataclass
+@dataclass(frozen=True)
 class PaperComparison:
     """Everything the paper's comparison produced (SI inside; records in display units)."""
 

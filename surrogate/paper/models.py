@@ -35,7 +35,7 @@ FIT_P_PE = 65e5  # [Pa] set point of the run the paper fits to
 FIT_TEMPERATURE = 313.15  # [K] (40 °C)
 
 
-@dataclass
+@dataclass(frozen=True)
 class PaperModels:
     """The five models, with the two fitted constants."""
 

@@ -56,7 +56,7 @@ ROUNDING = {"u_mm": 0.01, "q_lpm": 0.5, "temperature_C": 5.0, "p_B_bar": 0.5}
 BINS = {"log_u": 24, "q": 8, "p_B": 3}
 
 
-@dataclass
+@dataclass(frozen=True)
 class Suggestion:
     """The ranked CFD runs and what they buy.
 

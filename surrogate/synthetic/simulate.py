@@ -162,7 +162,7 @@ def reference_spec(maps_spec: MapsSpec | None = None, valve: ValveSource | None 
     return cfda(valve, maps_spec, "reference").with_effects(cfda_effects(**REFERENCE_VALUES))
 
 
-@dataclass
+@dataclass(frozen=True)
 class HiddenEffectCase:
     """A synthetic log with one hidden effect, and the model that has to find it.
 
@@ -336,7 +336,7 @@ def stress_suite(cases: int = 20, controls: int = 5,
     return suite
 
 
-@dataclass
+@dataclass(frozen=True)
 class StressOutcome:
     """What the workflow made of one stress case's log."""
 

@@ -45,7 +45,7 @@ TEXT_RUNS = 30  # runs listed in the text summary; a bigger log lists its worst
 TEMPERATURE_STEP_C = 5.0
 
 
-@dataclass
+@dataclass(frozen=True)
 class Comparison:
     """The result of :func:`compare`.
 

@@ -74,7 +74,7 @@ def test_every_command_and_the_loops_entry_points_keep_the_blas_to_one_thread(mo
 
     from surrogate import cli
     from surrogate.commands import check_data
-    from surrogate.diagnosis.diagnose import diagnose
+    from surrogate.diagnosis.diagnose import Diagnoser
     from surrogate.fitting.logfit import fit_to_log
     from surrogate.parallel import blas_limited
     from surrogate.workbench.workflow import run_workflow
@@ -94,7 +94,8 @@ def test_every_command_and_the_loops_entry_points_keep_the_blas_to_one_thread(mo
         assert seen == [{1}, {1}]
         assert _blas_threads() == {2}
     # the loop's entry points carry that decorator (functools.wraps leaves the original behind)
-    assert all(hasattr(entry, "__wrapped__") for entry in (run_workflow, diagnose, fit_to_log))
+    assert all(hasattr(entry, "__wrapped__")
+               for entry in (run_workflow, Diagnoser.diagnose, fit_to_log))
 
 
 def test_a_fit_a_diagnosis_and_a_workflow_run_on_one_thread(monkeypatch):
@@ -103,7 +104,7 @@ def test_a_fit_a_diagnosis_and_a_workflow_run_on_one_thread(monkeypatch):
     thread came first: surrogate.parallel.single_threaded); after it, as many as before. The
     loop's entry points carry the decorator."""
     from surrogate import parallel
-    from surrogate.diagnosis.diagnose import diagnose
+    from surrogate.diagnosis.diagnose import Diagnoser
     from surrogate.fitting.logfit import fit_to_log
     from surrogate.workbench.workflow import run_workflow
 
@@ -126,4 +127,5 @@ def test_a_fit_a_diagnosis_and_a_workflow_run_on_one_thread(monkeypatch):
             entry = entry.__wrapped__
         return names
 
-    assert all("single" in wrappers(entry) for entry in (run_workflow, diagnose, fit_to_log))
+    assert all("single" in wrappers(entry)
+               for entry in (run_workflow, Diagnoser.diagnose, fit_to_log))
