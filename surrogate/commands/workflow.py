@@ -9,7 +9,7 @@ import numpy as np
 from ..effects.handover import hand_over
 from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MAP_KINDS
-from ..memory import release_freed
+from ..memory import release_freed, settle_survivors, settling
 from ..modelfile import save_model
 from ..outputs import Output, atomic_directory
 from ..presets import maps
@@ -68,10 +68,16 @@ def hand_over_shapes(workflow, folder) -> dict[str, str]:
 
 
 def run(args) -> int:
+    with settling():
+        return _run(args)
+
+
+def _run(args) -> int:
     out = args.out or DEFAULT_OUT
     guard_outputs(args, Output("--out", out, "folder"))
     progress = progress_for(args)
     _, log, library = load_inputs(args, progress)
+    settle_survivors()  # the modules and the log live to the end
     valve = ValveSource.read(args.valve)
     scores = None
     if args.maps:
@@ -160,6 +166,8 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
     workflow = workflows[main]
     final = workflow.final
     comparison = compare(final.model, log, played=final.played)
+    # the workflows live to the end: the figures' collections need not walk them
+    settle_survivors()
     with atomic_directory(out) as staging:
         document = {**workflow_document(workflow),
                     "maps_flow_force_cv_error": None if scores is None else {
