@@ -185,16 +185,10 @@ class NumpyGP:
         # memory
         prior = np.zeros(len(z))
         for number, part in enumerate(self._parts):
-            if part.rbf:
-                query = z[:, part.rbf] / part.scales
-                np.matmul(query, part.scaled.T, out=factor)
-                # −½·squared distance as x·x' − ½|x|² − ½|x'|²: halving the norms instead of
-                # doubling the product and halving the difference gives the same bits (a power
-                # of two scales every rounding alike) at two passes over the block fewer
-                factor -= (0.5 * np.sum(query**2, axis=1))[:, None]
-                factor -= part.half_norms[None, :]
-                np.minimum(factor, 0.0, out=factor)  # never positive
-                np.exp(factor, out=factor)
+            if len(part.rbf) == 1:  # a factor of one column: once per distinct value
+                _by_value(z[:, part.rbf], lambda query, out, _: _rbf(query, part, out), factor)
+            elif part.rbf:
+                _rbf(z[:, part.rbf], part, factor)
             else:
                 factor.fill(1.0)
             if part.kind == BRIDGE:
@@ -205,8 +199,9 @@ class NumpyGP:
             else:
                 prior += part.amplitude
             if part.kind == MATERN:
-                factor *= matern32(z[:, part.dims[0]] / part.opening_scale, part.opening,
-                                   scratch, spare)
+                factor *= _by_value(z[:, part.dims[:1]], lambda opening, out, spare: matern32(
+                    opening[:, 0] / part.opening_scale, part.opening, out, spare), scratch,
+                    spare)
             if number == 0:  # the sum starts at the first part (0 + x is x: factors are ≥ 0)
                 np.multiply(factor, part.amplitude, out=total)
             else:
@@ -238,6 +233,44 @@ class NumpyGP:
 
 #: queries per block of a prediction
 _BLOCK = 2048
+#: a factor of one feature column is made once per distinct value where these have at most
+#: this share of the block's rows (:func:`_by_value`)
+_DISTINCT_SHARE = 0.75
+
+
+def _rbf(query: np.ndarray, part: _Part, out: np.ndarray | None = None) -> np.ndarray:
+    """A part's RBF factor exp(−½·|x − x'|²) between the query rows of its RBF columns
+    (unscaled, (rows, columns)) and the training inputs, (rows, training points), in ``out``
+    where given."""
+    query = query / part.scales
+    out = np.matmul(query, part.scaled.T, out=out)
+    # −½·squared distance as x·x' − ½|x|² − ½|x'|²: halving the norms instead of doubling the
+    # product and halving the difference gives the same bits (a power of two scales every
+    # rounding alike) at two passes over the block fewer
+    out -= (0.5 * np.sum(query**2, axis=1))[:, None]
+    out -= part.half_norms[None, :]
+    np.minimum(out, 0.0, out=out)  # never positive
+    np.exp(out, out=out)
+    return out
+
+
+def _by_value(column: np.ndarray, make, out: np.ndarray, spare: np.ndarray | None = None
+              ) -> np.ndarray:
+    """A kernel factor whose row depends on the query's value in one feature column alone:
+    ``make(queries, out, spare)`` for the (rows, 1) ``column``, in ``out`` (``spare``: scratch
+    of its shape, for ``make``).
+
+    A map's tables ask for the same openings at many samples, and a flow map's features hold
+    other values in common too: a block of queries often has a third as many distinct values
+    as rows in a column. The factor's exponentials are then made for each distinct value once
+    and copied to the rows that hold it. Each element is made by the same operations on the
+    same numbers as for its own row (a factor of one column sums nothing), so the prediction
+    is the same to the bit.
+    """
+    values, rows = np.unique(column[:, 0], return_inverse=True)
+    if len(values) > _DISTINCT_SHARE * len(column):
+        return make(column, out, spare)
+    return np.take(make(values[:, None], None, None), rows.ravel(), axis=0, out=out)
 
 
 class _WorkArrays(threading.local):
