@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -198,15 +199,24 @@ def dp_against_flow(comparison: Comparison, samples: pd.DataFrame) -> Figure:
     figure = Figure(figsize=(4.2 * len(levels) + 2.0, 4.6))
     axes = figure.subplots(1, len(levels), sharex=True, sharey=True, squeeze=False)[0]
     for ax, level in zip(axes, levels):
+        bands, tints = [], []
         for run, group in samples[samples["temperature_nominal_C"] == level].groupby(
                 "run", sort=False):
             c = colour[group["p_Pe_bar"].iloc[0]]
             ax.plot(group["q_lpm"], group["dp_measured_bar"], "o", color=_tint(c, 0.55),
                     markersize=1.6, markeredgewidth=0, rasterized=True)
-            _band(ax, group, _tint(c, 0.3))
+            polygons = _band(group)
+            bands += polygons
+            tints += [_tint(c, 0.3)] * len(polygons)
             # time order, so each run draws its loop: up the ramp and back down
             ax.plot(group["q_lpm"], group["dp_model_bar"], "-", color=_shade(c, 0.35),
                     linewidth=1.3)
+        if bands:
+            # the panel's bands as one artist: a patch each cost more to add (its limits traced
+            # along its outline) and to draw than their polygons; patches and collections are
+            # drawn under the lines alike
+            ax.add_collection(PolyCollection(bands, facecolors=tints, alpha=0.35,
+                                             linewidths=0, rasterized=True))
         ax.set_title(f"{level:g} {DEGC}")
         ax.set_xlabel(f"q [{LPM}]")
         ax.grid(alpha=0.3)
@@ -233,14 +243,16 @@ def _beside_legend(figure: Figure, legend, title, titled: bool, across: float,
                  right=legend_width + 0.2, across=across, down=down)
 
 
-def _band(ax, run: pd.DataFrame, colour) -> None:
-    """The model's ±2σ band over one run, drawn per ramp (each ramp's flow runs one way, so its
-    upper edge and its lower edge reversed close a polygon). σ is drawn as a running median over
-    a twentieth of the ramp: it jumps between samples where friction holds the piston (the flow
-    map's error alone) and where it slides (the force map's too), which would hide the band's
-    course; samples.csv keeps every sample's own."""
+def _band(run: pd.DataFrame) -> list[np.ndarray]:
+    """The model's ±2σ band over one run as polygons, (points, 2) arrays of q and Δp, one per
+    ramp (each ramp's flow runs one way, so its upper edge and its lower edge reversed close a
+    polygon). σ is drawn as a running median over a twentieth of the ramp: it jumps between
+    samples where friction holds the piston (the flow map's error alone) and where it slides
+    (the force map's too), which would hide the band's course; samples.csv keeps every
+    sample's own."""
+    polygons = []
     if run["dp_std_bar"].isna().all():
-        return
+        return polygons
     ramp = (run["up"] != run["up"].shift()).cumsum()
     for _, part in run.groupby(ramp, sort=False):
         part = part[part["dp_std_bar"].notna() & part["dp_model_bar"].notna()]
@@ -251,8 +263,9 @@ def _band(ax, run: pd.DataFrame, colour) -> None:
         std = part["dp_std_bar"].rolling(window, center=True, min_periods=1).median()
         upper = (part["dp_model_bar"] + 2 * std).to_numpy()
         lower = (part["dp_model_bar"] - 2 * std).to_numpy()
-        ax.fill(np.concatenate([q, q[::-1]]), np.concatenate([upper, lower[::-1]]),
-                color=colour, alpha=0.35, linewidth=0, rasterized=True)
+        polygons.append(np.column_stack([np.concatenate([q, q[::-1]]),
+                                         np.concatenate([upper, lower[::-1]])]))
+    return polygons
 
 
 RESIDUAL_PANELS = (("q_lpm", f"q [{LPM}]"), ("p_L_bar", f"p_L [{BAR}]"),
