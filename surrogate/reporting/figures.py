@@ -326,7 +326,7 @@ def hysteresis_against_set_point(comparison: Comparison) -> Figure:
     levels = list(colours)
     # spread the temperatures a little sideways so that runs at one set point do not overlap
     spacing = 0.012 * max(float(np.ptp(runs["p_Pe_bar"])), 10.0)
-    figure = Figure(figsize=(7.0, 4.8), layout="constrained")
+    figure = Figure(figsize=(7.0, 4.8))
     ax = figure.add_subplot()
     for index, level in enumerate(levels):
         group = runs[runs["temperature_nominal_C"] == level]
@@ -349,4 +349,6 @@ def hysteresis_against_set_point(comparison: Comparison) -> Figure:
                        markeredgecolor="0.3", markeredgewidth=1.5, label="model")]
     ax.legend(handles=handles, fontsize=10, loc="best")
     ax.set_title("Hysteresis width per run")
+    # its labels keep their size: fixed margins, not the constrained layout's measuring
+    place_panels(figure, above=0.35, left=0.8, across=0.0, down=0.0)
     return figure

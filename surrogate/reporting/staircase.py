@@ -12,6 +12,7 @@ from matplotlib.patches import Patch
 
 from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
 from ..units import from_si
+from .figures import LEFT, RIGHT, extents, place_panels
 from .prose import NOISE_LEVEL
 
 #: the colour of each category a step can add (look-alikes of two categories: "physics or
@@ -81,10 +82,20 @@ def plot_staircase(axes, steps, noise_floor: float, *, fontsize: float = 9,
 
 def staircase_figure(steps, noise_floor: float) -> Figure:
     """The error staircase of one workflow."""
-    figure = Figure(figsize=(10, 5.2), layout="constrained")
+    figure = Figure(figsize=(10, 5.2))
     axes = figure.subplots()
     plot_staircase(axes, steps, noise_floor)
     axes.set_title("Error staircase: residual RMS after each step", fontsize=11)
+    # placed by its step names' extents, measured once, instead of the constrained layout,
+    # which measured every label over again at each save: the names, slanted, hang below the
+    # panel, the first also left of it
+    sizes = extents(figure, *axes.get_xticklabels())
+    low, high = axes.get_xlim()
+    panel = figure.get_size_inches()[0] - LEFT - RIGHT
+    reach = sizes[0][0] - (0.0 - low) / (high - low) * panel if sizes else 0.0
+    place_panels(figure, above=0.4, left=max(LEFT, reach + 0.1),
+                 below=max((height for _, height in sizes), default=0.0) + 0.1, across=0.0,
+                 down=0.0)
     return figure
 
 
