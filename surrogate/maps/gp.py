@@ -261,9 +261,9 @@ def _by_value(column: np.ndarray, make, out: np.ndarray, spare: np.ndarray | Non
     of its shape, for ``make``).
 
     A map's tables ask for the same openings at many samples, and a flow map's features hold
-    other values in common too: a block of queries often has a third as many distinct values
-    as rows in a column. The factor's exponentials are then made for each distinct value once
-    and copied to the rows that hold it. Each element is made by the same operations on the
+    other values in common too: in a workflow's blocks of queries a column often has two fifths
+    as many distinct values as rows. The factor's exponentials are then made for each distinct
+    value once and copied to the rows that hold it. Each element is made by the same operations on the
     same numbers as for its own row (a factor of one column sums nothing), so the prediction
     is the same to the bit.
     """

@@ -231,6 +231,29 @@ def test_gp_predictor_reproduces_scikit_learn(cfd_samples, valve, parts):
     np.testing.assert_allclose(std**2 + noise, ref_std**2, rtol=1e-6, atol=1e-14)
 
 
+@pytest.mark.parametrize("name", ["flow", "force"])
+def test_a_gp_factor_made_per_distinct_value_is_the_per_row_one_to_the_bit(name, monkeypatch):
+    """A kernel factor of one feature column made once per distinct value of a block and copied
+    to its rows (a table's queries repeat their openings) predicts the same bits as one made row
+    by row."""
+    import surrogate.maps.gp as gp
+
+    arrays = gp.GPArrays.from_npz(np.load(trained_folder("gp") / f"{name}.npz"))
+    training = arrays.inputs * arrays.feature_std + arrays.feature_mean
+    rng = np.random.default_rng(5)
+    # each training point ten times, its other columns moved: a tenth of the values distinct
+    query = np.repeat(training, 10, axis=0)
+    moved = np.ones(query.shape[1], bool)
+    moved[1] = False  # the opening's column
+    query[:, moved] *= rng.uniform(0.9, 1.1, (len(query), moved.sum()))
+    predictions = {}
+    for share in (-1.0, 1.0):  # never, and wherever a column repeats any value
+        monkeypatch.setattr(gp, "_DISTINCT_SHARE", share)
+        predictions[share] = gp.NumpyGP(arrays).predict(query, return_std=True)
+    for row_by_row, by_value in zip(predictions[-1.0], predictions[1.0]):
+        assert row_by_row.tobytes() == by_value.tobytes()
+
+
 def test_gp_reports_its_uncertainty_in_map_units(learned_maps, valve):
     flow_map, force_map = learned_maps["gp"]
     fluid = valve.oil.state(np.array([313.15, 313.15]))
