@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +87,17 @@ class BenchLog:
 
     def __len__(self) -> int:
         return len(self.frame)
+
+    @cached_property
+    def sampling_interval(self) -> float:
+        """The median interval between consecutive samples of a run [s] (NaN for a log
+        without two timed samples in a run). Read once per log: every replay of the log asks
+        for it (:func:`surrogate.fitting.residuals.state_smoothing_samples`), and reading the
+        run labels out of pandas' text column takes longer than the median."""
+        time, run = self.frame["time"].to_numpy(float), self.frame["run"].to_numpy()
+        steps = np.diff(time)[run[1:] == run[:-1]]
+        steps = steps[~np.isnan(steps)]  # as pandas' median skips them
+        return float(np.median(steps)) if len(steps) else float("nan")
 
     @property
     def run_ids(self) -> list[str]:

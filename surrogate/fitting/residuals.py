@@ -112,13 +112,9 @@ STATE_SMOOTHING = 0.28
 
 
 def state_smoothing_samples(log: BenchLog, seconds: float = STATE_SMOOTHING) -> int:
-    """The odd number of samples spanning ``seconds`` [s] at the log's median sampling interval."""
-    # as arrays, not pandas' diff, shift and median: every replay of a log asks (0.5 ms of
-    # pandas' overhead each, some 400 times in a workflow)
-    time, run = log.frame["time"].to_numpy(float), log.frame["run"].to_numpy()
-    steps = np.diff(time)[run[1:] == run[:-1]]
-    steps = steps[~np.isnan(steps)]  # as pandas' median skips them
-    interval = float(np.median(steps)) if len(steps) else float("nan")
+    """The odd number of samples spanning ``seconds`` [s] at the log's median sampling interval
+    (:attr:`~surrogate.data.loaders.BenchLog.sampling_interval`, found once per log)."""
+    interval = log.sampling_interval
     if not np.isfinite(interval) or interval <= 0:
         return 1
     return int(round(seconds / interval)) // 2 * 2 + 1
