@@ -77,6 +77,9 @@ class Judge:
         self.objective_before = self.base.objective(self.ones)
         self.heldout = self.base.heldout_rms(self.schemes)  # per scheme [Pa]
         self.blocks: dict[str, tuple[RunBlocks, float]] = {}
+        # each judged refit's objective on every bootstrap resample, by its blocks: a diagnosis
+        # asks for the inclusion twice (the library, then the library with the shapes)
+        self._resampled: dict[int, tuple[RunBlocks, np.ndarray, list[float]]] = {}
 
     def judge(self, candidate: Candidate, shape: list[int] | None = None) -> Candidate:
         """The candidate with its held-out RMS and its ΔBIC against the maps' discrepancy.
@@ -107,15 +110,26 @@ class Judge:
         chosen = [c for c in candidates if not c.per_run and c.own_view
                   and self.rule.predicts_unseen(c, self.heldout)]
         counts = dict.fromkeys((c.name for c in chosen), 0)
-        for w in weights:
+        befores = self._objectives(self.base, weights)
+        afters = [self._objectives(self.blocks[c.name][0], weights) for c in chosen]
+        for i, w in enumerate(weights):
             n_eff = self.problem.n_eff * w.sum() / len(w)
-            before = self.base.objective(w)
-            scores = [delta_bic(self.blocks[c.name][0].objective(w), before, n_eff,
-                                self.blocks[c.name][1]) for c in chosen]
+            before = befores[i]
+            scores = [delta_bic(after[i], before, n_eff, self.blocks[c.name][1])
+                      for c, after in zip(chosen, afters)]
             ranks = [score + self.rule.handicap(c) for score, c in zip(scores, chosen)]
             if ranks and min(ranks) < self.rule.bic:
                 counts[chosen[int(np.argmin(ranks))].name] += 1
         return {c.name: counts.get(c.name, 0) / len(weights) for c in candidates}
+
+    def _objectives(self, blocks: RunBlocks, weights: np.ndarray) -> list[float]:
+        """``blocks.objective`` at each row of ``weights``, formed once per blocks and
+        weights."""
+        found = self._resampled.get(id(blocks))
+        if found is None or not np.array_equal(found[1], weights):
+            found = (blocks, weights, [blocks.objective(w) for w in weights])
+            self._resampled[id(blocks)] = found  # keeps blocks, so that its id stays its own
+        return found[2]
 
     def maps_error_heldout(self, fit: Linearised | None = None) -> dict[str, float]:
         """RMS on held-out runs [Pa] per scheme of the model (or of a candidate's refit: its

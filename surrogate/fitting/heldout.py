@@ -271,8 +271,8 @@ class RunBlocks:
         squares = float(weights @ self.squares)
         cross = weighted_sum(weights, self.cross)
         if self.rough is not None:
-            x = self._joint_step(weights, cross)
             gram = weighted_sum(weights, self.gram)
+            x = self._joint_step(weights, cross, gram)
             a = x[self.p:]
             return (squares + 2.0 * float(cross @ x) + float(x @ gram @ x)
                     + float(a @ self.penalty @ a))
@@ -306,13 +306,16 @@ class RunBlocks:
             self._regular_matrix = regular
         return self._regular_matrix
 
-    def _joint_step(self, weights: np.ndarray, cross: np.ndarray) -> np.ndarray:
-        """(θ, a) minimising the weighted objective, whose cross products are ``cross``."""
+    def _joint_step(self, weights: np.ndarray, cross: np.ndarray,
+                    gram: np.ndarray | None = None) -> np.ndarray:
+        """(θ, a) minimising the weighted objective, whose cross products are ``cross`` (and
+        Gram matrix ``gram``, when the caller has formed it)."""
         if self.rough is not None:
             cross = cross.copy()
             cross[:self.p] += self.rough[1]
-        return -np.linalg.solve(weighted_sum(weights, self.gram) + self._regular(),
-                                cross)
+        if gram is None:
+            gram = weighted_sum(weights, self.gram)
+        return -np.linalg.solve(gram + self._regular(), cross)
 
     def _squares_at(self, theta: np.ndarray, run: int) -> float:
         """‖r + J·θ‖² over run ``run``'s samples."""
