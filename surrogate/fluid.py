@@ -74,6 +74,10 @@ def broadcast_query(a, b, u, fluid: FluidState):
     """(a, b, u, fluid) broadcast to one shape, fluid included: the arguments of a map query
     (:mod:`surrogate.maps.base`) or of its features (:mod:`surrogate.features`)."""
     a, b, u, nu, rho = broadcast(a, b, u, fluid.nu, fluid.rho)
+    if nu.shape == np.shape(fluid.nu):
+        # a state is checked when made (a subset of one needs none): already the query's
+        # shape, it needs no second check at every map query of a solver
+        return a, b, u, fluid
     return a, b, u, FluidState(nu, rho)
 
 
