@@ -164,12 +164,7 @@ class _SweepGrid:
                                 flat.take(k1 * widest + j10), flat.take(k1 * widest + j11)])
         xs = np.concatenate([x, x, x, x])
         values = self.curves(curve, xs).reshape(4, -1)
-        level0 = (1.0 - s0) * values[0] + s0 * values[1] + self.excess_slope * excess0
-        level1 = (1.0 - s1) * values[2] + s1 * values[3] + self.excess_slope * excess1
-        if self.power_below and (np.any(excess0 < 0.0) or np.any(excess1 < 0.0)):
-            level0 = self._continued_below(level0, values[0], values[1], excess0, k0)
-            level1 = self._continued_below(level1, values[2], values[3], excess1, k1)
-        value = (1.0 - t) * level0 + t * level1
+        value = self._blend(values, s0, s1, excess0, excess1, t, k0, k1)
         if not flags:
             return value, None
         within = self.curves.inside(curve, xs).reshape(4, -1)
@@ -179,6 +174,18 @@ class _SweepGrid:
                                  & (within[3] | (s1 <= 0.0))))
         return value, inside
 
+    def _blend(self, values, s0, s1, excess0, excess1, t, k0, k1) -> np.ndarray:
+        """The value at the queries from the four sweeps' ``values`` (4, n) about each: at
+        the openings j0, j1 of the fluid level k0, then of the level k1, blended with the
+        openings' weights ``s0``, ``s1`` (and the excess beyond the sampled openings [ln u])
+        and the levels' weight ``t``."""
+        level0 = (1.0 - s0) * values[0] + s0 * values[1] + self.excess_slope * excess0
+        level1 = (1.0 - s1) * values[2] + s1 * values[3] + self.excess_slope * excess1
+        if self.power_below and (np.any(excess0 < 0.0) or np.any(excess1 < 0.0)):
+            level0 = self._continued_below(level0, values[0], values[1], excess0, k0)
+            level1 = self._continued_below(level1, values[2], values[3], excess1, k1)
+        return (1.0 - t) * level0 + t * level1
+
     def _continued_below(self, level, smallest, next_one, excess, k):
         """``level`` with the queries below the smallest opening (``excess`` < 0 [ln u]) on the
         power of u that the smallest two openings' values (``smallest``, ``next_one``, same sign)
@@ -186,7 +193,10 @@ class _SweepGrid:
         below = excess < 0.0
         if not np.any(below):
             return level
-        spacing = (self._log_u[k, 1] - self._log_u[k, 0])[below]
+        # the smallest openings' spacing of the levels of the points below alone (a few in a
+        # hundred), not of every point's
+        level_below = k[below]
+        spacing = self._log_u[level_below, 1] - self._log_u[level_below, 0]
         low, high = smallest[below], next_one[below]
         with np.errstate(divide="ignore", invalid="ignore"):
             power = np.clip(np.log(high / low) / spacing, *_POWER_BELOW)
@@ -408,11 +418,62 @@ class GridFlowMap(_SweepGrid, FlowMap):
             return super().at_openings(p_B, u, fluid)
         return _FlowAtOpenings(self, u, fluid)
 
+    def at_flows(self, q, p_B, fluid: FluidState):
+        """:meth:`FlowMap.at_flows`: each point's sweeps read at its flow once, at every
+        opening of the two fluid levels about it; each opening then only blends them (for
+        grids whose fluid levels share their openings)."""
+        q = np.asarray(q, float)
+        if q.ndim != 1 or self._shared_log_u is None:
+            return super().at_flows(q, p_B, fluid)
+        return _FlowAtFlows(self, q, fluid)
+
     def calibration_inputs(self, q, p_B, u, fluid: FluidState):
         if self.uncertainty is None:
             return None
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         return self.uncertainty.inputs(self, p_B, u, fluid)
+
+
+class _FlowAtFlows:
+    """A flow grid at fixed flows and fluid states (:meth:`GridFlowMap.at_flows`), for openings
+    to come: what :meth:`_SweepGrid._interpolate_block` reads from the sweeps at a point's flow
+    does not depend on the opening, so it is read once per point at every opening of the
+    point's two fluid levels (for grids whose fluid levels share their openings), and an
+    opening only blends what the block would have read (the same values, to the bit)."""
+
+    def __init__(self, grid: GridFlowMap, q: np.ndarray, fluid: FluidState):
+        self.grid, self.q = grid, q
+        self.k0, self.k1, self.t, _ = _bracket_shared(grid.log_nu, np.log(np.ravel(fluid.nu)))
+        width = self.width = len(grid._shared_log_u)
+        x = np.log(np.where(q > 0, q, 1.0))
+        # per point, the sweeps of its level k0 at every opening, then those of its level k1
+        sweeps = np.hstack([grid._curve[self.k0, :width], grid._curve[self.k1, :width]])
+        self.values = np.empty(sweeps.shape)
+        points = max(_BLOCK // (2 * width), 1)  # a block's worth of queries at a time
+        for start in range(0, len(q), points):
+            part = slice(start, start + points)
+            self.values[part] = grid.curves(sweeps[part].ravel(), np.repeat(x[part], 2 * width)
+                                            ).reshape(-1, 2 * width)
+        self.values = self.values.ravel()
+
+    def __call__(self, u: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """Δp [Pa] of the points ``index`` (positions) at openings ``u`` [m]."""
+        q = self.q.take(index)
+        u = np.asarray(u, float)
+        log_u = np.log(np.maximum(u, _TINY_OPENING))
+        log_dp = np.empty(len(index))
+        for start in range(0, len(index), _BLOCK):  # as pressure_drop's blocks, for the cache
+            part = slice(start, start + _BLOCK)
+            j0, j1, s, excess = _bracket_shared(self.grid._shared_log_u, log_u[part])
+            row = index[part] * (2 * self.width)
+            values = np.stack([self.values.take(row + j0), self.values.take(row + j1),
+                               self.values.take(row + self.width + j0),
+                               self.values.take(row + self.width + j1)])
+            log_dp[part] = self.grid._blend(values, s, s, excess, excess,
+                                            self.t.take(index[part]), None, None)
+        flowing = q > 0
+        dp = np.where(flowing, np.exp(log_dp), 0.0)
+        return np.where(flowing & (u <= 0), np.inf, dp)
 
 
 class _FlowAtOpenings:
