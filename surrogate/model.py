@@ -157,6 +157,11 @@ class ValveModel:
     def has_friction(self) -> bool:
         return any(_uses(effect, "friction") for effect in self.effects)
 
+    @property
+    def has_leakage(self) -> bool:
+        """Whether an effect adds a leakage path beside the restriction."""
+        return any(_uses(effect, "leakage") for effect in self.effects)
+
     def fluid(self, points: OperatingPoints) -> FluidState:
         """The oil's ν and ρ at each point's temperature."""
         return self.valve.oil.state(points.temperature)

@@ -57,6 +57,7 @@ import numpy as np
 
 from ..model import Balance, ValveModel
 from ..points import OperatingPoints
+from .asked_maps import asked_balance
 
 #: the tables' levels: node spacing in ln u [1], and how far beyond a sample's band (the
 #: smallest and largest of its edges) the window reaches, in ln u [1]. The fine level holds the
@@ -773,10 +774,12 @@ class TabulatedBalance:
 
 
 def balance_reader(model: ValveModel, points: OperatingPoints, fluid, view: TableView | None,
-                   coarsest: int = FINE):
+                   coarsest: int = FINE, keep: bool = False):
     """``balance(u, index)``: ``model``'s balance of the (measured) points ``index`` at
     openings ``u`` [m], its maps read from ``view``, their rows of the tables (levels up to
-    ``coarsest``), where given and where they apply (:func:`applies`), else asked."""
+    ``coarsest``), where given and where they apply (:func:`applies`), else asked
+    (:func:`.asked_maps.asked_balance`; ``keep``: what the flow map reads at the points'
+    flows kept, for a solver that asks about them again and again)."""
     if view is not None and applies(points, model.true_points(points)):
         return TabulatedBalance(model, view, points, fluid, coarsest)
-    return lambda u, index: model.balance(u, points[index], fluid[index])
+    return asked_balance(model, points, fluid, keep)

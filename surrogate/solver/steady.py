@@ -295,7 +295,7 @@ class _FlowingBalance:
         # the side whose rule picks the smallest equilibrium (opening, or no friction)
         self.opens = sign >= 0
         self.fluid = model.fluid(points)
-        self.balance = balance_reader(model, points, self.fluid, tables)
+        self.balance = balance_reader(model, points, self.fluid, tables, keep=True)
         # for the rule's sign checks only: the coarse tables too (a sign change found there is
         # checked again on the fine ones or the maps)
         self.rough_balance = self.balance if tables is None else balance_reader(
