@@ -153,6 +153,16 @@ class _Level:
         return held & (start <= x_low - room) & (
             (stop >= x_high + room) | (stop >= self.top))
 
+    def reserve(self, rows: int, nodes: int, entries: int) -> None:
+        """Room for this many more rows, nodes and expansion entries, made at once: the
+        buffers of a tabulation in blocks would otherwise grow (and be copied) block by
+        block."""
+        self.first, self.count, self.offset, self.expansion_offset = (
+            _room(array, self.rows + rows, slack=1.0)
+            for array in (self.first, self.count, self.offset, self.expansion_offset))
+        self.values = _room(self.values, self.nodes_used + nodes, slack=1.0)
+        self.expansions = _room(self.expansions, self.expansions_used + entries, slack=1.0)
+
     def append(self, begin, count, values, expansions) -> None:
         rows, nodes, entries = len(begin), len(values), len(expansions)
         self.first, self.count, self.offset, self.expansion_offset = (
@@ -188,12 +198,12 @@ def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
         np.cumsum(lengths) - lengths, lengths)
 
 
-def _room(array: np.ndarray, length: int) -> np.ndarray:
-    """``array``, or a copy half as long again as ``length`` with its rows, where it is too
-    short to hold ``length`` rows."""
+def _room(array: np.ndarray, length: int, slack: float = 1.5) -> np.ndarray:
+    """``array``, or a copy ``slack`` times as long as ``length`` (half as long again by
+    default) with its rows, where it is too short to hold ``length`` rows."""
     if len(array) >= length:
         return array
-    grown = np.empty((int(1.5 * length) + 16, *array.shape[1:]), array.dtype)
+    grown = np.empty((int(slack * length) + 16, *array.shape[1:]), array.dtype)
     grown[: len(array)] = array
     return grown
 
@@ -304,6 +314,8 @@ class MapTables:
         with self._lock:
             if self.size + total > MAX_NODES:
                 self._compact(total)
+            for level, (_, count) in zip(self.levels, windows):
+                level.reserve(len(todo), int(count.sum()), int(expansion_nodes(count).sum()))
         # a block of samples at a time, so that the maps' and the slopes' temporaries stay
         # small; each block's rows are usable as soon as they are in
         for block in range(0, len(todo), _SAMPLES_AT_A_TIME):
@@ -666,16 +678,20 @@ class TabulatedMaps:
     Whatever the tables do not hold, the maps answer."""
 
     def __init__(self, model: ValveModel, view: TableView, points: OperatingPoints, fluid, u,
-                 coarsest: int = FINE):
+                 coarsest: int = FINE, expansions: bool | None = None):
         """``points``: as measured (the tables' keys; a model's corrected flow is read from
-        the expansions about them); ``u`` [m] the openings of the balance call."""
+        the expansions about them); ``u`` [m] the openings of the balance call;
+        ``expansions``: whether the model may change the flow (found here unless given)."""
         self.model, self.points, self.fluid, self.u = model, points, fluid, u
-        self.expansions = model.may_change_the_flow
+        self.expansions = model.may_change_the_flow if expansions is None else expansions
         self.inside, (self.log_dp, self.ratio), self.expanded = view.read(u, coarsest,
                                                                           self.expansions)
         self.rows, self.stroke, self.at_stroke = view.row, view.store.stroke, None
         if not self.inside.all():
             self.at_stroke = view.maps_at_stroke()
+        # Δp at the measured flows, as pressure_drop found it for all the points: what
+        # flow_force compares its Δp with
+        self._own_dp = None
 
     def _on_stop(self, where: np.ndarray) -> np.ndarray:
         """The rows of the points ``where`` (positions) on the stop whose row holds the maps
@@ -697,6 +713,8 @@ class TabulatedMaps:
         inside = self.inside[index]
         if np.array_equal(q, reference):  # the measured flow: the tables' own value
             dp = np.exp(log_dp)
+            if isinstance(index, slice) and index == slice(None) and inside.all():
+                self._own_dp = dp  # not changed below: no point is asked of the maps
         elif self.expanded is None:  # no expansions: the maps answer for another flow
             same = q == reference
             dp, inside = np.where(same, np.exp(log_dp), np.nan), inside & same
@@ -722,7 +740,7 @@ class TabulatedMaps:
     def flow_force(self, dp: np.ndarray) -> np.ndarray:
         """f_ff [N] at the pressure drops ``dp`` [Pa] of all the points."""
         dp = np.asarray(dp, float)
-        own = np.exp(self.log_dp)
+        own = np.exp(self.log_dp) if self._own_dp is None else self._own_dp
         inside = self.inside
         if np.array_equal(dp, own):  # Δp at the measured flow: the tables' own value
             ratio = self.ratio
@@ -764,12 +782,15 @@ class TabulatedBalance:
                  coarsest: int = FINE):
         self.model, self.view, self.coarsest = model, view, coarsest
         self.points, self.fluid = points, fluid
+        # the model's effects stay as they are while a solver asks (a balance at a time)
+        self.expansions = model.may_change_the_flow
 
     def __call__(self, u, index) -> Balance:
         """The balance of the points ``index`` at openings ``u`` [m]."""
         u = np.broadcast_to(np.asarray(u, float), np.shape(index)).copy()
         points, fluid = self.points[index], self.fluid[index]
-        maps = TabulatedMaps(self.model, self.view[index], points, fluid, u, self.coarsest)
+        maps = TabulatedMaps(self.model, self.view[index], points, fluid, u, self.coarsest,
+                             self.expansions)
         return self.model.balance(u, points, fluid, maps)
 
 
