@@ -373,8 +373,8 @@ class GridFlowMap(_SweepGrid, FlowMap):
     excess_slope = -2.0  # ln Δp per ln u at constant C_d
 
     @classmethod
-    def from_samples(cls, samples: CfdSamples, *, reference_back_pressure: float | None = None
-                     ) -> "GridFlowMap":
+    def from_samples(cls, samples: CfdSamples, *, reference_back_pressure: float | None = None,
+                     sweeps=None) -> "GridFlowMap":
         """Build from CFD samples.
 
         Parameters
@@ -383,8 +383,11 @@ class GridFlowMap(_SweepGrid, FlowMap):
             Validated samples.
         reference_back_pressure : float, optional
             Back pressure [Pa] of the samples to use; default the most common one.
+        sweeps : tuple, optional
+            The samples' sweeps at that back pressure (:func:`_sweeps`), when the force grid
+            is built from them too.
         """
-        reference, excluded, groups = _sweeps(samples, reference_back_pressure)
+        reference, excluded, groups = sweeps or _sweeps(samples, reference_back_pressure)
 
         def curve(sweep):
             return np.log(sweep["q"].to_numpy()), np.log((sweep["p_L"] - sweep["p_B"]).to_numpy())
@@ -529,12 +532,13 @@ class GridForceMap(_SweepGrid, ForceMap):
 
     @classmethod
     def from_samples(cls, samples: CfdSamples, valve: ValveParameters, *,
-                     reference_back_pressure: float | None = None) -> "GridForceMap":
+                     reference_back_pressure: float | None = None, sweeps=None
+                     ) -> "GridForceMap":
         """Build from CFD samples and the valve's areas (to separate the flow force).
 
         Parameters as :meth:`GridFlowMap.from_samples`.
         """
-        reference, excluded, groups = _sweeps(samples, reference_back_pressure)
+        reference, excluded, groups = sweeps or _sweeps(samples, reference_back_pressure)
         back_area = valve.A_s3 - valve.A_B
 
         def curve(sweep):
@@ -665,7 +669,9 @@ def grid_maps_on(samples: CfdSamples, valve: ValveParameters, train=None
     their uncertainty attached."""
     if train is not None:
         samples = samples.subset(train)
-    flow, force = GridFlowMap.from_samples(samples), GridForceMap.from_samples(samples, valve)
+    sweeps = _sweeps(samples, None)  # the same sweeps make both grids
+    flow = GridFlowMap.from_samples(samples, sweeps=sweeps)
+    force = GridForceMap.from_samples(samples, valve, sweeps=sweeps)
     flow.uncertainty = force.uncertainty = GridUncertainty(samples, valve)
     return flow, force
 
