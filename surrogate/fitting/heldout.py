@@ -214,7 +214,8 @@ class RunBlocks:
         self.gram = np.empty((len(index.labels), self.p + k, self.p + k))
         self.cross = np.empty((len(index.labels), self.p + k))
         squares = []
-        for number, (rows, run_nuisance) in enumerate(zip(index.rows, nuisance)):
+        for number, (rows, run_nuisance) in enumerate(zip(index.positions, nuisance)):
+            # the run's positions: the rows its mask selects, without finding them again
             run_jacobian, run_residual = jacobian[rows], r[rows]
             part = np.empty((len(run_residual), self.p + k))  # the run's [J, N]
             part[:, :self.p] = run_jacobian
