@@ -451,13 +451,14 @@ def _maps_at(model: ValveModel, points: OperatingPoints, which: np.ndarray, u: n
     [Pa]) or that of step 0 (``steps`` then holds 0 alone)."""
     log_dp = np.empty((len(steps), u.size))
     ratio = np.empty((len(steps), u.size))
-    # each sample's own flow at every one of its nodes: what the map finds at the flow alone
-    # it may find once (FlowMap.at_flows)
-    own_flow = model.flow_map.at_flows(points.q, points.p_B, model.fluid(points))
+    # each sample's own flow and fluid state at every one of its nodes: what the map finds at
+    # the flow alone it may find once (FlowMap.at_flows), and the oil's state is found once
+    fluids = model.fluid(points)
+    own_flow = model.flow_map.at_flows(points.q, points.p_B, fluids)
     for block in range(0, u.size, _BLOCK):
         part = slice(block, block + _BLOCK)
         at = points[which[part]]
-        fluid = model.fluid(at)
+        fluid = fluids[which[part]]
         for row, step in enumerate(steps):
             log_dp[row, part] = np.log(
                 own_flow(u[part], which[part]) if step == 0.0 else

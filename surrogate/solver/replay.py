@@ -407,6 +407,9 @@ def _savgol(x: np.ndarray, size: int) -> np.ndarray:
     half, length = size // 2, len(x)
     y = np.empty_like(x)
     y[half:length - half] = sliding_window_view(x, size, axis=0) @ weights
-    y[:half] = np.tensordot(first, x[:size], axes=(1, 0))
-    y[length - half:] = np.tensordot(last, x[length - size:], axes=(1, 0))
+    # np.tensordot(first, x[:size], axes=(1, 0))'s own product, to the bit, without its
+    # handling of general axes (every run's band edges, at every replay)
+    ends = (half, *x.shape[1:])
+    y[:half] = np.dot(first, x[:size].reshape(size, -1)).reshape(ends)
+    y[length - half:] = np.dot(last, x[length - size:].reshape(size, -1)).reshape(ends)
     return y
