@@ -233,6 +233,12 @@ class _Locator:
         self.segment = np.searchsorted(nodes, edges, "right") - 1
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.with_ends(x)[0]
+
+    def with_ends(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(segment, its left node, its right node) of each x: the nodes the search compared
+        x with last, which an interpolation would otherwise gather again (the left one is the
+        first node for a segment of −1, the right one +inf beyond the last node)."""
         # fmin/fmax and np.take: as clip, nan_to_num and fancy indexing, at a fraction of
         # their overhead (every balance a fit evaluates reads the tables here)
         with np.errstate(invalid="ignore"):
@@ -240,11 +246,13 @@ class _Locator:
         segment = self.segment.take(bucket.astype(np.intp))
         # a bucket may hold a node (or, between close kinks, several); rounding may miss by one
         while True:
-            below = x < self.nodes.take(np.maximum(segment, 0))
+            left = self.nodes.take(np.maximum(segment, 0))
+            right = self.nodes.take(segment + 1)
+            below = x < left
             below &= segment >= 0
-            above = x >= self.nodes.take(segment + 1)
+            above = x >= right
             if not (below.any() or above.any()):
-                return segment
+                return segment, left, right
             segment = np.minimum(segment - below + above, len(self.nodes) - 2)
 
 
@@ -545,16 +553,17 @@ def _interpolate(level: _Snapshot, rows: np.ndarray, x: np.ndarray, expansions: 
     slope right of the segment's start and left of its end; the expansions linear."""
     if not level.first.size:
         return np.zeros(x.shape, bool), np.empty((2, 0)), np.empty((_EXPANSIONS, 0))
-    segment = level.locate(x)
+    segment, left, right = level.locate.with_ends(x)
     count = level.count.take(rows)
     local = segment - level.first.take(rows)
     found = (local >= 0) & (local < count - 1)
     if found.all():
-        k, flat = segment, level.offset.take(rows) + local
+        flat = level.offset.take(rows) + local
     else:
-        k, flat, x = segment[found], level.offset[rows[found]] + local[found], x[found]
-    left = level.nodes.take(k)
-    width = level.nodes.take(k + 1) - left
+        flat, x = level.offset[rows[found]] + local[found], x[found]
+        left, right = left[found], right[found]
+    # a found segment lies inside its window: its ends are the nodes the search compared with
+    width = right - left
     t = (x - left) / width
     # the cubic Hermite basis, its slope terms scaled by the segment's width
     t2 = t * t
