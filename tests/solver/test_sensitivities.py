@@ -116,3 +116,15 @@ def test_a_shared_read_alike_replay_is_the_candidates_own(name, setting):
         own = ReadAlike(trial, log, base)()
         np.testing.assert_array_equal(shared().replay.dp, own.replay.dp)
         np.testing.assert_array_equal(shared().replay.u, own.replay.u)
+
+
+def test_a_logs_sampling_interval_is_the_median_step_within_its_runs_found_once():
+    from surrogate.data import load_bench_log
+    from surrogate.paths import SHIPPED_BENCH_LOG
+
+    log = load_bench_log(SHIPPED_BENCH_LOG)
+    frame = log.frame
+    steps = frame.groupby("run", sort=False)["time"].diff().dropna()
+    assert log.sampling_interval == float(np.median(steps.to_numpy()))
+    assert "sampling_interval" in vars(log)  # kept: every replay of the log asks
+    assert state_smoothing_samples(log) == int(round(0.28 / log.sampling_interval)) // 2 * 2 + 1

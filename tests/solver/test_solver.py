@@ -396,3 +396,23 @@ def test_a_replay_with_several_equilibria_does_not_depend_on_its_guess(valve):
     np.testing.assert_array_equal(warm.status, cold.status)
     np.testing.assert_allclose(warm.u, cold.u, rtol=1e-10)
     np.testing.assert_allclose(warm.dp, cold.dp, rtol=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(918,), (918, 2), (9,), (57, 3)])
+def test_the_band_edges_smoothing_forms_the_run_ends_as_tensordot_does(shape):
+    """The run ends' products are np.tensordot's own (a dot of the same reshapes), to the bit."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    from surrogate.solver.replay import _savgol, _savgol_operators
+
+    x = np.random.default_rng(len(shape) + shape[0]).normal(size=shape)
+    for size in (5, 7, 9):
+        if len(x) < size:
+            continue
+        weights, first, last = _savgol_operators(size)
+        half, length = size // 2, len(x)
+        expected = np.empty_like(x)
+        expected[half:length - half] = sliding_window_view(x, size, axis=0) @ weights
+        expected[:half] = np.tensordot(first, x[:size], axes=(1, 0))
+        expected[length - half:] = np.tensordot(last, x[length - size:], axes=(1, 0))
+        assert np.array_equal(_savgol(x, size), expected)
