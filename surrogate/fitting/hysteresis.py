@@ -61,31 +61,31 @@ def hysteresis_split(frame: pd.DataFrame, bins: int = BINS,
     q = frame["q"].to_numpy(float)
     up = frame["direction"].to_numpy() == "up"
     count = len(frame)
-    medians, halves, labels = [], [], []
+    pairs, labels = [], []  # each bin's rising and falling samples, and its run
     for run in dict.fromkeys(runs):
-        inside = runs == run
-        rising, falling = inside & up, inside & ~up
+        # the run's own samples only: a bin's samples lie in its run
+        rows = np.flatnonzero(runs == run)
+        run_q, rising = q[rows], up[rows]
+        falling = ~rising
         if rising.sum() < min_samples or falling.sum() < min_samples:
             continue
-        low = max(q[rising].min(), q[falling].min())
-        high = min(q[rising].max(), q[falling].max())
+        low = max(run_q[rising].min(), run_q[falling].min())
+        high = min(run_q[rising].max(), run_q[falling].max())
         if not high > low:
             continue
         edges = np.linspace(low, high, bins + 1)
-        which = np.clip(np.searchsorted(edges, q, side="right") - 1, 0, bins - 1)
-        within = (q >= low) & (q <= high)
+        which = np.clip(np.searchsorted(edges, run_q, side="right") - 1, 0, bins - 1)
+        within = (run_q >= low) & (run_q <= high)
         for b in range(bins):
-            a = np.flatnonzero(rising & within & (which == b))
-            d = np.flatnonzero(falling & within & (which == b))
+            a = rows[np.flatnonzero(rising & within & (which == b))]
+            d = rows[np.flatnonzero(falling & within & (which == b))]
             if len(a) < min_samples or len(d) < min_samples:
                 continue
-            median, half = np.zeros(count), np.zeros(count)
-            median[a], median[d] = 0.5 / len(a), 0.5 / len(d)
-            half[a], half[d] = 0.5 / len(a), -0.5 / len(d)
-            medians.append(median)
-            halves.append(half)
+            pairs.append((a, d))
             labels.append(run)
-    if not labels:
-        empty = np.zeros((0, count))
-        return HysteresisSplit(empty, empty, np.zeros(0, str))
-    return HysteresisSplit(np.array(medians), np.array(halves), np.array(labels))
+    # the bins' rows filled in place, not stacked from rows of their own
+    median, half = np.zeros((len(pairs), count)), np.zeros((len(pairs), count))
+    for row, (a, d) in enumerate(pairs):
+        median[row, a], median[row, d] = 0.5 / len(a), 0.5 / len(d)
+        half[row, a], half[row, d] = 0.5 / len(a), -0.5 / len(d)
+    return HysteresisSplit(median, half, np.array(labels) if labels else np.zeros(0, str))
