@@ -119,6 +119,7 @@ class Diagnoser:
     progress: Callable[[str], None] | None = None
 
     def say(self, message: str) -> None:
+        """Tell the progress callback, if there is one."""
         if self.progress is not None:
             self.progress(message)
 

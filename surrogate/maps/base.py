@@ -224,18 +224,6 @@ class ForceMap(ABC):
         """f_sim [N], positive in the opening direction."""
         raise NotImplementedError
 
-    def at_flows(self, q, p_B, fluid: FluidState):
-        """``pressure_drop(u, index)``: :meth:`pressure_drop` of the points ``index``
-        (positions) of these flows [m^3/s], back pressures [Pa] and fluid states (1-D, one per
-        point) at openings ``u`` [m]: a fit's tables ask each sample's flow at many openings
-        (:mod:`surrogate.solver.map_tables`). A map may prepare what does not depend on the
-        opening once; here it is asked afresh each time."""
-        q, p_B = np.asarray(q, float), np.asarray(p_B, float)
-
-        def pressure_drop(u, index):
-            return self.pressure_drop(q[index], p_B[index], u, fluid[index])
-        return pressure_drop
-
     def opening_knots(self) -> np.ndarray:
         """Openings [m] where the map has a kink along u (at a fixed flow, or Δp): none for a
         smooth map. A fit's tables of the map put nodes there
