@@ -18,7 +18,7 @@ from pathlib import Path
 from .effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
 from .errors import InputError, did_you_mean, named
 from .maps.orifice import BASIC_DISCHARGE_COEFFICIENT
-from .maps.registry import MAP_KINDS, MapsSpec, map_kind
+from .maps.registry import MAP_KINDS, MapsSpec
 from .spec import EffectSpec, ModelSpec, ValveSource
 
 #: the paper's CFDA starting values: flow-force scale, K1 [N], K2 [N/bar]; every model that adds
@@ -33,8 +33,7 @@ def maps(kind: str = "grid", cfd: str | Path | None = None, **options) -> MapsSp
     """Both maps of ``kind``, with its ``options`` (a learned kind's ``folder``, say); maps built
     from CFD samples record the file (default: the shipped one) and its SHA-256, so that a model
     built on them names the data it needs."""
-    source = map_kind(kind).source(cfd, **options)
-    return MapsSpec(source, source)
+    return MapsSpec.of_kind(kind, cfd, **options)
 
 
 def basic_maps(discharge_coefficient: float = BASIC_DISCHARGE_COEFFICIENT) -> MapsSpec:

@@ -297,6 +297,14 @@ class MapsSpec:
         source = MapSource.of(kind, **options)
         return cls(source, source)
 
+    @classmethod
+    def of_kind(cls, kind: str, cfd: str | Path | None = None, **options) -> "MapsSpec":
+        """Both maps of ``kind``, with its ``options``, their sources checked and completed by
+        the kind (:meth:`MapKind.source`: a kind built from CFD samples records the file,
+        default the shipped one, and its SHA-256)."""
+        source = map_kind(kind).source(cfd, **options)
+        return cls(source, source)
+
     def inputs(self, base: Path = Path(".")) -> list[tuple[Path, str]]:
         """The files and folders the two maps read (:meth:`MapSource.inputs`)."""
         return self.flow.inputs(base) + (self.force.inputs(base) if self.force != self.flow
@@ -348,11 +356,10 @@ class MapChoice:
         default the shipped ones), the folder and its hash recorded."""
         refuse_ambiguous_kind(self.text, self.base, self.option)
         if kind_named(self.text) is not None:
-            source = map_kind(self.text).source(cfd)
-        else:  # the folder of a trained surrogate: the learned kind it holds
-            folder = MapSource.from_dict(self.text, self.option, self.base)
-            source = map_kind(folder.kind).source(cfd, folder=folder.settings["folder"])
-        return MapsSpec(source, source)
+            return MapsSpec.of_kind(self.text, cfd)
+        # the folder of a trained surrogate: the learned kind it holds
+        folder = MapSource.from_dict(self.text, self.option, self.base)
+        return MapsSpec.of_kind(folder.kind, cfd, folder=folder.settings["folder"])
 
 
 def build_maps(source: MapSource | MapsSpec | str, valve: ValveParameters,
