@@ -411,8 +411,7 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
     std = g.sqrt(variance)
     if learned_map.coverage is None:
         return std
-    if isinstance(learned_map, LearnedFlowMap):  # floors, as in FlowMap.log_discharge_std
-        std = g.max(std, _gap_error(g, learned_map.coverage.gaps(), u))
+    if isinstance(learned_map, LearnedFlowMap):  # a floor, as in FlowMap.log_discharge_std
         return g.max(std, _seat_error(g, learned_map.coverage.openings, u, SEAT_FLOW_ERROR))
     return g.max(std, _seat_error(g, learned_map.coverage.openings, u, SEAT_FORCE_ERROR))
 
@@ -431,7 +430,7 @@ def _cfd_error(g: Graph, learned_map, p_B: str, u: str) -> str:
         share = g.add(share, g.sub(bridged, 1.0))
     bias = g.mul(share, learned_map.cfd_error)
     if not isinstance(learned_map, LearnedForceMap):
-        return bias
+        return g.max(bias, _gap_error(g, coverage.gaps(), u))
     central = coverage.central_back_pressure + P_ATM
     cavitation = g.mul(g.abs(g.log(g.div(g.add(g.max(p_B, 0.0), P_ATM), central))),
                        CAVITATION_FORCE_ERROR)

@@ -16,9 +16,9 @@ Every map built from data says where, and why, a query lies outside that data
 and how uncertain it is (``log_discharge_std`` and ``flow_std``; ``force_std``): a subclass gives
 ``calibration_inputs`` and a ``calibration`` fitted on cross-validation (:mod:`.sigma`),
 which measures how well it reproduces the CFD; the CFD's own error against the valve
-(``cfd_error``, :mod:`.cfd_error`) is added in quadrature, and σ is never below what no mesh
-says across an unsampled gap or below the smallest opening. Maps without data (the orifice
-equation) have neither.
+(``cfd_error``, :mod:`.cfd_error`: the meshes' biases, what no mesh says across an unsampled
+gap, the cavitation model's share) is added in quadrature, and σ is never below what no mesh
+says below the smallest opening. Maps without data (the orifice equation) have neither.
 """
 
 from __future__ import annotations
@@ -170,19 +170,19 @@ class FlowMap(ABC):
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         calibrated = self.calibration.std(*self.calibration_inputs(q, p_B, u, fluid))
         std = np.hypot(calibrated, self.cfd_error_at(u))
-        if self.coverage is not None:  # floors, not terms: the grid's σ grows across a gap and
-            std = np.maximum.reduce([std, gap_error(self.coverage.gaps(), u),  # below its
-                                     seat_error(self.coverage.openings, u)])  # openings itself
+        if self.coverage is not None:  # toward the seat a floor, not a term
+            std = np.maximum(std, seat_error(self.coverage.openings, u))
         return np.reshape(std, q.shape)
 
     def cfd_error_at(self, u) -> np.ndarray:
         """σ of ln C_d [1] that the CFD adds at openings ``u`` [m]: :attr:`cfd_error`, the
-        meshes' biases as the map bridges them (:func:`.cfd_error.mesh_bias_share`). Across an
-        unsampled gap between openings σ is moreover never below what no mesh says there
-        (:func:`.cfd_error.gap_error`)."""
+        meshes' biases as the map bridges them (:func:`.cfd_error.mesh_bias_share`); across an
+        unsampled gap between openings never less than what no mesh says there
+        (:func:`.cfd_error.gap_error`), as the flow force's (:meth:`ForceMap.cfd_error_at`)."""
         if self.coverage is None:
             return np.full(np.shape(u), self.cfd_error)
-        return self.cfd_error * mesh_bias_share(self.coverage.openings, u)
+        return np.maximum(self.cfd_error * mesh_bias_share(self.coverage.openings, u),
+                          gap_error(self.coverage.gaps(), u))
 
     def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of the flow [m^3/s] at load pressure ``p_L``, or None.
@@ -264,7 +264,7 @@ class ForceMap(ABC):
         """Relative σ of the flow force against the valve [1] (flat) from the ``calibrated`` one
         at back pressures ``p_B`` [Pa] and openings ``u`` [m]: with the CFD's own error in
         quadrature, and never below what no mesh says below the smallest opening (a floor, as
-        the flow's: the grid's calibrated σ grows there by itself)."""
+        the flow's)."""
         std = np.hypot(calibrated, self.cfd_error_at(p_B, u))
         if self.coverage is None:
             return std

@@ -40,19 +40,21 @@ FORCE_CFD_ERROR = CFD_ERROR["flow force"]
 #: the shipped 0.20–0.63 mm gap by different rules (the grid's power law, the GP's kernel, the
 #: networks' features) and their flows there differ by 2.4 to 7 % from one another (``python
 #: eval/valve_coverage.py --truth nn``, ``--truth gp``, each kind's maps wrong by the same
-#: draws): none of them is the valve's, and ±2σ at the gap's middle holds that spread. A floor
-#: of σ, not a term beside it (:meth:`~.base.FlowMap.log_discharge_std`): the grid's calibrated σ
-#: already grows with the span it bridges
+#: draws): none of them is the valve's, and ±2σ at the gap's middle holds that spread. A term of
+#: the CFD's error (the larger of it and the meshes' biases, :meth:`~.base.FlowMap.cfd_error_at`),
+#: in quadrature with the calibrated σ, as the flow force's: the grid's calibrated σ grows with
+#: the span it bridges, but from folds whose spans are a few openings wide, and a floor left its
+#: ±2σ holding too little of the virtual valves' q across the gap (docs/maps.md)
 GAP_FLOW_ERROR = 0.03
 
 #: one σ of the relative flow-force error at the middle of an unsampled gap [1]: what the valve's
 #: flow force may do where no mesh ran, the same prior as the virtual valves' gap bump
 #: (:attr:`surrogate.synthetic.mismatch.MapMismatch.gap_force`). The kinds' force bridges across
 #: the shipped gap differ by 1.1 to 4.5 % (median; 4 to 6.6 % at the 90th percentile) besides.
-#: Unlike the flow's floor it is a term of the CFD's error (the larger of it and the meshes'
-#: biases, :meth:`~.base.ForceMap.cfd_error_at`), in quadrature with the calibrated σ: no force
-#: calibration grows across the gap by itself (the GP's and the networks' held 60-70 % of the
-#: virtual valves' flow force there without it)
+#: A term of the CFD's error (the larger of it and the meshes' biases,
+#: :meth:`~.base.ForceMap.cfd_error_at`), in quadrature with the calibrated σ: no learned kind's
+#: force calibration grows across the gap by itself (the GP's and the networks' held 60-70 % of
+#: the virtual valves' flow force there without it)
 GAP_FORCE_ERROR = 0.05
 
 #: one σ per unit of ln(u₀/u) of the exponent k by which the valve's Δp at a flow, and its

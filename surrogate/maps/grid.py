@@ -53,7 +53,7 @@ whose SHA-256 is not the one a model file records.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 
@@ -68,13 +68,13 @@ from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
 from .cavitation import CavitationLaw
 from .coverage import DP_OUTSIDE, Coverage
-from .crossval import calibrate, cross_validate, summary
+from .crossval import calibrate, cross_validate, errors_on, summary
 from .curves import COMPARED_KNOTS, CurveSet
 from .grid_sigma import shipped_calibrations, shipped_summary
 from .package import file_hash
 from .registry import (SHIPPED, MapKind, MapSource, Option, build_maps, register,
                        resolve_file, sha256_hex)
-from .splits import group_keys
+from .splits import group_keys, leave_smallest_opening_out, main_set
 
 _TINY_OPENING = 1e-12  # [m] openings below this are treated as this, to keep logarithms finite
 #: queries interpolated at a time: each query asks four sweeps' curves, and a block's
@@ -213,7 +213,9 @@ class _SweepGrid:
         Between two sampled values a and b, linear interpolation errs by about f''·(x−a)(b−x)/2,
         so that distance is sqrt((x−a)(b−x)): zero on a sampled value, largest in the middle of
         a wide gap. Beyond the sampled values the grid holds or continues the end value and errs
-        by the function's slope times how far beyond, a distance of its own. The opening's
+        by the function's slope times how far beyond, a distance of its own: above the largest
+        opening ("opening beyond") and below the smallest ("opening below", toward the seat,
+        which the calibration leaves to :meth:`GridUncertainty.seat_slopes`). The opening's
         distances are those at the fluid levels around the query, weighted as they are.
         """
         log_u = np.log(np.maximum(np.ravel(u), _TINY_OPENING))
@@ -221,14 +223,17 @@ class _SweepGrid:
         levels = len(self.levels)
         k0, k1, t, nu_excess = _bracket(np.broadcast_to(self.log_nu, (len(log_u), levels)),
                                         np.full(len(log_u), levels), log_nu)
-        distances = {"opening": 0.0, "opening beyond": 0.0,
+        distances = {"opening": 0.0, "opening beyond": 0.0, "opening below": 0.0,
                      "viscosity": _span(t, self.log_nu[k1] - self.log_nu[k0]),
                      "viscosity beyond": np.abs(nu_excess)}
         for k, weight in ((k0, 1.0 - t), (k1, t)):
             j0, j1, s, excess = _bracket(self._log_u[k], self._count[k], log_u)
             distances["opening"] = distances["opening"] + weight * _span(
                 s, self._log_u[k, j1] - self._log_u[k, j0])
-            distances["opening beyond"] = distances["opening beyond"] + weight * np.abs(excess)
+            distances["opening beyond"] = distances["opening beyond"] + weight * np.maximum(
+                excess, 0.0)
+            distances["opening below"] = distances["opening below"] + weight * np.maximum(
+                -excess, 0.0)
         return distances
 
     def opening_knots(self) -> np.ndarray:
@@ -649,8 +654,30 @@ class GridUncertainty:
         # learned kinds: taken out, they left the grid's flow σ across the unsampled gap too
         # narrow for the virtual valves' q there (docs/maps.md, "How the learned maps are
         # built")
-        flow, force = calibrate(self.errors, use_spread=False)
-        return {"flow": flow, "force": force}
+        errors = self.errors
+        # a fold that drops a temperature's smallest sweeps goes on toward the seat from
+        # openings the grid never goes on from; how the grid errs there is its own fold's
+        toward_seat = ((errors["flow_distance:opening below"] > 0)
+                       | (errors["force_distance:opening below"] > 0)).to_numpy()
+        flow, force = calibrate(errors[~toward_seat], use_spread=False)
+        seat = self.seat_slopes()
+        return {"flow": replace(flow, seat=seat["flow"]),
+                "force": replace(force, seat=seat["force"])}
+
+    def seat_slopes(self) -> dict[str, float]:
+        """How fast the grid's continuation below its smallest opening errs [ln units per unit
+        of ln(u₀/u)], {"flow": ln C_d's, "force": the relative flow force's}, scored as the
+        grid goes on: rebuilt without its smallest opening at every temperature, continued from
+        the next two to it (:func:`.splits.leave_smallest_opening_out`), the RMS error there
+        over how far it went. 0 with fewer than three openings."""
+        frame = self.samples.frame
+        if len(np.unique(frame.loc[main_set(frame), "u"].round(9))) < 3:
+            return {"flow": 0.0, "force": 0.0}
+        _, train, test, reach = leave_smallest_opening_out(frame)
+        flow_map, force_map = grid_maps_on(self.samples, self.valve, train)
+        errors = errors_on(flow_map, force_map, frame[test & (frame["q"] > 0)], self.valve)
+        return {name: float(np.sqrt(np.mean(errors[column] ** 2)) / reach)
+                for name, column in (("flow", "discharge_error"), ("force", "force_error"))}
 
     def summary(self) -> dict:
         """The cross-validation summary per scheme (:func:`.crossval.summary`): the shipped one

@@ -66,12 +66,20 @@ _RESTARTS = 10
 @dataclass(frozen=True)
 class SigmaCalibration:
     """σ² = (scale·s)² + floor² + Σ_i (slope_i·d_i^power)² [ln units] (see the module
-    docstring); ``slopes`` maps each distance's name to its slope."""
+    docstring); ``slopes`` maps each distance's name to its slope.
+
+    ``seat`` [ln units per unit of ln(u₀/u)]: how fast the kind's own continuation below the
+    smallest sampled opening u₀ was measured to err, where it was (the grid's,
+    :meth:`.grid.GridUncertainty.seat_slopes`); 0 where it was not. A floor of σ along the
+    distance named ``"opening below"`` (ln(u₀/u)), which no slope then extrapolates: beside it
+    the maps hold σ above the CFD's own prior toward the seat (:func:`.cfd_error.seat_error`).
+    """
 
     scale: float = 1.0
     floor: float = 0.0
     slopes: Mapping[str, float] = field(default_factory=dict)
     power: float = 1.0
+    seat: float = 0.0
 
     def std(self, spread, distances: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
         """σ [ln units] from the kind's own spread (None: none) and its distances from the
@@ -82,18 +90,23 @@ class SigmaCalibration:
             slope = self.slopes.get(name, 0.0)
             if slope:
                 variance = variance + (slope * np.asarray(distance, float) ** self.power) ** 2
-        return np.sqrt(variance)
+        std = np.sqrt(variance)
+        below = (distances or {}).get("opening below")
+        if self.seat and below is not None:
+            std = np.maximum(std, self.seat * np.asarray(below, float))
+        return std
 
     def to_dict(self) -> dict:
-        return {"scale": self.scale, "floor": self.floor, "slopes": dict(self.slopes),
+        data = {"scale": self.scale, "floor": self.floor, "slopes": dict(self.slopes),
                 "power": self.power}
+        return {**data, "seat": self.seat} if self.seat else data
 
     @classmethod
     def from_dict(cls, data: dict | None) -> "SigmaCalibration":
         data = data or {}
         return cls(float(data.get("scale", 1.0)), float(data.get("floor", 0.0)),
                    {str(k): float(v) for k, v in data.get("slopes", {}).items()},
-                   float(data.get("power", 1.0)))
+                   float(data.get("power", 1.0)), float(data.get("seat", 0.0)))
 
     @classmethod
     def fit(cls, errors, spread, distances: Mapping[str, np.ndarray], *, weights=None,

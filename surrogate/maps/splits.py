@@ -35,6 +35,17 @@ def leave_one_opening_out(frame: pd.DataFrame) -> list[tuple[str, np.ndarray, np
     return splits
 
 
+def leave_smallest_opening_out(frame: pd.DataFrame) -> tuple[str, np.ndarray, np.ndarray, float]:
+    """(label, training mask, test mask, reach) for the main set's smallest opening left out at
+    every temperature: a map trained without it goes on from the next opening to it, as the
+    map with it goes on toward the seat; ``reach`` is ln(next / smallest), how far that is."""
+    main = main_set(frame)
+    openings = np.unique(frame.loc[main, "u"].round(9))
+    at = np.isclose(frame["u"], openings[0], rtol=0, atol=1e-9)
+    return (f"u = {openings[0] * 1e3:.2f} mm", ~at, at & main,
+            float(np.log(openings[1] / openings[0])))
+
+
 def temperature_mask(frame: pd.DataFrame, temperature: float) -> np.ndarray:
     """True for the samples at ``temperature`` [K]."""
     return np.isclose(frame["temperature"], temperature, rtol=0, atol=0.01)

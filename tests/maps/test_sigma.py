@@ -188,3 +188,39 @@ def test_the_shipped_grid_calibration_is_what_the_shipped_samples_give(tmp_path)
     write_calibrations(other, fewer, valve, shipped, accuracy)
     assert shipped_summary(fewer, valve, other) == accuracy
     assert shipped_summary(samples, valve, other) is None
+
+
+def test_the_grids_sigma_toward_the_seat_is_its_own_continuations_error():
+    """Below its smallest opening the grid goes on from its two smallest openings; its σ there
+    grows as fast as that continuation was measured to err (the smallest opening left out and
+    continued to from the next two, :meth:`GridUncertainty.seat_slopes`), not at the slope of the
+    folds that extrapolate elsewhere (above the largest opening, 0.20 → 0.63 mm, where C_d was
+    held across a factor of three: that slope made ln C_d's σ 58 % at 0.015 mm)."""
+    from surrogate import load_valve
+    from surrogate.data import load_cfd_samples
+    from surrogate.maps.cfd_error import SEAT_FLOW_ERROR, SEAT_FORCE_ERROR
+    from surrogate.maps.grid import GridUncertainty, grid_maps_on
+    from surrogate.maps.splits import leave_smallest_opening_out
+    from surrogate.maps.crossval import errors_on
+    from surrogate.paths import SHIPPED_CFD_SAMPLES
+
+    samples, valve = load_cfd_samples(SHIPPED_CFD_SAMPLES), load_valve(None)
+    flow_map, force_map = grid_maps_on(samples, valve)
+    slopes = GridUncertainty(samples, valve).seat_slopes()
+    # the continuation errs faster than the CFD's prior toward the seat, so the grid's own rules
+    assert slopes["flow"] > SEAT_FLOW_ERROR and slopes["force"] > SEAT_FORCE_ERROR
+    _, train, test, reach = leave_smallest_opening_out(samples.frame)
+    errors = errors_on(*grid_maps_on(samples, valve, train), samples.frame[test], valve)
+    assert np.sqrt(np.mean(errors["force_error"] ** 2)) == pytest.approx(slopes["force"] * reach)
+
+    fluid = valve.oil.state(313.15)
+    smallest = np.min(flow_map.coverage.openings)
+    depth = np.array([0.5, 1.0, 1.2])  # ln(u₀/u); the shipped log reaches 1.2 (0.015 mm)
+    u = smallest * np.exp(-depth)
+    q, p_B = np.full(3, 2.0 / 60e3), np.full(3, 5e5)
+    # σ = that continuation's error, with the CFD's own (a few per cent) in quadrature beside it
+    flow_std = flow_map.log_discharge_std(q, p_B, u, fluid)
+    assert np.all((flow_std >= slopes["flow"] * depth) & (flow_std < 1.1 * slopes["flow"] * depth))
+    force_std = force_map.relative_force_std(p_B + 30e5, p_B, u, fluid)
+    assert np.all((force_std >= slopes["force"] * depth)
+                  & (force_std < 1.1 * slopes["force"] * depth))
