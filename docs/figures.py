@@ -15,10 +15,10 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from surrogate.data import load_bench_log
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.presets import maps
 from surrogate.reporting.staircase import plot_staircase
-from surrogate.units import from_si
+from surrogate.core.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
 HERE = Path(__file__).resolve().parent

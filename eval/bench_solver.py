@@ -25,7 +25,7 @@ from surrogate import load_valve
 from surrogate.data import load_bench_log
 from surrogate.effects import FlowForceScale
 from surrogate.model import ValveModel
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import Status, replay, solve_steady
 from surrogate.presets import CFDA_START, cfda, maps

@@ -25,7 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from surrogate.paths import SHIPPED_BENCH_LOG  # noqa: E402
+from surrogate.core.paths import SHIPPED_BENCH_LOG  # noqa: E402
 
 SIZES = (10_000, 100_000, 1_000_000, 2_000_000)
 COMMANDS = ("check-data", "compare")

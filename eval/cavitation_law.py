@@ -34,8 +34,8 @@ sys.path.insert(0, str(ROOT))
 from surrogate.data.loaders import load_cfd_samples  # noqa: E402
 from surrogate.maps.cavitation import left_out_opening_errors  # noqa: E402
 from surrogate.maps.splits import reference_back_pressure  # noqa: E402
-from surrogate.paths import SHIPPED_CFD_SAMPLES  # noqa: E402
-from surrogate.units import from_si  # noqa: E402
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES  # noqa: E402
+from surrogate.core.units import from_si  # noqa: E402
 from surrogate.valve import load_valve  # noqa: E402
 
 

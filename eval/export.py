@@ -33,10 +33,10 @@ import numpy as np
 
 from surrogate.data import load_bench_log
 from surrogate.modelfile import load_model
-from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG
+from surrogate.core.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.replay import replay
-from surrogate.units import from_si
+from surrogate.core.units import from_si
 
 WORKFLOW_FINAL = PROJECT_ROOT / "results" / "workflow" / "final_model.toml"
 TARGET_SECONDS = 120.0

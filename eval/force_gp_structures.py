@@ -38,8 +38,8 @@ from surrogate.data import load_cfd_samples
 from surrogate.features import FeatureSpec, targets
 from surrogate.learn.gaussian_process import additive_kernel
 from surrogate.maps.crossval import SCHEMES, folds
-from surrogate.outputs import atomic_directory
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.outputs import atomic_directory
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
 #: input columns: 0 ln Re, 1 ln(u/U), 2 ln σ, 3 ln(Δp/p_atm)
 STRUCTURES = {

@@ -32,10 +32,10 @@ sys.path.insert(0, str(ROOT))
 from surrogate import presets  # noqa: E402
 from surrogate.data import load_bench_log  # noqa: E402
 from surrogate.fitting.residuals import replay_log  # noqa: E402
-from surrogate.paths import SHIPPED_BENCH_LOG  # noqa: E402
+from surrogate.core.paths import SHIPPED_BENCH_LOG  # noqa: E402
 from surrogate.points import OperatingPoints  # noqa: E402
 from surrogate.solver.map_tables import MapTables  # noqa: E402
-from surrogate.units import BAR  # noqa: E402
+from surrogate.core.units import BAR  # noqa: E402
 
 
 def accuracy(kind: str, level: int = 0, seed: int = 0) -> dict:

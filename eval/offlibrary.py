@@ -48,11 +48,11 @@ import numpy as np
 from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY, load_effects_file
 from surrogate.effects.handover import write_effect_file
-from surrogate.errors import InputError
+from surrogate.core.errors import InputError
 from surrogate.fitting.heldout import run_groups
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.presets import maps
 from surrogate.reporting.prose import summarise
 from surrogate.synthetic.mismatch import MapMismatch

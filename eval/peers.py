@@ -51,9 +51,9 @@ from surrogate.maps.crossval import SCHEMES, cross_validate, flow_force_score, s
 from surrogate.maps.learned import trained_folder
 from surrogate.maps.peer import fit_peer_maps
 from surrogate.maps.registry import build_maps, cross_validation_summary, map_kind
-from surrogate.errors import InputError
-from surrogate.outputs import Output, atomic_directory, check_outputs
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.errors import InputError
+from surrogate.core.outputs import Output, atomic_directory, check_outputs
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
 KINDS = ("grid", "nn", "gp")
 LABELS = {"grid": "grid", "nn": "NN", "gp": "GP"}

@@ -35,9 +35,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from surrogate import parallel  # noqa: E402
+from surrogate.core import parallel  # noqa: E402
 from surrogate.data import load_bench_log  # noqa: E402
-from surrogate.paths import SHIPPED_BENCH_LOG  # noqa: E402
+from surrogate.core.paths import SHIPPED_BENCH_LOG  # noqa: E402
 
 TOP = 25
 

@@ -39,8 +39,8 @@ from surrogate.learn.reproducibility import (TOLERANCES, environment, nudged_by_
                                              prediction_difference)
 from surrogate.maps import splits
 from surrogate.maps.registry import build_maps
-from surrogate.outputs import atomic_directory
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.outputs import atomic_directory
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
 
 def scaled_density(samples: CfdSamples, factor: float) -> CfdSamples:

@@ -77,7 +77,7 @@ def off_library_logs(count: int, scratch: Path, every: int = 8) -> list[Path]:
     from surrogate.data import load_bench_log
     from surrogate.data.writer import write_bench_log
     from surrogate.effects import LIBRARY
-    from surrogate.paths import SHIPPED_BENCH_LOG
+    from surrogate.core.paths import SHIPPED_BENCH_LOG
     from surrogate.presets import maps
     from surrogate.synthetic.mismatch import MapMismatch
     from surrogate.synthetic.offlibrary import OFF_LIBRARY, off_library_suite

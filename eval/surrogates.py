@@ -39,8 +39,8 @@ from surrogate.maps.crossval import SCHEMES, standard_deviations
 from surrogate.maps.learned import trained_folder
 from surrogate.maps.package import read_manifest
 from surrogate.maps.registry import build_maps, cross_validation_summary, learned_kinds, map_kind
-from surrogate.outputs import atomic_directory
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.outputs import atomic_directory
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 from surrogate.reporting.report import figure_png
 
 KINDS = ("grid", "nn", "gp")

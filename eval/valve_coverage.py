@@ -61,7 +61,7 @@ sys.path.insert(0, str(ROOT))
 
 from surrogate.data.loaders import load_cfd_samples  # noqa: E402
 from surrogate.maps.registry import build_maps  # noqa: E402
-from surrogate.paths import SHIPPED_CFD_SAMPLES  # noqa: E402
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES  # noqa: E402
 from surrogate.reporting.report import figure_png  # noqa: E402
 from surrogate.synthetic.mismatch import MapMismatch  # noqa: E402
 from surrogate.synthetic.valve_coverage import (BAND, REGIONS, regions,  # noqa: E402

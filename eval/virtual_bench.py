@@ -25,14 +25,14 @@ import time
 from pathlib import Path
 
 from surrogate.data import load_bench_log
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.presets import maps
 from surrogate.reporting.prose import sensor_check_text
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import (cleanly_identified, hidden_effect_case,
                                           noise_free_sequence, reference_spec,
                                           unexplained_additions)
-from surrogate.units import from_si
+from surrogate.core.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
 #: one effect of each kind the library holds (friction, spring, leakage, flow force, sensor),

@@ -53,7 +53,7 @@ import pandas as pd
 from surrogate.data import load_bench_log, load_cfd_samples
 from surrogate.data.writer import write_bench_log
 from surrogate.effects import LIBRARY
-from surrogate.paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 from surrogate.presets import preset
 from surrogate.spec import EffectSpec
 from surrogate.synthetic.batch import draw_fleet, virtual_log

@@ -32,12 +32,12 @@ import tempfile
 from pathlib import Path
 
 from surrogate.data import load_bench_log
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.presets import maps
 from surrogate.synthetic.left_out import maps_without_opening
 from surrogate.synthetic.simulate import (STRESS_SETTINGS, noise_free_sequence, run_stress_case,
                                           stress_suite)
-from surrogate.units import from_si, to_si
+from surrogate.core.units import from_si, to_si
 
 
 def weak_leakage_record(kind: str, left_out: float, settings: int, controls: int,

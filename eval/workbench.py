@@ -5,7 +5,7 @@ Measures, in one run on this machine:
 * one diagnose over the whole library on the full shipped log (12 runs, 11,000 samples),
   against the cost of one replay of the log measured in the same run, and against the same
   diagnose with the BLAS left free to start threads of its own beside the replays' threads
-  (:data:`surrogate.parallel.BLAS_THREADS_IN_POOL`);
+  (:data:`surrogate.core.parallel.BLAS_THREADS_IN_POOL`);
 * the full workflow (paper's steps, then diagnose → add until nothing significant is left);
 * the identification rate over randomised hidden-effect cases on the shipped test sequence;
 * on a synthetic log with nothing hidden, the true model's RMS over the noise floor with the
@@ -35,14 +35,14 @@ from pathlib import Path
 
 import numpy as np
 
-from surrogate import parallel
+from surrogate.core import parallel
 from surrogate.data import load_bench_log
 from surrogate.diagnosis.diagnose import diagnose
 from surrogate.diagnosis.result import Diagnosis
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import (measured_dp, noise_floor, replay_log,
                                          state_smoothing_samples)
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.presets import cfda, maps
 from surrogate.reporting.documents import workflow_document
@@ -52,7 +52,7 @@ from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import (STRESS_SETTINGS, WEAK_LEAKAGE, hidden_effect_case,
                                           identified, noise_free_sequence, random_settings,
                                           run_stress_case, stress_suite, withheld_claims)
-from surrogate.units import from_si
+from surrogate.core.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
 

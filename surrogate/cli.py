@@ -10,7 +10,7 @@ Whatever goes wrong, the user sees one message, never a traceback:
   and what was expected;
 * exit 1, an internal error (a bug): one line says so and names the file holding the details;
 * exit 130 on Ctrl-C (SIGINT) and 143 on SIGTERM, after removing whatever was half-written
-  (:mod:`surrogate.interrupts`).
+  (:mod:`surrogate.core.interrupts`).
 
 With ``--json`` the error is also a JSON document on stdout, like the results.
 """
@@ -38,10 +38,10 @@ try:
     from .commands import COMMANDS
     from .commands.common import EXIT_CODES, CommandParser, HelpFormatter, UsageError
     from .data.errors import DataFileError
-    from .errors import InputError
-    from .input_files import LIMIT_VARIABLE
-    from .interrupts import exit_code, handling_interrupts
-    from .parallel import blas_limited
+    from .core.errors import InputError
+    from .core.input_files import LIMIT_VARIABLE
+    from .core.interrupts import exit_code, handling_interrupts
+    from .core.parallel import blas_limited
 finally:
     gc.freeze()
     if _COLLECTING:
@@ -90,7 +90,7 @@ def _run(args, argv: list[str], as_json: bool) -> int:
         # through the environment, so that a fleet's worker processes read with the same bound
         os.environ[LIMIT_VARIABLE] = repr(bound)
     try:
-        with blas_limited():  # every command's matrices are small (surrogate.parallel)
+        with blas_limited():  # every command's matrices are small (surrogate.core.parallel)
             return args.func(args) or EXIT_OK
     except InputError as error:
         return _report(error, EXIT_BAD_INPUT, as_json)

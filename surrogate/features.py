@@ -46,7 +46,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .fluid import FluidState, broadcast_query
-from .units import BAR, P_ATM
+from .core.units import BAR, P_ATM
 from .valve import ValveParameters
 
 FEATURE_NAMES = ("log_reynolds", "log_opening", "log_cavitation")

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from .core.errors import InputError
 from .limits import DENSITY, Range
-from .tomlio import require_keys
-from .units import CST, ZERO_CELSIUS, from_si, to_si
+from .core.tomlio import require_keys
+from .core.units import CST, ZERO_CELSIUS, from_si, to_si
 
 _WALTHER_SHIFT = 0.7  # [cSt] the constant of ASTM D341, valid for ν >= 2 cSt
 _T40 = 40.0 + ZERO_CELSIUS  # [K]

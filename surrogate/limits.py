@@ -15,8 +15,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .errors import InputError
-from .units import P_ATM, from_si, label
+from .core.errors import InputError
+from .core.units import P_ATM, from_si, label
 
 #: [bar] the highest pressure accepted anywhere: above any mobile or industrial hydraulics
 #: (components are rated to 700 bar at most), so a larger value is a unit or typing mistake

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .effects import KNOWN, EffectLibrary
-from .errors import InputError, did_you_mean
+from .core.errors import InputError, did_you_mean
 from .model import ValveModel
 from .presets import PRESETS, preset, preset_named
 from .spec import ModelSpec, ValveSource

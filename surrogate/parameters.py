@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
-from .units import from_si, label, to_si
+from .core.errors import InputError
+from .core.units import from_si, label, to_si
 
 _RECORD_KEYS = {"value", "unit", "min", "max", "vary", "stderr"}
 
@@ -31,7 +31,7 @@ class Parameter:
     value : float
         Value in SI units.
     unit : str
-        Unit it is displayed and written in (a key of :mod:`surrogate.units`).
+        Unit it is displayed and written in (a key of :mod:`surrogate.core.units`).
     min, max : float
         Bounds in SI units.
     vary : bool

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .errors import InputError
-from .units import to_si
+from .core.errors import InputError
+from .core.units import to_si
 
 OPENING, CLOSING, STEADY = 1, -1, 0
 _DIRECTIONS = {"up": OPENING, "down": CLOSING}

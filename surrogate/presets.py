@@ -16,7 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
-from .errors import InputError, did_you_mean, named
+from .core.errors import InputError, did_you_mean, named
 from .maps.orifice import BASIC_DISCHARGE_COEFFICIENT
 from .maps.registry import MAP_KINDS, MapsSpec
 from .spec import EffectSpec, ModelSpec, ValveSource

@@ -46,12 +46,12 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .effects import KNOWN, Effect, EffectLibrary
-from .errors import InputError
-from .input_files import read_input_text
+from .core.errors import InputError
+from .core.input_files import read_input_text
 from .maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
 from .model import ValveModel
-from .outputs import atomic_file
-from .tomlio import dumps, loads
+from .core.outputs import atomic_file
+from .core.tomlio import dumps, loads
 from .valve import ValveParameters, load_valve, shipped_valve_path
 
 FORMAT = 2

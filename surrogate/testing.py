@@ -21,7 +21,7 @@ from .effects.library import EffectLibrary
 from .fluid import FluidState, Oil
 from .maps.base import FlowMap, ForceMap, MapResult
 from .points import OperatingPoints
-from .units import BAR, LPM, MM, ZERO_CELSIUS
+from .core.units import BAR, LPM, MM, ZERO_CELSIUS
 from .valve import ValveParameters, load_valve
 
 

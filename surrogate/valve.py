@@ -24,12 +24,12 @@ from dataclasses import dataclass, fields
 from importlib import resources
 from pathlib import Path
 
-from .errors import InputError
+from .core.errors import InputError
 from .fluid import Oil
-from .input_files import read_input_text
+from .core.input_files import read_input_text
 from .limits import PRESSURE_MAX_BAR, Range
-from .tomlio import loads, require_keys
-from .units import from_si, label, to_si
+from .core.tomlio import loads, require_keys
+from .core.units import from_si, label, to_si
 
 SHIPPED_VALVE = "paper_cbv.toml"
 

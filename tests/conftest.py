@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from surrogate.paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 
 
 @pytest.fixture(scope="session")

@@ -39,11 +39,11 @@ from surrogate.maps.crossval import calibrate, cross_validate, summary
 from surrogate.maps.grid import GridUncertainty
 from surrogate.maps.grid_sigma import SHIPPED_GRID_CALIBRATION, write_calibrations
 from surrogate.maps.package import file_hash
-from surrogate.errors import InputError
-from surrogate.outputs import Output, check_outputs
-from surrogate.paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES,
-                             SHIPPED_SURROGATES)
-from surrogate.progress import Progress
+from surrogate.core.errors import InputError
+from surrogate.core.outputs import Output, check_outputs
+from surrogate.core.paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES,
+                                  SHIPPED_SURROGATES)
+from surrogate.core.progress import Progress
 
 
 def main() -> int:

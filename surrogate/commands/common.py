@@ -10,16 +10,16 @@ from pathlib import Path
 
 from ..data import load_bench_log
 from ..effects import KNOWN, EffectLibrary, load_effects_file
-from ..errors import InputError
-from ..input_files import DEFAULT_LIMIT_MB, LIMIT_VARIABLE, megabytes
+from ..core.errors import InputError
+from ..core.input_files import DEFAULT_LIMIT_MB, LIMIT_VARIABLE, megabytes
 from ..maps.registry import MAP_KINDS, MapChoice
 from ..model import ValveModel
 from ..modelfile import PRESETS, load_spec, model_name
 from ..spec import ModelSpec
-from ..outputs import Output, check_outputs
-from ..paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES,
-                     shipped)
-from ..progress import Progress
+from ..core.outputs import Output, check_outputs
+from ..core.paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES,
+                          shipped)
+from ..core.progress import Progress
 from ..valve import shipped_valve_path
 
 EXIT_CODES = """exit codes:
@@ -87,7 +87,7 @@ def add_command(subparsers, name: str, help: str, description: str, *,
 
 
 def positive_megabytes(text: str) -> float:
-    """argparse type: a size in MB > 0, finite (:func:`~surrogate.input_files.megabytes`)."""
+    """argparse type: a size in MB > 0, finite (:func:`~surrogate.core.input_files.megabytes`)."""
     try:
         return megabytes(text)
     except ValueError:

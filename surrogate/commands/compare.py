@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from ..outputs import Output, atomic_directory
+from ..core.outputs import Output, atomic_directory
 from ..workbench.compare import compare
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)

@@ -7,13 +7,13 @@ import json
 from ..diagnosis.diagnose import candidate_effects, diagnose
 from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
                               NOISE_MARGIN)
-from ..errors import InputError
+from ..core.errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import replay_log
-from ..outputs import Output, atomic_directory
+from ..core.outputs import Output, atomic_directory
 from ..effects.handover import hand_over
 from ..reporting.prose import diagnosis_document, naming_words, shape_words, summarise
-from ..units import from_si
+from ..core.units import from_si
 from ..workbench.compare import compare
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for)

@@ -8,7 +8,7 @@ from ..effects import CALIBRATION, LIBRARY, SHAPES
 from ..effects.base import Effect, Parameter
 from ..effects.per_run import PerRunEffect
 from ..effects.shapes import ShapeFreeEffect
-from ..units import label
+from ..core.units import label
 from .common import add_command, effect_library, print_json, progress_for
 
 #: the groups of the built-in effects, in the order they are listed, with what each is for

@@ -8,16 +8,16 @@ import time
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..export.envelope import probe_runs, valve_envelope
 from ..export.fmu import model_identifier, write_fmu
 from ..export.refinement import Refinement, refined_grid
 from ..export.tables import TableGrid, ValveTables, resolution_error, write_tables
 from ..export.tabulable import refuse_untabulable
 from ..export.valve_only import valve_physics
-from ..outputs import Output, atomic_directory
+from ..core.outputs import Output, atomic_directory
 from ..points import OperatingPoints
-from ..units import from_si, to_si
+from ..core.units import from_si, to_si
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, print_json,
                      progress_for, required)
 

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import noise_floor, replay_log
 from ..modelfile import save_model
-from ..outputs import atomic_directory
-from ..units import from_si
+from ..core.outputs import atomic_directory
+from ..core.units import from_si
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, output_file,
                      print_json, progress_for)
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..fleet.population import (
     OUTLIER_LEVEL,
     correlations,
@@ -35,9 +35,9 @@ from ..fleet.results import (
 from ..fleet.runner import DASK_EXTRA, DaskCluster, LocalPool
 from ..fleet.tasks import ValveTask, file_sha256, find_logs, model_sha256
 from ..modelfile import PRESETS, load_spec
-from ..outputs import Output, atomic_directory, check_outputs
-from ..parallel import available_cores
-from ..progress import duration
+from ..core.outputs import Output, atomic_directory, check_outputs
+from ..core.parallel import available_cores
+from ..core.progress import duration
 from .common import (
     EXIT_CODES,
     add_command,

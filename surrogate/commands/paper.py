@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from ..data import load_bench_log
-from ..outputs import Output
+from ..core.outputs import Output
 from ..paper.comparison import reproduce
 from ..spec import ValveSource
 from .common import (add_command, bench_log_path, guard_outputs, maps_help_text,

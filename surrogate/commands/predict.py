@@ -10,9 +10,9 @@ import numpy as np
 from ..data.queries import load_queries
 from ..maps.coverage import describe_all
 from ..maps.registry import build_maps
-from ..errors import InputError
-from ..outputs import Output, atomic_directory, atomic_file
-from ..units import from_si
+from ..core.errors import InputError
+from ..core.outputs import Output, atomic_directory, atomic_file
+from ..core.units import from_si
 from ..valve import load_valve
 from .common import (add_command, guard_outputs, legacy_option, maps_help_text, maps_option,
                      notice, print_json, progress_for, required)

@@ -6,8 +6,8 @@ import math
 
 from ..data import load_bench_log
 from ..data.writer import write_bench_log
-from ..errors import InputError
-from ..outputs import atomic_directory
+from ..core.errors import InputError
+from ..core.outputs import atomic_directory
 from ..synthetic.mismatch import MapMismatch
 from ..synthetic.simulate import (REALISTIC_MAGNITUDES, SensorNoise, hidden_effect_case,
                                   noise_free_sequence, reference_spec)

@@ -6,12 +6,12 @@ import json
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..export.characteristic import steady_characteristic
 from ..export.valve_only import valve_physics
 from ..limits import FLOW, PRESSURE, PRESSURE_DIFFERENCE, TEMPERATURE
-from ..outputs import Output, atomic_directory
-from ..units import from_si, to_si
+from ..core.outputs import Output, atomic_directory
+from ..core.units import from_si, to_si
 from .common import (add_command, effect_library, guard_outputs, maps_help_text, maps_option,
                      model_option, on_maps, print_json, progress_for, required)
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import json
 
 from ..data import load_bench_log
-from ..errors import InputError
+from ..core.errors import InputError
 from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MapChoice
 from ..modelfile import PRESETS, load_spec
-from ..outputs import Output, atomic_directory
+from ..core.outputs import Output, atomic_directory
 from ..planning.cfd_runs import suggest_cfd, suggestion_figure
 from .common import (add_command, add_data_options, bench_log_path, effect_library, guard_outputs,
                      model_option, on_maps, positive_int, print_json, progress_for)

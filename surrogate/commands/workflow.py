@@ -9,17 +9,17 @@ import numpy as np
 from ..effects.handover import hand_over
 from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MAP_KINDS
-from ..memory import release_freed, settle_survivors, settling
+from ..core.memory import release_freed, settle_survivors, settling
 from ..modelfile import save_model
-from ..outputs import Output, atomic_directory
+from ..core.outputs import Output, atomic_directory
 from ..presets import maps
-from ..progress import duration
+from ..core.progress import duration
 from ..reporting.documents import workflow_document
 from ..reporting.prose import naming_words, shape_words, summarise, workflow_summary
 from ..reporting.kinds import compare_kinds, comparison_sentences
 from ..reporting.verdict import verdict
 from ..spec import ValveSource
-from ..units import from_si
+from ..core.units import from_si
 from ..workbench.compare import compare
 from ..workbench.workflow import MAX_ADDITIONS, run_workflow
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, non_negative_int,

@@ -6,7 +6,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
-from ..errors import InputError
+from ..core.errors import InputError
 
 _SHOWN = 25  # lines printed in a message; all the problems stay in DataFileError.problems
 #: a column with this many problems of one kind gets one verdict (a unit mistake fails every

@@ -16,8 +16,8 @@ import pandas as pd
 
 from ..fluid import FluidState
 from ..limits import PRESSURE_NOISE_BAR
-from ..memory import release_freed
-from ..units import to_si
+from ..core.memory import release_freed
+from ..core.units import to_si
 from .errors import DataFileError, Problem
 from .reader import RawTable, detect_schema, parse_cells, read_raw_table
 from .schema import BENCH_SCHEMA, CFD_SCHEMA, FileSchema

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ..fluid import FluidState, Oil
-from ..units import to_si
+from ..core.units import to_si
 from .errors import DataFileError, Problem
 from .reader import parse_cells, read_raw_table
 from .schema import QUERY_AT_TEMPERATURE, QUERY_WITH_FLUID

@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..input_files import read_input, regular_file
-from ..units import from_si, label, to_si
+from ..core.input_files import read_input, regular_file
+from ..core.units import from_si, label, to_si
 from .errors import DataFileError, Problem
 from .schema import SCHEMAS, TEXT_MAX, Column, FileSchema
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 
 from .. import limits
 from ..limits import Range
-from ..units import from_si, label, to_si
+from ..core.units import from_si, label, to_si
 
 #: the other units a bench log may give a quantity in: the documented unit -> (the suffix that
 #: replaces the documented name's, the unit it means); ``p_L_psi`` is p_L in psi, ``q_gpm`` q in
@@ -43,7 +43,7 @@ class Column:
     meaning : str
         What it holds, in words (used in messages and READMEs).
     unit : str or None
-        File unit (a key of :mod:`surrogate.units`), or None for a text column.
+        File unit (a key of :mod:`surrogate.core.units`), or None for a text column.
     range : Range or None
         Plausible values in the file unit (:mod:`surrogate.limits`); None for any finite number.
     choices : tuple of str
@@ -95,8 +95,9 @@ class Column:
         return {f"{self.stem}_{suffix}": unit for suffix, unit in self.suffixes}
 
     def in_unit(self, name: str, unit: str) -> "Column":
-        """This column as a file names it ``name`` and gives it in ``unit``: its range converted
-        (through :mod:`surrogate.units`), so that a value is checked, and quoted, as written."""
+        """This column as a file names it ``name`` and gives it in ``unit``: its range
+        converted (through :mod:`surrogate.core.units`), so that a value is checked, and quoted, as
+        written."""
         bounds = None
         if self.range is not None:
             low, high = (float(from_si(to_si(v, self.range.unit), unit))

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..outputs import atomic_file
-from ..units import from_si
+from ..core.outputs import atomic_file
+from ..core.units import from_si
 from .loaders import BenchLog, CfdSamples
 from .schema import BENCH_SCHEMA, CFD_SCHEMA, FileSchema
 

@@ -42,8 +42,8 @@ from ..fitting.logfit import probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
 from ..leastsquares import free_parameters
 from ..model import ValveModel
-from ..parallel import blas_limited, single_threaded
-from ..units import from_si
+from ..core.parallel import blas_limited, single_threaded
+from ..core.units import from_si
 from .judge import Judge
 from .lookalikes import (absorbed, alike_shapes, declined, grouped, joined,
                          look_alike_separation, maps_error_rival, rival_of)
@@ -104,8 +104,8 @@ class Diagnoser:
         fits about as well (:meth:`.rule.SignificanceRule.rank`).
     workers : int, optional
         Threads refitting candidates side by side (default one,
-        :func:`surrogate.parallel.single_threaded`); on GP and NN maps more threads may move the
-        result's last digits, with the order the threads renew the maps' tables in.
+        :func:`surrogate.core.parallel.single_threaded`); on GP and NN maps more threads may
+        move the result's last digits, with the order the threads renew the maps' tables in.
     progress : callable, optional
         Called with a line of text as the work proceeds.
     """

@@ -12,7 +12,7 @@
    reported RMS is that of a real replay at the reported parameters, never a linear estimate.
    Standard errors come from the final Jacobian, inflated by √(n/n_eff) because the samples are
    not independent. The candidates are independent of each other and are refitted side by side
-   on threads (:mod:`surrogate.parallel`).
+   on threads (:mod:`surrogate.core.parallel`).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from ..fitting.logfit import Column, ReadAlike, probe_column
 from ..fitting.residuals import LogReplay, effective_samples, noise_floor, replay_log
 from ..leastsquares import Evaluation, FitProblem, Minimizer
 from ..model import ValveModel
-from ..parallel import map_threads
-from ..progress import Stage
+from ..core.parallel import map_threads
+from ..core.progress import Stage
 from .result import Candidate, Label, Score
 from .rule import BIC_THRESHOLD, delta_bic
 

@@ -13,7 +13,7 @@ from ..fitting.heldout import HEADLINE, Linearised
 from ..fitting.residuals import LogReplay
 from ..model import ValveModel
 from ..planning.bench_runs import Separation
-from ..units import from_si
+from ..core.units import from_si
 from .rule import RULE, SignificanceRule
 
 

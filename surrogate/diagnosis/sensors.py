@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..units import from_si
+from ..core.units import from_si
 from .result import Candidate, SensorCheck
 
 #: a run's parameter is flagged when it exceeds this many standard errors

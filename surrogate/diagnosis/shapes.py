@@ -31,9 +31,9 @@ from ..fitting.logfit import ReadAlike, probe_change
 from ..fitting.residuals import LogReplay
 from ..leastsquares import Minimizer, bounded_linear_fit, compress
 from ..model import ValveModel
-from ..parallel import map_threads
-from ..progress import Stage
-from ..units import LPM, from_si, to_si
+from ..core.parallel import map_threads
+from ..core.progress import Stage
+from ..core.units import LPM, from_si, to_si
 from .refit import candidate_of
 from .result import Rival, ShapeCurve
 from .rule import delta_bic

@@ -45,10 +45,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..input_files import check_input
+from ..core.errors import InputError
+from ..core.input_files import check_input
 from ..limits import FORCE
-from ..units import known_units, to_si
+from ..core.units import known_units, to_si
 from .base import CATEGORIES, KINDS, Effect, Parameter
 
 _POSITIONAL = {"sensor": 1, "flow": 2, "leakage": 2, "force": 1, "friction": 1}

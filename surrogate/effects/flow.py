@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..units import BAR, LPM
+from ..core.units import BAR, LPM
 from .base import Effect, FlowState, Parameter
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..units import BAR
+from ..core.units import BAR
 from .base import BalanceState, Effect, Parameter
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..units import BAR, CST
+from ..core.units import BAR, CST
 from .base import BalanceState, Effect, Parameter
 
 _PER_BAR = 1.0 / BAR

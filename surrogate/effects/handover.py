@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..outputs import atomic_file
-from ..units import to_si
+from ..core.outputs import atomic_file
+from ..core.units import to_si
 from .shapes import ShapeFreeEffect
 
 #: table rows written: enough that linear interpolation follows a cubic spline to well below

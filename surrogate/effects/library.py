@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Mapping
 
-from ..errors import InputError
+from ..core.errors import InputError
 from .base import CATEGORIES, KINDS, Effect
 
 

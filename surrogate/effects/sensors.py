@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..units import BAR
+from ..core.units import BAR
 from .base import Effect, Parameter
 from .per_run import PerRunEffect
 

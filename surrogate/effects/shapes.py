@@ -41,10 +41,10 @@ from typing import ClassVar
 import numpy as np
 from scipy.interpolate import BSpline
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..parameters import Parameter
 from .. import limits
-from ..units import BAR, CST, LPM, from_si, to_si
+from ..core.units import BAR, CST, LPM, from_si, to_si
 from .base import BalanceState, Effect, FlowState
 
 #: knots of a shape (the basis then has KNOTS + 2 cubic B-splines)
@@ -74,7 +74,7 @@ class Variable:
     label : str
         What it is, in words.
     unit : str
-        Display unit (:mod:`surrogate.units`).
+        Display unit (:mod:`surrogate.core.units`).
     of : callable
         ``of(state)`` -> its values [SI] in a :class:`BalanceState` or :class:`FlowState`.
     source : str

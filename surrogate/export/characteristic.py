@@ -19,7 +19,7 @@ import pandas as pd
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, OperatingPoints
 from ..solver.steady import SteadyState, solve_steady, status_names
-from ..units import from_si
+from ..core.units import from_si
 
 BRANCHES = {"up": OPENING, "down": CLOSING}
 

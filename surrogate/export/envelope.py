@@ -23,7 +23,7 @@ import numpy as np
 
 from ..model import ValveModel
 from ..points import OperatingPoints
-from ..units import to_si
+from ..core.units import to_si
 from .tables import TableGrid
 
 #: the highest tabulated flow over the largest flow sampled by the CFD or measured [-]

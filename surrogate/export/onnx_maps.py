@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..maps.cfd_error import (CAVITATION_FORCE_ERROR, GAP_FLOW_ERROR, GAP_FORCE_ERROR,
                               SEAT_FLOW_ERROR, SEAT_FORCE_ERROR)
 from ..maps.gp import BRIDGE, MATERN, SQRT3, GaussianProcessPredictor
@@ -36,7 +36,7 @@ from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.network import HOLD_SHARPNESS, BridgedNet, NumpyNet, smoothing_matrix
 from ..maps.nn import NetworkEnsemble
 from ..model import ValveModel
-from ..units import P_ATM
+from ..core.units import P_ATM
 
 OPSET = 17
 INPUTS = (("u", "m", "piston opening"), ("p_L", "Pa", "load pressure (gauge)"),

@@ -21,7 +21,7 @@ import numpy as np
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, OperatingPoints
 from ..solver.steady import Status, solve_steady
-from ..units import from_si
+from ..core.units import from_si
 from .tables import EDGE_AXES, LOG_AXES, TableGrid, ValveTables, tabulate
 
 #: how many combinations of the other axes' nodes each cell's middle is solved at

@@ -45,11 +45,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..model import ValveModel
 from ..points import CLOSING, OPENING, OperatingPoints
 from ..solver.steady import Status, solve_steady
-from ..units import from_si, to_si
+from ..core.units import from_si, to_si
 
 #: display unit of each axis and table
 UNITS = {"q": "L/min", "p_B": "bar", "p_P": "bar", "temperature": "degC", "u": "mm",

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..model import ValveModel
 from ..points import OperatingPoints
 from .tables import TableGrid

@@ -40,7 +40,7 @@ import numpy as np
 from ..effects.per_opening import hat_basis
 from ..model import ValveModel
 from ..solver.replay import Replay
-from ..units import P_ATM
+from ..core.units import P_ATM
 from .residuals import LogReplay
 
 

@@ -50,8 +50,8 @@ import numpy as np
 
 from ..data.loaders import BenchLog
 from ..model import ValveModel
-from ..parallel import map_threads
-from ..units import from_si
+from ..core.parallel import map_threads
+from ..core.units import from_si
 from .discrepancy import Discrepancy
 from .logfit import probe_columns
 from .residuals import LogReplay, replay_log

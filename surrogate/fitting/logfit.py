@@ -14,10 +14,10 @@ from ..data.loaders import BenchLog
 from ..effects import Effect
 from ..leastsquares import Evaluation, FitProblem, FitResult, Minimizer, free_parameters, split_key
 from ..model import ValveModel
-from ..parallel import blas_limited, map_threads, single_threaded
+from ..core.parallel import blas_limited, map_threads, single_threaded
 from ..parameters import Parameter
-from ..progress import Stage
-from ..units import from_si
+from ..core.progress import Stage
+from ..core.units import from_si
 from ..points import OperatingPoints
 from ..solver.sensitivities import pressure_drop_changes
 from .residuals import (LogReplay, effective_samples, replay_log, run_rows,

@@ -13,9 +13,9 @@ import numpy as np
 import pandas as pd
 
 from ..data.loaders import BenchLog
-from ..errors import InputError
+from ..core.errors import InputError
 from ..maps.coverage import describe_all
-from ..memory import release_freed
+from ..core.memory import release_freed
 from ..model import ValveModel
 from ..points import OperatingPoints
 from ..solver import Replay, replay
@@ -128,7 +128,7 @@ def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = No
     ``guess``: a replay of the same log with nearby parameters, to start the solver from.
     ``diagnostics=False`` skips the maps' extrapolation reasons and Δp standard deviation
     (:func:`surrogate.solver.replay.replay`), for the inner loop of a fit. ``progress``
-    (a :class:`~surrogate.progress.Progress`) hears how far the replay of a big log got.
+    (a :class:`~surrogate.core.progress.Progress`) hears how far the replay of a big log got.
     """
     # a guess of this very log brings its inputs and measured Δp, read from the log once (a
     # diagnosis replays its log from the model's own replay some eighty times)

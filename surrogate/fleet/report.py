@@ -20,7 +20,7 @@ from ..export.characteristic import steady_characteristic
 from ..export.valve_only import valve_physics
 from ..model import ValveModel
 from ..reporting.report import figure_html, figure_png, table_html, write_html
-from ..units import from_si, to_si
+from ..core.units import from_si, to_si
 from .population import OutlierAnalysis
 
 #: outliers whose Δp(q) is drawn (the table lists every one)

@@ -21,9 +21,9 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
-from ..errors import InputError
-from ..input_files import read_input_text
-from ..outputs import atomic_file
+from ..core.errors import InputError
+from ..core.input_files import read_input_text
+from ..core.outputs import atomic_file
 from .tasks import ValveTask
 
 #: the folder of the per-valve result files, inside --out

@@ -8,7 +8,7 @@ the batch; the executor then cancels what is queued and stops its workers, and w
 written stays (:mod:`.results`), so a rerun resumes.
 
 One valve, one thread: the processes are the parallelism. A fit differentiates its parameters on
-threads of its own (:mod:`surrogate.parallel`) and NumPy's BLAS starts threads too; two workers
+threads of its own (:mod:`surrogate.core.parallel`) and NumPy's BLAS starts threads too; two workers
 each starting two threads on two cores contend with each other and run slower than without
 (:func:`surrogate.maps.crossval._one_thread` measured four times slower for the maps' training).
 Each task keeps to one thread (:func:`one_thread`) and a local pool's workers start as fresh
@@ -28,9 +28,9 @@ import time
 import traceback
 from collections.abc import Iterator
 
-from .. import parallel
+from ..core import parallel
 from ..data.errors import DataFileError
-from ..errors import InputError
+from ..core.errors import InputError
 from .results import failure_record, task_identity
 from .tasks import ValveTask
 from .valve import valve_result
@@ -103,7 +103,7 @@ def keep_freed_memory() -> None:
 @contextlib.contextmanager
 def one_thread():
     """Keep this process to one thread of math while the block runs: the package's own thread
-    pools (:data:`surrogate.parallel.THREAD_LIMIT`), the BLAS, and PyTorch's."""
+    pools (:data:`surrogate.core.parallel.THREAD_LIMIT`), the BLAS, and PyTorch's."""
     from threadpoolctl import threadpool_limits
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")  # read by PyTorch if the task imports it

@@ -14,8 +14,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import InputError
-from ..input_files import regular_file
+from ..core.errors import InputError
+from ..core.input_files import regular_file
 
 #: what a bench log's file name ends in when ``--data`` names a folder (the documented schema is
 #: CSV; a glob picks any other files)

@@ -19,7 +19,7 @@ from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import noise_floor, replay_log
 from ..model import ValveModel
 from ..spec import ModelSpec
-from ..units import from_si
+from ..core.units import from_si
 from ..workbench.workflow import heldout_rms
 from .tasks import ValveTask
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..fluid import FluidState
 from ..maps.base import FlowMap, ForceMap
-from ..units import BAR, CST, MM
+from ..core.units import BAR, CST, MM
 
 # the CFD samples' ranges: inside them a state counts as "in range"
 _SAMPLED = {"u": (0.05 * MM, 0.63 * MM), "dp": (0.2 * BAR, 400 * BAR),

@@ -22,7 +22,7 @@ from ..maps.coverage import Coverage
 from ..maps.domain import FeatureDomain
 from ..maps.package import seal, write_manifest
 from ..maps.registry import learned_kinds, map_kind
-from ..outputs import atomic_directory
+from ..core.outputs import atomic_directory
 from ..valve import ValveParameters
 from .gaussian_process import fit_gp
 

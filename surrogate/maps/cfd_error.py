@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..units import P_ATM
+from ..core.units import P_ATM
 
 #: Δp's change with mesh refinement at u = 0.10 mm, q = 1, 3, 6, 9, 12 L/min [%] (Table 4)
 MESH_STUDY_DP_CHANGE = (1.53, 1.86, -0.88, -1.64, -1.84)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..units import P_ATM, from_si
+from ..core.units import P_ATM, from_si
 
 OPENING_OUTSIDE = 1
 OPENING_GAP = 2

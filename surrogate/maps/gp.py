@@ -34,7 +34,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from ..errors import InputError
+from ..core.errors import InputError
 from . import package
 from .learned import learned_kind
 from .registry import register

@@ -60,10 +60,10 @@ from pathlib import Path
 import numpy as np
 
 from ..data.loaders import CfdSamples, load_cfd_samples
-from ..errors import InputError
+from ..core.errors import InputError
 from ..fluid import FluidState, broadcast_query
-from ..paths import SHIPPED_CFD_SAMPLES
-from ..units import BAR, from_si
+from ..core.paths import SHIPPED_CFD_SAMPLES
+from ..core.units import BAR, from_si
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
 from .cavitation import CavitationLaw

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.loaders import CfdSamples
-from ..paths import SHIPPED_SURROGATES
+from ..core.paths import SHIPPED_SURROGATES
 from ..valve import ValveParameters
 from .sigma import SigmaCalibration
 

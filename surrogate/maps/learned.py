@@ -31,10 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..features import FeatureSpec
 from ..fluid import FluidState, broadcast_query
-from ..paths import SHIPPED_SURROGATES
+from ..core.paths import SHIPPED_SURROGATES
 from . import package
 from .base import FlowMap, ForceMap
 from .sigma import SigmaCalibration

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..input_files import check_input
+from ..core.errors import InputError
+from ..core.input_files import check_input
 from . import package
 from .learned import learned_kind
 from .network import architecture_from_dict, network

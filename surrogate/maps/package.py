@@ -30,10 +30,10 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..features import FEATURE_NAMES, FORCE_FEATURE_NAMES
-from ..input_files import check_input, check_size, read_input, read_input_text
-from ..tomlio import nesting_depth
+from ..core.input_files import check_input, check_size, read_input, read_input_text
+from ..core.tomlio import nesting_depth
 
 MANIFEST = "surrogate.json"
 FORMAT_VERSION = 2  # 2: network weights as .npz (1: PyTorch state_dicts, still read)

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, did_you_mean, named
+from ..core.errors import InputError, did_you_mean, named
 from ..limits import FLOW, FORCE
-from ..paths import shipped
-from ..units import from_si, to_si
+from ..core.paths import shipped
+from ..core.units import from_si, to_si
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
 from .package import MANIFEST, package_files, read_manifest

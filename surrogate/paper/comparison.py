@@ -12,13 +12,13 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 from ..data.loaders import BenchLog, BenchRun
-from ..errors import InputError
+from ..core.errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import run_rows
 from ..maps.registry import MapsSpec
 from ..presets import TABLE6_FRICTION_START
 from ..spec import ValveSource
-from ..units import from_si
+from ..core.units import from_si
 from .median import median_line
 from .models import FIT_P_PE, FIT_TEMPERATURE, PaperModels, build_paper_models, mean_abs_distance
 

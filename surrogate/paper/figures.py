@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 from ..fitting.residuals import measured_dp
 from ..points import OperatingPoints
 from ..solver import replay, solve_steady
-from ..units import from_si
+from ..core.units import from_si
 from .comparison import TABLE5_P_PE_BAR, TEMPERATURES_C, PaperComparison
 from .median import median_points
 

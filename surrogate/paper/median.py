@@ -14,7 +14,7 @@ import pandas as pd
 
 from ..data.loaders import BenchRun
 from ..points import OperatingPoints
-from ..units import LPM
+from ..core.units import LPM
 
 DEFAULT_BIN_WIDTH = 0.5 * LPM  # [m^3/s]
 MIN_SAMPLES_PER_SIDE = 3

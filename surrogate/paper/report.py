@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..outputs import atomic_directory
+from ..core.outputs import atomic_directory
 from .comparison import TABLE5_P_PE_BAR, TEMPERATURES_C, PaperComparison
 from .figures import all_figures
 

@@ -26,7 +26,7 @@ from ..data.loaders import BenchLog
 from ..effects import PerRunEffect
 from ..fitting.residuals import replay_log
 from ..model import ValveModel
-from ..units import BAR, from_si, to_si
+from ..core.units import BAR, from_si, to_si
 
 TEMPERATURE_STEP = 10.0  # [K] beyond the log's range
 SET_POINT_BELOW, SET_POINT_ABOVE = 15.0 * BAR, 20.0 * BAR  # [Pa] beyond the log's range

@@ -41,7 +41,7 @@ from ..maps.coverage import describe_all
 from ..model import ValveModel
 from ..points import OperatingPoints
 from ..solver.uncertainty import sensitivity
-from ..units import from_si, to_si
+from ..core.units import from_si, to_si
 
 #: correlation length of the maps' errors in standardised features [-]
 CORRELATION_LENGTH = 0.5

@@ -7,7 +7,7 @@ workflow its verdict (:mod:`.verdict`).
 
 from __future__ import annotations
 
-from ..units import from_si
+from ..core.units import from_si
 from ..workbench.workflow import Step, Workflow
 from .prose import summarise
 from .verdict import summary_text, verdict

@@ -23,8 +23,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from ..outputs import atomic_directory
-from ..units import from_si, label
+from ..core.outputs import atomic_directory
+from ..core.units import from_si, label
 from ..workbench.compare import Comparison
 
 DPI = 110

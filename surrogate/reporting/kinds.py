@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..diagnosis.naming import Family, family
-from ..units import from_si
+from ..core.units import from_si
 from .verdict import category_words, what
 
 

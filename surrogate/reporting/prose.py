@@ -16,7 +16,7 @@ from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..fitting.heldout import HEADLINE
 from ..leastsquares import split_key
 from ..planning.bench_runs import Separation, search_range
-from ..units import from_si
+from ..core.units import from_si
 
 # a residual within 1.3x the noise floor counts as noise in the summary: the floor estimate runs
 # ~10 % low when friction holds the piston (input noise then reaches Δp in bursts, not white)

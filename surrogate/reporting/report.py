@@ -21,8 +21,8 @@ from ..diagnosis.naming import WITHIN, library_matches
 from ..diagnosis.result import Diagnosis
 from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
                               NOISE_MARGIN, OTHER_KIND_GAIN)
-from ..outputs import atomic_file
-from ..units import from_si, label
+from ..core.outputs import atomic_file
+from ..core.units import from_si, label
 from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, PNG_OPTIONS, all_figures, caption
 from .prose import next_steps, sensor_check_text, summarise, workflow_summary

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
-from ..units import from_si
+from ..core.units import from_si
 from .figures import LEFT, RIGHT, extents, place_panels
 from .prose import NOISE_LEVEL
 

@@ -22,7 +22,7 @@ import pandas as pd
 
 from ..diagnosis.lookalikes import MAPS_ERROR
 from ..diagnosis.naming import family, shape_features
-from ..units import from_si
+from ..core.units import from_si
 from .prose import NOISE_LEVEL, hysteresis_share, workflow_summary
 
 #: what each category of effect is, in the verdict's words

@@ -20,7 +20,7 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 
 from ..fitting.hysteresis import hysteresis_split
-from ..units import from_si, label
+from ..core.units import from_si, label
 from .figures import extents, place_panels
 
 #: the state variables the views are drawn against: (column, what, display unit, the step of

@@ -155,7 +155,7 @@ def replay(model: ValveModel, points: OperatingPoints, segments=None, *,
         Samples over which the band edges are smoothed for the friction state (see the module
         docstring); 1, the default, is the classic play on the edges as they are.
     progress : Progress, optional
-        Told how far the solves got, with the time left (:meth:`surrogate.progress.Progress.
+        Told how far the solves got, with the time left (:meth:`surrogate.core.progress.Progress.
         stage`), for a log of more than :data:`.steady.BATCH` samples.
     """
     count = len(points)

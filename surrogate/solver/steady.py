@@ -73,10 +73,10 @@ import pandas as pd
 
 from ..maps.coverage import describe_all
 from ..model import ValveModel
-from ..parallel import map_threads
+from ..core.parallel import map_threads
 from ..points import OperatingPoints
 from ..roots import find_roots, invert_increasing
-from ..units import BAR, from_si
+from ..core.units import BAR, from_si
 from .map_tables import COARSE, balance_reader
 from .uncertainty import pressure_drop_std
 

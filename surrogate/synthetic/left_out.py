@@ -23,12 +23,12 @@ import numpy as np
 
 from ..data.loaders import load_cfd_samples
 from ..data.writer import write_cfd_samples
-from ..errors import InputError
+from ..core.errors import InputError
 from ..maps.learned import load_learned_maps, trained_folder
 from ..maps.registry import MapsSpec, map_kind
-from ..paths import SHIPPED_CFD_SAMPLES
+from ..core.paths import SHIPPED_CFD_SAMPLES
 from ..presets import maps
-from ..units import from_si
+from ..core.units import from_si
 from ..valve import load_valve
 
 

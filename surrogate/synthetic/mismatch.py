@@ -43,7 +43,7 @@ from ..maps.cfd_error import SEAT_EXPONENT_ERROR
 from ..maps.coverage import Coverage
 from ..maps.grid import GridFlowMap, GridForceMap
 from ..model import ValveModel
-from ..units import BAR, P_ATM
+from ..core.units import BAR, P_ATM
 from ..valve import ValveParameters
 
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..effects import BalanceState, Effect, EffectLibrary, FlowState, Parameter
 from ..effects.shapes import ShapeFreeEffect
-from ..units import BAR, CST, LPM
+from ..core.units import BAR, CST, LPM
 
 
 class OffLibraryEffect(Effect):

@@ -30,14 +30,14 @@ import numpy as np
 
 from ..data.loaders import BenchLog, CfdSamples, load_cfd_samples
 from ..effects import LIBRARY, Effect, EffectLibrary, PerRunEffect
-from ..errors import InputError
+from ..core.errors import InputError
 from ..fitting.residuals import replay_log
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
-from ..paths import SHIPPED_CFD_SAMPLES
+from ..core.paths import SHIPPED_CFD_SAMPLES
 from ..presets import cfda, cfda_effects
 from ..spec import EffectSpec, ModelSpec, ValveSource
-from ..units import to_si
+from ..core.units import to_si
 from ..workbench.workflow import Workflow, run_workflow
 from .mismatch import MapMismatch, mismatched_truth
 

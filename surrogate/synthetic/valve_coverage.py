@@ -15,7 +15,7 @@ import pandas as pd
 from ..fluid import FluidState
 from ..maps.coverage import Coverage
 from ..maps.grid import GridFlowMap, GridForceMap
-from ..units import BAR, to_si
+from ..core.units import BAR, to_si
 from .mismatch import MapMismatch, cavitation_change, mismatched_samples, perturbed_maps
 
 #: the regions of operating points, in the order reports list them

@@ -35,7 +35,7 @@ from ..fitting.heldout import HEADLINE, Prior, replayed_heldout_rms
 from ..fitting.residuals import LogReplay
 from ..leastsquares import FitResult, Minimizer
 from ..model import ValveModel
-from ..parallel import map_threads
+from ..core.parallel import map_threads
 
 #: Gauss–Newton steps (one replay each) after the linear solution
 STEPS = 3

@@ -30,11 +30,11 @@ import pandas as pd
 from ..data.loaders import BenchLog
 from ..fitting.residuals import LogReplay, noise_floor, replay_log, run_groups_of
 from ..maps.coverage import describe_all, shares
-from ..memory import release_freed
+from ..core.memory import release_freed
 from ..model import ValveModel
 from ..solver.steady import status_names
-from ..texttable import cell, text_table
-from ..units import from_si
+from ..core.texttable import cell, text_table
+from ..core.units import from_si
 
 FLOW_BANDS = 4  # equal-width bands over the log's flow range, for the operating regions
 HYSTERESIS_BINS = 10  # flow bins within a run in which the ramps up and down are matched

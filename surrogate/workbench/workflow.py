@@ -45,13 +45,13 @@ from ..fitting.logfit import Column, fit_to_log, probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
 from ..leastsquares import FitResult, free_parameters
 from ..maps.registry import MapsSpec
-from ..memory import release_freed
+from ..core.memory import release_freed
 from ..model import ValveModel
-from ..parallel import blas_limited, single_threaded
+from ..core.parallel import blas_limited, single_threaded
 from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..solver.map_tables import release_tables
 from ..spec import ModelSpec, ValveSource
-from ..units import from_si
+from ..core.units import from_si
 from .bench_calibration import calibrate_maps
 
 MAX_ADDITIONS = 8  # effects the loop may add after the paper's steps

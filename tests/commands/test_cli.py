@@ -134,7 +134,7 @@ class _Stop(Exception):
 def test_the_shipped_log_is_named_in_the_first_progress_line(argv, tmp_path, monkeypatch,
                                                               capsys):
     from surrogate.commands import common, paper, suggest_cfd
-    from surrogate.errors import InputError
+    from surrogate.core.errors import InputError
 
     def stop(path, progress=None):
         raise InputError(f"stopped before reading {path}")
@@ -192,7 +192,7 @@ def test_predict_writes_into_its_out_folder(tmp_path):
                                            (2413, "40 min 13 s"), (3725, "1 h 2 min")])
 def test_times_are_said_as_people_read_them(seconds, said):
     """Run times and ETAs in minutes and hours, not "2413 s"; rounding never says "60 s"."""
-    from surrogate.progress import duration
+    from surrogate.core.progress import duration
 
     assert duration(seconds) == said
 
@@ -201,7 +201,7 @@ def test_times_are_said_as_people_read_them(seconds, said):
                                               (0.01, "1 min 40 s each")])
 def test_slow_work_is_said_per_item_not_as_zero_per_second(per_second, said):
     """A refit taking 4 s read "0/s" in the progress line."""
-    from surrogate.progress import rate
+    from surrogate.core.progress import rate
 
     assert rate(per_second) == said
 
@@ -225,7 +225,7 @@ def test_the_command_line_starts_without_matplotlib():
     import subprocess
     import sys
 
-    from surrogate.paths import PROJECT_ROOT
+    from surrogate.core.paths import PROJECT_ROOT
 
     code = ("import sys, surrogate.cli; "
             "assert 'matplotlib' not in sys.modules, 'matplotlib imported at start-up'")

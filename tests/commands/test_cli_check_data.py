@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 from surrogate.cli import main
-from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 
 
 def test_shipped_cfd_samples_summary(capsys):

@@ -9,7 +9,7 @@ import pytest
 
 from surrogate.cli import main
 from surrogate.effects import KNOWN, LIBRARY
-from surrogate.paths import PROJECT_ROOT
+from surrogate.core.paths import PROJECT_ROOT
 
 EXAMPLE = PROJECT_ROOT / "examples" / "seat_force.py"
 

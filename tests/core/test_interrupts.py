@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 
 from surrogate.cli import main
-from surrogate.errors import InputError
-from surrogate.interrupts import Interrupted, deferred, handling_interrupts
-from surrogate.outputs import Output, atomic_directory, atomic_file, check_outputs
-from surrogate.parallel import map_threads
+from surrogate.core.errors import InputError
+from surrogate.core.interrupts import Interrupted, deferred, handling_interrupts
+from surrogate.core.outputs import Output, atomic_directory, atomic_file, check_outputs
+from surrogate.core.parallel import map_threads
 
 
 @pytest.fixture

@@ -6,7 +6,7 @@ import threading
 
 import pytest
 
-from surrogate.parallel import map_threads
+from surrogate.core.parallel import map_threads
 
 
 @pytest.mark.parametrize("workers", [1, 2, 4])
@@ -69,14 +69,14 @@ def test_the_blas_keeps_to_one_thread_while_pools_run_and_is_restored_after():
 def test_every_command_and_the_loops_entry_points_keep_the_blas_to_one_thread(monkeypatch):
     """A command (here check-data, its work replaced by a probe) and a function decorated as a
     fit, a diagnosis and a workflow are run with one BLAS thread: between their small products
-    the idle threads only spin (surrogate.parallel's docstring). The BLAS is restored after."""
+    the idle threads only spin (surrogate.core.parallel's docstring). The BLAS is restored after."""
     from threadpoolctl import threadpool_limits
 
     from surrogate import cli
     from surrogate.commands import check_data
     from surrogate.diagnosis.diagnose import Diagnoser
     from surrogate.fitting.logfit import fit_to_log
-    from surrogate.parallel import blas_limited
+    from surrogate.core.parallel import blas_limited
     from surrogate.workbench.workflow import run_workflow
 
     with threadpool_limits(2, user_api="blas"):
@@ -101,9 +101,9 @@ def test_every_command_and_the_loops_entry_points_keep_the_blas_to_one_thread(mo
 def test_a_fit_a_diagnosis_and_a_workflow_run_on_one_thread(monkeypatch):
     """While a decorated job runs, pools use one thread, from its call down (on two, a GP
     map's tables renewed by one refit while another read them made the result depend on which
-    thread came first: surrogate.parallel.single_threaded); after it, as many as before. The
+    thread came first: surrogate.core.parallel.single_threaded); after it, as many as before. The
     loop's entry points carry the decorator."""
-    from surrogate import parallel
+    from surrogate.core import parallel
     from surrogate.diagnosis.diagnose import Diagnoser
     from surrogate.fitting.logfit import fit_to_log
     from surrogate.workbench.workflow import run_workflow

@@ -12,14 +12,14 @@ import pytest
 from surrogate.cli import main
 from surrogate.data import DataFileError, load_bench_log
 from surrogate.data.errors import GROUPED_FROM, Problem, verdicts
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 
 #: the shipped log as the documented schema has it, and loaded
 RAW = pd.read_csv(SHIPPED_BENCH_LOG, dtype={"run": str, "direction": str})
 SHIPPED = load_bench_log(SHIPPED_BENCH_LOG)
 VALUES = [column for column in SHIPPED.frame.columns if column != "line"]
 
-# file units per SI unit, written out here (not taken from surrogate.units) so that a wrong
+# file units per SI unit, written out here (not taken from surrogate.core.units) so that a wrong
 # factor there fails this test: NIST SP 811
 PSI_PER_BAR = 1e5 / 6894.757293168
 LITRES_PER_US_GALLON = 3.785411784

@@ -5,7 +5,7 @@ import pytest
 
 from surrogate.data import load_any, load_bench_log, load_cfd_samples
 from surrogate.data.schema import BENCH_SCHEMA, CFD_SCHEMA, schema_table
-from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 
 
 def test_cfd_samples_load_in_si():

@@ -35,7 +35,7 @@ from hypothesis import strategies as st
 from surrogate.cli import main
 from surrogate.effects import LIBRARY
 from surrogate.maps.learned import trained_folder
-from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 from surrogate.presets import preset
 
 # --- the good inputs every case starts from ------------------------------------------------------
@@ -1303,7 +1303,7 @@ def test_generated_bad_valve_values_name_the_key(key, value):
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "valve.toml"
         path.write_text("\n".join(lines) + "\n")
-        from surrogate.errors import InputError
+        from surrogate.core.errors import InputError
         from surrogate.valve import load_valve
 
         with pytest.raises(InputError) as caught:
@@ -1321,7 +1321,7 @@ MODEL_PLACES = ["top", "model", "effect", "parameter"]
 @given(place=st.sampled_from(MODEL_PLACES),
        key=st.from_regex(r"[a-z][a-z_]{2,12}", fullmatch=True))
 def test_generated_unknown_model_keys_are_refused(place, key):
-    from surrogate.errors import InputError
+    from surrogate.core.errors import InputError
     from surrogate.parameters import _RECORD_KEYS as _PARAMETER_KEYS
     from surrogate.spec import _EFFECT_KEYS, _MODEL_KEYS, _TOP_KEYS
 
@@ -1393,8 +1393,8 @@ def test_the_shipped_data_is_an_input_of_every_run(target):
     """No command writes over or into what the package ships, whatever its options (checked
     on the guard itself: running a command against the shipped files would risk them)."""
     from surrogate.commands.common import guard_outputs
-    from surrogate.errors import InputError
-    from surrogate.outputs import Output
+    from surrogate.core.errors import InputError
+    from surrogate.core.outputs import Output
 
     with pytest.raises(InputError, match="input"):
         guard_outputs(_args(), Output("--out", PROJECT_ROOT / target, "file"))
@@ -1404,8 +1404,8 @@ def test_inputs_are_followed_through_symbolic_links(tmp_path, monkeypatch):
     """An output reached through a link to an input, or into a linked surrogate folder, is an
     input all the same."""
     from surrogate.commands.common import guard_outputs, maps_option
-    from surrogate.errors import InputError
-    from surrogate.outputs import Output
+    from surrogate.core.errors import InputError
+    from surrogate.core.outputs import Output
 
     monkeypatch.chdir(tmp_path)
     for name, content in surrogate("nn", "real").items():
@@ -1432,7 +1432,7 @@ def test_a_local_folder_named_like_a_kind_without_a_surrogate_is_no_ambiguity(tm
     (tmp_path / "nn" / "notes.txt").write_text("not a surrogate")
     assert maps_option("nn").spec().flow.settings["folder"] == "shipped"
     (tmp_path / "nn" / "surrogate.json").write_text(TRAINED_FILES["nn"]["surrogate.json"].decode())
-    from surrogate.errors import InputError
+    from surrogate.core.errors import InputError
 
     with pytest.raises(InputError, match="ambiguous"):
         maps_option("nn").spec()

@@ -14,7 +14,7 @@ from surrogate.fluid import FluidState
 from surrogate.model import ValveModel
 from surrogate.points import OperatingPoints
 from surrogate.testing import check_effect
-from surrogate.units import to_si
+from surrogate.core.units import to_si
 
 
 def balance_state(u, flow_force):
@@ -100,7 +100,7 @@ def test_every_built_in_effect_meets_the_effect_contract(cls):
 
 
 def test_the_custom_effect_example_meets_the_effect_contract():
-    from surrogate.paths import PROJECT_ROOT
+    from surrogate.core.paths import PROJECT_ROOT
 
     for cls in load_effects_file(PROJECT_ROOT / "examples" / "seat_force.py").values():
         check_effect(cls)
@@ -136,7 +136,7 @@ def test_a_custom_effect_is_not_blamed_for_a_state_the_solver_has_no_value_for()
     """A pressure drop the flow split has not settled (NaN) gives a NaN leak: that is no fault
     of the user's function; a NaN from finite inputs is, and says so."""
     from surrogate.effects import FlowState, custom_effect
-    from surrogate.errors import InputError
+    from surrogate.core.errors import InputError
 
     @custom_effect("leakage", units={"G": "L/min"})
     def leak(dp, state, G=0.1):
@@ -162,7 +162,7 @@ def test_a_custom_effects_penalty_pulls_its_parameter_towards_zero_in_every_fit(
     its display unit; a parameter without one has no row; a negative weight or an unknown
     parameter is refused by name."""
     from surrogate.effects import custom_effect
-    from surrogate.errors import InputError
+    from surrogate.core.errors import InputError
 
     @custom_effect("friction", units={"k": "N", "m": "N/bar"}, penalties={"k": 0.5})
     def pulled(state, k=1.0, m=0.0):

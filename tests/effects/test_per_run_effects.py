@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from surrogate.effects import LIBRARY, PilotZeroDrift
-from surrogate.errors import InputError
+from surrogate.core.errors import InputError
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log, run_rows
 from surrogate.modelfile import load_model, save_model
 from surrogate.points import OperatingPoints
-from surrogate.units import to_si
+from surrogate.core.units import to_si
 
 
 @pytest.fixture(scope="module")

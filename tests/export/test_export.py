@@ -17,17 +17,17 @@ import pytest
 from surrogate.cli import main
 from surrogate.data import load_bench_log
 from surrogate.effects import custom_effect
-from surrogate.errors import InputError
+from surrogate.core.errors import InputError
 from surrogate.export.fmu import simulate_log
 from surrogate.export.refinement import refined_grid
 from surrogate.export.tables import TableGrid, interpolate
 from surrogate.export.tabulable import refuse_untabulable
 from surrogate.export.valve_only import valve_physics
 from surrogate.modelfile import load_model
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.replay import replay
-from surrogate.units import from_si
+from surrogate.core.units import from_si
 
 fmpy = pytest.importorskip("fmpy")  # the test extra installs it
 

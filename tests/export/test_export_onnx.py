@@ -84,7 +84,7 @@ def test_a_gp_with_a_matern_part_exports_as_the_package_evaluates_it():
     from surrogate.learn.gaussian_process import fit_gp
     from surrogate.maps.gp import MATERN, GaussianProcessPredictor
     from surrogate.maps.learned import LearnedFlowMap
-    from surrogate.paths import SHIPPED_CFD_SAMPLES
+    from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
     flow, force = load_learned_maps(trained_folder("gp"))
     data = targets(flow.spec, load_cfd_samples(SHIPPED_CFD_SAMPLES).frame)

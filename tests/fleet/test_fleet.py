@@ -23,7 +23,7 @@ from surrogate.fleet.population import (
     spread_floors,
     summary,
 )
-from surrogate.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 
 #: every n-th sample of the shipped test sequence: ~700 samples, a fit of a second or two
 EVERY = 16

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from surrogate.data.loaders import CfdSamples
-from surrogate.errors import InputError
+from surrogate.core.errors import InputError
 from surrogate.features import FeatureSpec, targets
 from surrogate.learn.gaussian_process import fit_gp
 from surrogate.learn.monotone_nn import SignConstrainedNet, state_arrays, train
@@ -28,7 +28,7 @@ from surrogate.maps.learned import load_learned_maps, trained_folder
 from surrogate.maps.network import Architecture, NumpyNet
 from surrogate.maps.package import file_hash, read_manifest
 from surrogate.maps.registry import build_maps, cross_validation_summary, learned_kinds, map_kind
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 from surrogate.testing import check_flow_map, check_force_map
 
 LEARNED = ("nn", "gp")

@@ -10,7 +10,7 @@ import pytest
 from surrogate.features import FeatureSpec
 from surrogate.maps.cavitation import CavitationLaw, left_out_opening_errors
 from surrogate.maps.grid import GridForceMap
-from surrogate.units import BAR
+from surrogate.core.units import BAR
 
 
 def _synthetic(valve, sigma0=0.04, exponent=0.7, seed=0):

@@ -8,7 +8,7 @@ import pytest
 from surrogate.fluid import FluidState
 from surrogate.maps import OrificeFlowMap, UniformPressureForceMap
 from surrogate.testing import check_flow_map, check_force_map
-from surrogate.units import BAR, LPM, MM, ZERO_CELSIUS
+from surrogate.core.units import BAR, LPM, MM, ZERO_CELSIUS
 
 
 def test_orifice_and_uniform_maps_meet_the_contract(valve):

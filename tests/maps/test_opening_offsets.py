@@ -4,7 +4,7 @@ faded to nothing between openings, saved and read back checked."""
 import numpy as np
 import pytest
 
-from surrogate.errors import InputError
+from surrogate.core.errors import InputError
 from surrogate.maps.opening_offsets import OpeningOffsets
 
 

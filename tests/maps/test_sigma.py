@@ -163,7 +163,7 @@ def test_the_shipped_grid_calibration_is_what_the_shipped_samples_give(tmp_path)
     from surrogate.maps.grid import GridUncertainty
     from surrogate.maps.grid_sigma import (shipped_calibrations, shipped_summary,
                                                  write_calibrations)
-    from surrogate.paths import SHIPPED_CFD_SAMPLES
+    from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
     samples, valve = load_cfd_samples(SHIPPED_CFD_SAMPLES), load_valve(None)
     shipped = shipped_calibrations(samples, valve)

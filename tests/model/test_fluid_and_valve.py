@@ -5,8 +5,8 @@ import pytest
 
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
-from surrogate.errors import InputError
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.errors import InputError
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
 
 def test_oil_reproduces_cfd_viscosity_and_density_within_half_a_percent():

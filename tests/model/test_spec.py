@@ -14,10 +14,10 @@ from hypothesis import strategies as st
 
 from surrogate.cli import main
 from surrogate.effects import LIBRARY, EffectLibrary, load_effects_file
-from surrogate.errors import InputError
+from surrogate.core.errors import InputError
 from surrogate.maps.registry import MAP_KINDS, MapsSpec
 from surrogate.modelfile import load_model, save_model
-from surrogate.paths import PROJECT_ROOT
+from surrogate.core.paths import PROJECT_ROOT
 from surrogate.presets import PRESETS, basic_maps, maps, preset
 from surrogate.spec import EffectSpec, ModelSpec, ValveSource
 from surrogate.valve import load_valve

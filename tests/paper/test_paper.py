@@ -10,10 +10,10 @@ import pytest
 
 from surrogate.cli import main
 from surrogate.data.loaders import BenchRun
-from surrogate.outputs import atomic_directory
+from surrogate.core.outputs import atomic_directory
 from surrogate.paper.comparison import category
 from surrogate.paper.median import median_line
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from surrogate.planning.bench_runs import candidate_runs, separating_run
 from surrogate.presets import cfda
 from surrogate.reporting.prose import diagnosis_document, summarise
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
-from surrogate.units import from_si
+from surrogate.core.units import from_si
 
 FLOOR = 0.8e5  # [Pa] a noise floor of the shipped log's size
 

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from surrogate.cli import main
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
 LEFT_OUT_MM = 0.08
 NEIGHBOURS_MM = (0.07, 0.10)  # the sampled openings around it

@@ -10,7 +10,7 @@ import re
 import tomllib
 from importlib import metadata
 
-from surrogate.paths import PROJECT_ROOT
+from surrogate.core.paths import PROJECT_ROOT
 
 README = (PROJECT_ROOT / "README.md").read_text()
 CI = (PROJECT_ROOT / ".ci" / "run").read_text()

@@ -10,7 +10,7 @@ import re
 import pytest
 
 from surrogate.maps.registry import MAP_KINDS
-from surrogate.paths import PROJECT_ROOT
+from surrogate.core.paths import PROJECT_ROOT
 
 PAGES = [PROJECT_ROOT / "README.md", *sorted((PROJECT_ROOT / "docs").glob("*.md"))]
 BLOCKS = [(page.relative_to(PROJECT_ROOT).as_posix(), number, code) for page in PAGES

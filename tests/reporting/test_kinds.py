@@ -12,7 +12,7 @@ import pytest
 
 from surrogate.effects import KNOWN
 from surrogate.reporting.kinds import compare_kinds, comparison_sentences
-from surrogate.units import BAR
+from surrogate.core.units import BAR
 
 ADDED = {"gp": ["shape_friction_of_nu", "friction_seal_pressure", "progressive_spring"],
          "grid": ["friction_viscous", "friction_seal_pressure", "back_pressure_flow_force",

@@ -10,7 +10,7 @@ import numpy as np
 from surrogate.diagnosis.result import Baseline, Candidate, Diagnosis, Label, MapLimit, Score
 from surrogate.planning.bench_runs import Separation
 from surrogate.reporting.verdict import lacks, verdict
-from surrogate.units import BAR, to_si
+from surrogate.core.units import BAR, to_si
 
 FLOOR = 0.8 * BAR
 

@@ -12,7 +12,7 @@ from surrogate.effects import LIBRARY
 from surrogate.fitting.residuals import replay_log
 from surrogate.fluid import FluidState
 from surrogate.modelfile import load_model
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import asked_maps
 from surrogate.solver.asked_maps import AskedBalance, asked_balance, kept_flows

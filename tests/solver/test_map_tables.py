@@ -13,12 +13,12 @@ from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY
 from surrogate.fitting.residuals import replay_log
 from surrogate.modelfile import load_model
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.map_tables import FINE, MapTables, _Locator
 from surrogate.solver.replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_LOW, play,
                                      play_bounds)
-from surrogate.units import BAR
+from surrogate.core.units import BAR
 
 
 @pytest.fixture(scope="module")

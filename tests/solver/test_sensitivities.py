@@ -12,10 +12,10 @@ from surrogate.effects import LIBRARY, SHAPES
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log, state_smoothing_samples
 from surrogate.modelfile import load_model
-from surrogate.paths import SHIPPED_BENCH_LOG
+from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.sensitivities import pressure_drop_changes
-from surrogate.units import to_si
+from surrogate.core.units import to_si
 
 #: a relative step, as the fit's forward differences take
 STEP = 1e-4
@@ -120,7 +120,7 @@ def test_a_shared_read_alike_replay_is_the_candidates_own(name, setting):
 
 def test_a_logs_sampling_interval_is_the_median_step_within_its_runs_found_once():
     from surrogate.data import load_bench_log
-    from surrogate.paths import SHIPPED_BENCH_LOG
+    from surrogate.core.paths import SHIPPED_BENCH_LOG
 
     log = load_bench_log(SHIPPED_BENCH_LOG)
     frame = log.frame

@@ -16,7 +16,7 @@ from surrogate.maps.base import FlowMap
 from surrogate.model import ValveModel
 from surrogate.points import OperatingPoints
 from surrogate.solver import Status, replay, solve_steady, steady
-from surrogate.units import BAR, LPM
+from surrogate.core.units import BAR, LPM
 
 
 def basic_model(valve, discharge_coefficient=0.4, effects=()):

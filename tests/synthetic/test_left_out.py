@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 
 from surrogate.data import load_cfd_samples
-from surrogate.errors import InputError
+from surrogate.core.errors import InputError
 from surrogate.maps.learned import load_learned_maps, trained_folder
 from surrogate.maps.registry import build_maps
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 from surrogate.presets import maps
 from surrogate.synthetic.left_out import maps_without_opening
 from surrogate.synthetic.mismatch import MapMismatch, PerturbedForceMap
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
-from surrogate.units import to_si
+from surrogate.core.units import to_si
 
 LEFT_OUT = to_si(0.13, "mm")
 

@@ -25,7 +25,7 @@ from surrogate.diagnosis.rule import BIC_THRESHOLD, INCLUSION_MIN
 from surrogate.effects.shapes import FlowForceFactor, OpeningForce
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fluid import FluidState
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 from surrogate.model import ValveModel
 from surrogate.presets import cfda, maps
 from surrogate.reporting.prose import sensor_check_text, summarise

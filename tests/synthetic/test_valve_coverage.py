@@ -13,7 +13,7 @@ from surrogate.data.loaders import load_cfd_samples
 from surrogate.maps.cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, GAP_FLOW_ERROR,
                                       SEAT_FLOW_ERROR, gap_error, mesh_bias_share, seat_error)
 from surrogate.maps.registry import build_maps
-from surrogate.paths import SHIPPED_CFD_SAMPLES
+from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.valve_coverage import BAND, regions, score, summarise, valve_truth
 from surrogate.valve import load_valve

@@ -23,7 +23,7 @@ from surrogate.reporting.prose import workflow_summary
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 from surrogate.testing import check_effect
-from surrogate.units import from_si
+from surrogate.core.units import from_si
 from surrogate.workbench.bench_calibration import calibrate_maps
 from surrogate.workbench.workflow import run_workflow
 

@@ -9,7 +9,7 @@ import pytest
 from surrogate.data import BenchLog
 from surrogate.modelfile import load_model
 from surrogate.reporting.figures import write_figures
-from surrogate.units import from_si, to_si
+from surrogate.core.units import from_si, to_si
 from surrogate.workbench.compare import compare, hysteresis_width
 
 RUNS = ["R01", "R04", "R06", "R11"]  # 20, 40 and 60 °C; set points 50, 65, 80 and 120 bar

@@ -6,11 +6,11 @@ next to it. Commands take explicit paths too; these are only their defaults.
 
 from pathlib import Path
 
-PROJECT_ROOT = Path(__file__).resolve().parents[1]
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
 SHIPPED_CFD_SAMPLES = PROJECT_ROOT / "cfd_samples" / "cfd_samples.csv"
 SHIPPED_BENCH_LOG = PROJECT_ROOT / "measurements" / "bench_measurements.csv"
 #: the committed trained surrogates, one folder per learned map kind (inside the package)
-SHIPPED_SURROGATES = Path(__file__).resolve().parent / "trained"
+SHIPPED_SURROGATES = Path(__file__).resolve().parents[1] / "trained"
 
 
 def shipped(path: Path) -> Path:

@@ -168,7 +168,7 @@ def atomic_directory(target: str | Path):
     kind (a folder where a file goes) stops the command (InputError) before anything is moved.
     Moving the files in and
     removing the temporary directory are not cut short by Ctrl-C or SIGTERM
-    (:func:`surrogate.interrupts.deferred`): a signal then stops the command once they are done.
+    (:func:`.interrupts.deferred`): a signal then stops the command once they are done.
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
