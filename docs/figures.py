@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from surrogate.data import load_bench_log
 from surrogate.core.paths import SHIPPED_BENCH_LOG
-from surrogate.presets import maps
+from surrogate.description.presets import maps
 from surrogate.reporting.staircase import plot_staircase
 from surrogate.core.units import from_si
 from surrogate.workbench.workflow import run_workflow

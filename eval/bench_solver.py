@@ -28,9 +28,9 @@ from surrogate.model import ValveModel
 from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import Status, replay, solve_steady
-from surrogate.presets import CFDA_START, cfda, maps
+from surrogate.description.presets import CFDA_START, cfda, maps
 from surrogate.solver.steady import _OPENING_FLOOR, _U_RTOL
-from surrogate.spec import EffectSpec, ModelSpec
+from surrogate.description.spec import EffectSpec, ModelSpec
 
 
 def random_points(count: int, seed: int = 0) -> OperatingPoints:

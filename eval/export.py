@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from surrogate.data import load_bench_log
-from surrogate.modelfile import load_model
+from surrogate.description.modelfile import load_model
 from surrogate.core.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.replay import replay
@@ -46,8 +46,8 @@ def representative_model(folder: Path) -> Path:
     """A model file with the effects the workflow adds on GP maps (README), for when no
     workflow has been run."""
     from surrogate.effects import LIBRARY
-    from surrogate.presets import preset
-    from surrogate.spec import EffectSpec
+    from surrogate.description.presets import preset
+    from surrogate.description.spec import EffectSpec
 
     spec = preset("cfda-gp")
     for name, values in (("friction_viscous", {"K_nu": 2.7}),

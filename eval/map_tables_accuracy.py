@@ -29,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from surrogate import presets  # noqa: E402
+from surrogate.description import presets  # noqa: E402
 from surrogate.data import load_bench_log  # noqa: E402
 from surrogate.fitting.residuals import replay_log  # noqa: E402
 from surrogate.core.paths import SHIPPED_BENCH_LOG  # noqa: E402

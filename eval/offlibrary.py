@@ -53,7 +53,7 @@ from surrogate.fitting.heldout import run_groups
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log
 from surrogate.core.paths import SHIPPED_BENCH_LOG
-from surrogate.presets import maps
+from surrogate.description.presets import maps
 from surrogate.reporting.prose import summarise
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.offlibrary import (OFF_LIBRARY, RMS_RATIO, off_library_outcome,

@@ -97,19 +97,19 @@ def job(name: str, args) -> callable:
     if name == "diagnose":
         from surrogate.diagnosis.diagnose import diagnose
         from surrogate.fitting.logfit import fit_to_log
-        from surrogate.modelfile import load_model
+        from surrogate.description.modelfile import load_model
 
         log = load_bench_log(SHIPPED_BENCH_LOG)
         model = load_model("cfda")
         return lambda: diagnose(fit_to_log(model, log).model, log)
     if name == "workflow":
-        from surrogate.presets import maps
+        from surrogate.description.presets import maps
         from surrogate.workbench.workflow import run_workflow
 
         log = load_bench_log(SHIPPED_BENCH_LOG)
         return lambda: run_workflow(log, maps_spec=maps(args.maps))
     from surrogate.effects import LIBRARY
-    from surrogate.presets import maps
+    from surrogate.description.presets import maps
     from surrogate.synthetic.mismatch import MapMismatch
     from surrogate.synthetic.offlibrary import OFF_LIBRARY, off_library_suite
     from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence

@@ -78,7 +78,7 @@ def off_library_logs(count: int, scratch: Path, every: int = 8) -> list[Path]:
     from surrogate.data.writer import write_bench_log
     from surrogate.effects import LIBRARY
     from surrogate.core.paths import SHIPPED_BENCH_LOG
-    from surrogate.presets import maps
+    from surrogate.description.presets import maps
     from surrogate.synthetic.mismatch import MapMismatch
     from surrogate.synthetic.offlibrary import OFF_LIBRARY, off_library_suite
     from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence

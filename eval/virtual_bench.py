@@ -26,7 +26,7 @@ from pathlib import Path
 
 from surrogate.data import load_bench_log
 from surrogate.core.paths import SHIPPED_BENCH_LOG
-from surrogate.presets import maps
+from surrogate.description.presets import maps
 from surrogate.reporting.prose import sensor_check_text
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import (cleanly_identified, hidden_effect_case,

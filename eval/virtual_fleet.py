@@ -54,8 +54,8 @@ from surrogate.data import load_bench_log, load_cfd_samples
 from surrogate.data.writer import write_bench_log
 from surrogate.effects import LIBRARY
 from surrogate.core.paths import SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
-from surrogate.presets import preset
-from surrogate.spec import EffectSpec
+from surrogate.description.presets import preset
+from surrogate.description.spec import EffectSpec
 from surrogate.synthetic.batch import draw_fleet, virtual_log
 from surrogate.synthetic.simulate import noise_free_sequence, reference_spec
 

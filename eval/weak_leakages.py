@@ -33,7 +33,7 @@ from pathlib import Path
 
 from surrogate.data import load_bench_log
 from surrogate.core.paths import SHIPPED_BENCH_LOG
-from surrogate.presets import maps
+from surrogate.description.presets import maps
 from surrogate.synthetic.left_out import maps_without_opening
 from surrogate.synthetic.simulate import (STRESS_SETTINGS, noise_free_sequence, run_stress_case,
                                           stress_suite)

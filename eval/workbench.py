@@ -44,7 +44,7 @@ from surrogate.fitting.residuals import (measured_dp, noise_floor, replay_log,
                                          state_smoothing_samples)
 from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
-from surrogate.presets import cfda, maps
+from surrogate.description.presets import cfda, maps
 from surrogate.reporting.documents import workflow_document
 from surrogate.reporting.prose import summarise
 from surrogate.solver import replay

@@ -79,9 +79,9 @@ class ValveModel:
         Display name, e.g. ``"CFDA"``.
     origin : (ValveSource, MapsSpec), optional
         Where the valve and the maps come from, for a model built from a
-        :class:`~surrogate.spec.ModelSpec` (the way the package builds its models); it lets the
-        model be described as a spec again (:meth:`~surrogate.spec.ModelSpec.of`), to be saved
-        and rebuilt.
+        :class:`~surrogate.description.spec.ModelSpec` (the way the package builds its models); it
+        lets the model be described as a spec again
+        (:meth:`~surrogate.description.spec.ModelSpec.of`), to be saved and rebuilt.
     """
 
     def __init__(self, valve: ValveParameters, flow_map: FlowMap, force_map: ForceMap,

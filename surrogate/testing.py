@@ -197,8 +197,8 @@ def check_effect(cls: type[Effect], valve: ValveParameters | None = None, *, cou
 
 def _check_round_trip(cls: type[Effect], values: dict[str, float],
                       valve: ValveParameters) -> None:
-    from .presets import basic_maps
-    from .spec import EffectSpec, ModelSpec, ValveSource
+    from .description.presets import basic_maps
+    from .description.spec import EffectSpec, ModelSpec, ValveSource
 
     effect = cls.for_runs(list(_RUNS))
     for key, value in values.items():

@@ -14,8 +14,8 @@ from ..core.errors import InputError
 from ..core.input_files import DEFAULT_LIMIT_MB, LIMIT_VARIABLE, megabytes
 from ..maps.registry import MAP_KINDS, MapChoice
 from ..model import ValveModel
-from ..modelfile import PRESETS, load_spec, model_name
-from ..spec import ModelSpec
+from ..description.modelfile import PRESETS, load_spec, model_name
+from ..description.spec import ModelSpec
 from ..core.outputs import Output, check_outputs
 from ..core.paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES,
                           shipped)
@@ -200,9 +200,10 @@ def guard_outputs(args, *outputs: Output) -> None:
 
 def run_inputs(args) -> list[tuple[Path | str, str]]:
     """Every file and folder a command's run reads, with what it is: the paths its options name,
-    what its model file names once resolved (:meth:`~surrogate.spec.ModelSpec.inputs`: the
-    valve file, the CFD samples, a trained surrogate's folder and every file of it), what
-    --maps names, and the shipped data, which no command may overwrite."""
+    what its model file names once resolved
+    (:meth:`~surrogate.description.spec.ModelSpec.inputs`: the valve file, the CFD samples, a
+    trained surrogate's folder and every file of it), what --maps names, and the shipped
+    data, which no command may overwrite."""
     inputs: list[tuple[Path | str, str]] = list(SHIPPED_INPUTS)
     for name in INPUT_OPTIONS:
         value = getattr(args, name, None)

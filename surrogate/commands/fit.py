@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..core.errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import noise_floor, replay_log
-from ..modelfile import save_model
+from ..description.modelfile import save_model
 from ..core.outputs import atomic_directory
 from ..core.units import from_si
 from .common import (add_command, add_data_options, guard_outputs, load_inputs, output_file,

@@ -34,7 +34,7 @@ from ..fleet.results import (
 )
 from ..fleet.runner import DASK_EXTRA, DaskCluster, LocalPool
 from ..fleet.tasks import ValveTask, file_sha256, find_logs, model_sha256
-from ..modelfile import PRESETS, load_spec
+from ..description.modelfile import PRESETS, load_spec
 from ..core.outputs import Output, atomic_directory, check_outputs
 from ..core.parallel import available_cores
 from ..core.progress import duration

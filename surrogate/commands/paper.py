@@ -7,7 +7,7 @@ import json
 from ..data import load_bench_log
 from ..core.outputs import Output
 from ..paper.comparison import reproduce
-from ..spec import ValveSource
+from ..description.spec import ValveSource
 from .common import (add_command, bench_log_path, guard_outputs, maps_help_text,
                      maps_option, progress_for)
 

@@ -65,7 +65,7 @@ def run(args) -> int:
                                      ("--q-lpm", high, FLOW)):
         plausible.check_option(option, value)
     progress = progress_for(args)
-    from ..modelfile import PRESETS, load_spec
+    from ..description.modelfile import PRESETS, load_spec
 
     spec = load_spec(args.model, args.valve)
     if args.maps:

@@ -8,7 +8,7 @@ from ..data import load_bench_log
 from ..core.errors import InputError
 from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MapChoice
-from ..modelfile import PRESETS, load_spec
+from ..description.modelfile import PRESETS, load_spec
 from ..core.outputs import Output, atomic_directory
 from ..planning.cfd_runs import suggest_cfd, suggestion_figure
 from .common import (add_command, add_data_options, bench_log_path, effect_library, guard_outputs,

@@ -10,15 +10,15 @@ from ..effects.handover import hand_over
 from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MAP_KINDS
 from ..core.memory import release_freed, settle_survivors, settling
-from ..modelfile import save_model
+from ..description.modelfile import save_model
 from ..core.outputs import Output, atomic_directory
-from ..presets import maps
+from ..description.presets import maps
 from ..core.progress import duration
 from ..reporting.documents import workflow_document
 from ..reporting.prose import naming_words, shape_words, summarise, workflow_summary
 from ..reporting.kinds import compare_kinds, comparison_sentences
 from ..reporting.verdict import verdict
-from ..spec import ValveSource
+from ..description.spec import ValveSource
 from ..core.units import from_si
 from ..workbench.compare import compare
 from ..workbench.workflow import MAX_ADDITIONS, run_workflow

@@ -18,7 +18,7 @@ from ..fitting.heldout import run_groups
 from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import noise_floor, replay_log
 from ..model import ValveModel
-from ..spec import ModelSpec
+from ..description.spec import ModelSpec
 from ..core.units import from_si
 from ..workbench.workflow import heldout_rms
 from .tasks import ValveTask

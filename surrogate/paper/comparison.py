@@ -16,8 +16,8 @@ from ..core.errors import InputError
 from ..fitting.logfit import fit_to_log
 from ..fitting.residuals import run_rows
 from ..maps.registry import MapsSpec
-from ..presets import TABLE6_FRICTION_START
-from ..spec import ValveSource
+from ..description.presets import TABLE6_FRICTION_START
+from ..description.spec import ValveSource
 from ..core.units import from_si
 from .median import median_line
 from .models import FIT_P_PE, FIT_TEMPERATURE, PaperModels, build_paper_models, mean_abs_distance

@@ -26,9 +26,9 @@ from ..leastsquares import fit
 from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
-from ..presets import basic_maps, bmbe, cfda_friction
+from ..description.presets import basic_maps, bmbe, cfda_friction
 from ..solver import solve_steady
-from ..spec import EffectSpec, ModelSpec, ValveSource
+from ..description.spec import EffectSpec, ModelSpec, ValveSource
 from .median import median_points
 
 FIT_P_PE = 65e5  # [Pa] set point of the run the paper fits to

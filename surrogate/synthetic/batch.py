@@ -21,8 +21,8 @@ import numpy as np
 from ..data.loaders import BenchLog, CfdSamples
 from ..effects import LIBRARY
 from ..model import ValveModel
-from ..presets import cfda_effects
-from ..spec import EffectSpec, ModelSpec
+from ..description.presets import cfda_effects
+from ..description.spec import EffectSpec, ModelSpec
 from .mismatch import MapMismatch, mismatched_truth
 from .simulate import (
     REALISTIC_MAGNITUDES,

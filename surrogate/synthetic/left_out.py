@@ -27,7 +27,7 @@ from ..core.errors import InputError
 from ..maps.learned import load_learned_maps, trained_folder
 from ..maps.registry import MapsSpec, map_kind
 from ..core.paths import SHIPPED_CFD_SAMPLES
-from ..presets import maps
+from ..description.presets import maps
 from ..core.units import from_si
 from ..valve import load_valve
 

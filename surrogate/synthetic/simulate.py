@@ -35,8 +35,8 @@ from ..fitting.residuals import replay_log
 from ..maps.registry import MapsSpec
 from ..model import ValveModel
 from ..core.paths import SHIPPED_CFD_SAMPLES
-from ..presets import cfda, cfda_effects
-from ..spec import EffectSpec, ModelSpec, ValveSource
+from ..description.presets import cfda, cfda_effects
+from ..description.spec import EffectSpec, ModelSpec, ValveSource
 from ..core.units import to_si
 from ..workbench.workflow import Workflow, run_workflow
 from .mismatch import MapMismatch, mismatched_truth

@@ -48,9 +48,9 @@ from ..maps.registry import MapsSpec
 from ..core.memory import release_freed
 from ..model import ValveModel
 from ..core.parallel import blas_limited, single_threaded
-from ..presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
+from ..description.presets import bmbe, bmbebf_step, cfd_maps_step, cfda_step, maps
 from ..solver.map_tables import release_tables
-from ..spec import ModelSpec, ValveSource
+from ..description.spec import ModelSpec, ValveSource
 from ..core.units import from_si
 from .bench_calibration import calibrate_maps
 

@@ -86,7 +86,7 @@ def test_presets_and_kinds_are_read_in_any_case_as_their_names(argv, option, exp
 
 def test_the_python_api_reads_names_in_any_case_too():
     from surrogate.maps.registry import MapSource, map_kind
-    from surrogate.modelfile import load_spec
+    from surrogate.description.modelfile import load_spec
 
     assert load_spec("CFDA").name == "cfda"
     assert map_kind("GP").name == "gp"
@@ -94,7 +94,7 @@ def test_the_python_api_reads_names_in_any_case_too():
 
 
 def test_a_file_named_like_a_preset_in_another_case_is_the_file(tmp_path, monkeypatch):
-    from surrogate.modelfile import model_name
+    from surrogate.description.modelfile import model_name
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "CFDA").write_text("")

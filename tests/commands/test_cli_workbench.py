@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from surrogate.cli import main
-from surrogate.modelfile import load_model, save_model
+from surrogate.description.modelfile import load_model, save_model
 
 
 @pytest.fixture(scope="module")

@@ -36,7 +36,7 @@ from surrogate.cli import main
 from surrogate.effects import LIBRARY
 from surrogate.maps.learned import trained_folder
 from surrogate.core.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
-from surrogate.presets import preset
+from surrogate.description.presets import preset
 
 # --- the good inputs every case starts from ------------------------------------------------------
 
@@ -1012,7 +1012,7 @@ MODEL_ON_UNSEALED_NN = MODEL_ON_NN.replace(
 
 def _shape_model() -> str:
     from surrogate.effects.shapes import OpeningForce
-    from surrogate.spec import EffectSpec
+    from surrogate.description.spec import EffectSpec
 
     shape = OpeningForce.on_knots(np.linspace(0.05e-3, 0.55e-3, 6))
     spec = preset("cfda")
@@ -1323,7 +1323,7 @@ MODEL_PLACES = ["top", "model", "effect", "parameter"]
 def test_generated_unknown_model_keys_are_refused(place, key):
     from surrogate.core.errors import InputError
     from surrogate.parameters import _RECORD_KEYS as _PARAMETER_KEYS
-    from surrogate.spec import _EFFECT_KEYS, _MODEL_KEYS, _TOP_KEYS
+    from surrogate.description.spec import _EFFECT_KEYS, _MODEL_KEYS, _TOP_KEYS
 
     known = {"top": _TOP_KEYS, "model": _MODEL_KEYS, "effect": _EFFECT_KEYS,
              "parameter": _PARAMETER_KEYS}[place]
@@ -1337,7 +1337,7 @@ def test_generated_unknown_model_keys_are_refused(place, key):
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "model.toml"
         path.write_text(text)
-        from surrogate.modelfile import load_model
+        from surrogate.description.modelfile import load_model
 
         with pytest.raises(InputError, match=f"'{key}'"):
             load_model(str(path))

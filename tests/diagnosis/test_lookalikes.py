@@ -10,7 +10,7 @@ from surrogate.diagnosis.result import Candidate, Label, Rival, Score
 from surrogate.diagnosis.rule import RULE
 from surrogate.fitting.identifiability import ENTANGLED, entangled_pairs, pushed_to_bounds
 from surrogate.leastsquares import FitResult
-from surrogate.presets import cfda
+from surrogate.description.presets import cfda
 
 RNG = np.random.default_rng(7)
 SAMPLES = 400

@@ -11,7 +11,7 @@ from surrogate.effects import LIBRARY, PilotZeroDrift
 from surrogate.core.errors import InputError
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log, run_rows
-from surrogate.modelfile import load_model, save_model
+from surrogate.description.modelfile import load_model, save_model
 from surrogate.points import OperatingPoints
 from surrogate.core.units import to_si
 

@@ -23,7 +23,7 @@ from surrogate.export.refinement import refined_grid
 from surrogate.export.tables import TableGrid, interpolate
 from surrogate.export.tabulable import refuse_untabulable
 from surrogate.export.valve_only import valve_physics
-from surrogate.modelfile import load_model
+from surrogate.description.modelfile import load_model
 from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.replay import replay
@@ -197,8 +197,8 @@ def test_a_source_only_fmu_without_a_compiler_leaving_out_the_sensor_terms(tmp_p
 
 def _with_sensor_term() -> str:
     from surrogate.effects import LIBRARY
-    from surrogate.presets import preset
-    from surrogate.spec import EffectSpec
+    from surrogate.description.presets import preset
+    from surrogate.description.spec import EffectSpec
 
     return preset("cfda").adding(EffectSpec.start(LIBRARY["pilot_transducer_offset"],
                                                   delta=0.5), name="cfda+offset").to_toml()

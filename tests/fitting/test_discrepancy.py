@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from surrogate.fitting.discrepancy import hat_weights, knots
-from surrogate.presets import cfda
+from surrogate.description.presets import cfda
 
 KNOTS = np.array([0.05, 0.1, 0.2, 0.63]) * 1e-3
 

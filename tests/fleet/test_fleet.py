@@ -444,7 +444,7 @@ def test_the_fleet_reports_legends_stay_readable_on_a_narrow_page():
     """The histograms and the outliers' Δp(q) against the median valve, shrunk to a page
     1,000 px wide: every legend's text stays 10 px high (the workflow report's rule)."""
     from surrogate.fleet.report import curves_figure, histograms_figure
-    from surrogate.modelfile import load_model
+    from surrogate.description.modelfile import load_model
     from surrogate.reporting.figures import DPI
 
     rng = np.random.default_rng(3)

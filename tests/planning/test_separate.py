@@ -9,7 +9,7 @@ from surrogate.diagnosis.diagnose import diagnose
 from surrogate.effects import LIBRARY
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.planning.bench_runs import candidate_runs, separating_run
-from surrogate.presets import cfda
+from surrogate.description.presets import cfda
 from surrogate.reporting.prose import diagnosis_document, summarise
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence
 from surrogate.core.units import from_si

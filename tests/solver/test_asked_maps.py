@@ -11,7 +11,7 @@ from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY
 from surrogate.fitting.residuals import replay_log
 from surrogate.fluid import FluidState
-from surrogate.modelfile import load_model
+from surrogate.description.modelfile import load_model
 from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import asked_maps

@@ -8,11 +8,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from surrogate import presets
+from surrogate.description import presets
 from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY
 from surrogate.fitting.residuals import replay_log
-from surrogate.modelfile import load_model
+from surrogate.description.modelfile import load_model
 from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.map_tables import FINE, MapTables, _Locator

@@ -11,7 +11,7 @@ from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY, SHAPES
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log, state_smoothing_samples
-from surrogate.modelfile import load_model
+from surrogate.description.modelfile import load_model
 from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.sensitivities import pressure_drop_changes

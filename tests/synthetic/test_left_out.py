@@ -14,7 +14,7 @@ from surrogate.core.errors import InputError
 from surrogate.maps.learned import load_learned_maps, trained_folder
 from surrogate.maps.registry import build_maps
 from surrogate.core.paths import SHIPPED_CFD_SAMPLES
-from surrogate.presets import maps
+from surrogate.description.presets import maps
 from surrogate.synthetic.left_out import maps_without_opening
 from surrogate.synthetic.mismatch import MapMismatch, PerturbedForceMap
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence

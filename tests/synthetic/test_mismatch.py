@@ -27,7 +27,7 @@ from surrogate.fitting.logfit import fit_to_log
 from surrogate.fluid import FluidState
 from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 from surrogate.model import ValveModel
-from surrogate.presets import cfda, maps
+from surrogate.description.presets import cfda, maps
 from surrogate.reporting.prose import sensor_check_text, summarise
 from surrogate.synthetic.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
                                           PerturbedForceMap, mismatched_samples)

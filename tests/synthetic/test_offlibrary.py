@@ -22,8 +22,8 @@ from surrogate.effects import KNOWN, LIBRARY, load_effects_file
 from surrogate.fitting.heldout import run_groups
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log
-from surrogate.modelfile import load_model, save_model
-from surrogate.presets import maps
+from surrogate.description.modelfile import load_model, save_model
+from surrogate.description.presets import maps
 from surrogate.reporting.prose import summarise
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.offlibrary import OFF_LIBRARY, off_library_suite

@@ -17,8 +17,8 @@ from surrogate.effects.per_opening import CALIBRATIONS, hat_basis
 from surrogate.fitting.discrepancy import knots
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log
-from surrogate.modelfile import load_model, save_model
-from surrogate.presets import maps
+from surrogate.description.modelfile import load_model, save_model
+from surrogate.description.presets import maps
 from surrogate.reporting.prose import workflow_summary
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import hidden_effect_case, noise_free_sequence

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from surrogate.data import BenchLog
-from surrogate.modelfile import load_model
+from surrogate.description.modelfile import load_model
 from surrogate.reporting.figures import write_figures
 from surrogate.core.units import from_si, to_si
 from surrogate.workbench.compare import compare, hysteresis_width
@@ -17,7 +17,7 @@ RUNS = ["R01", "R04", "R06", "R11"]  # 20, 40 and 60 °C; set points 50, 65, 80 
 
 @pytest.fixture(scope="module")
 def model():
-    from surrogate.modelfile import load_model
+    from surrogate.description.modelfile import load_model
 
     return load_model("cfda")
 

@@ -16,10 +16,10 @@ from surrogate.cli import main
 from surrogate.effects import LIBRARY, EffectLibrary, load_effects_file
 from surrogate.core.errors import InputError
 from surrogate.maps.registry import MAP_KINDS, MapsSpec
-from surrogate.modelfile import load_model, save_model
+from surrogate.description.modelfile import load_model, save_model
 from surrogate.core.paths import PROJECT_ROOT
-from surrogate.presets import PRESETS, basic_maps, maps, preset
-from surrogate.spec import EffectSpec, ModelSpec, ValveSource
+from surrogate.description.presets import PRESETS, basic_maps, maps, preset
+from surrogate.description.spec import EffectSpec, ModelSpec, ValveSource
 from surrogate.valve import load_valve
 
 VALVE_TEXT = (PROJECT_ROOT / "surrogate" / "valves" / "paper_cbv.toml").read_text()

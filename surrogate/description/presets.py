@@ -8,17 +8,17 @@
   one K1 and one K2 for all temperatures, starting from the paper's 0.9, 6.5 N and 0.05 N/bar.
 * ``cfda-<kind>``: the same on the maps of another kind (``cfda-nn``, ``cfda-gp``).
 
-Everything here returns a :class:`~surrogate.spec.ModelSpec`; build it with ``.build()``.
+Everything here returns a :class:`~.spec.ModelSpec`; build it with ``.build()``.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
-from .core.errors import InputError, did_you_mean, named
-from .maps.orifice import BASIC_DISCHARGE_COEFFICIENT
-from .maps.registry import MAP_KINDS, MapsSpec
+from ..effects import ConstantFriction, DischargeScale, FlowForceScale, LoadPressureFriction
+from ..core.errors import InputError, did_you_mean, named
+from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
+from ..maps.registry import MAP_KINDS, MapsSpec
 from .spec import EffectSpec, ModelSpec, ValveSource
 
 #: the paper's CFDA starting values: flow-force scale, K1 [N], K2 [N/bar]; every model that adds

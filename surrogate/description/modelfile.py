@@ -1,17 +1,17 @@
 """Models by name or file: a preset, or a model file, built into a :class:`ValveModel`.
 
-The file format and its rules are those of :class:`~surrogate.spec.ModelSpec`; the presets are
-in :mod:`surrogate.presets`. Loading never runs code: the effects a file names come from the
-library it is given (the built-in one plus any ``--effects-file``).
+The file format and its rules are those of :class:`~.spec.ModelSpec`; the presets are in
+:mod:`.presets`. Loading never runs code: the effects a file names come from the library it is
+given (the built-in one plus any ``--effects-file``).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .effects import KNOWN, EffectLibrary
-from .core.errors import InputError, did_you_mean
-from .model import ValveModel
+from ..effects import KNOWN, EffectLibrary
+from ..core.errors import InputError, did_you_mean
+from ..model import ValveModel
 from .presets import PRESETS, preset, preset_named
 from .spec import ModelSpec, ValveSource
 
@@ -57,6 +57,6 @@ def load_model(name_or_path: str, valve_path: str | None = None,
 
 
 def save_model(model: ValveModel, path: str | Path, note: str = "") -> None:
-    """Write ``model`` as a model file (see :class:`~surrogate.spec.ModelSpec`); ``stderr``
-    entries are informative."""
+    """Write ``model`` as a model file (see :class:`~.spec.ModelSpec`); ``stderr`` entries are
+    informative."""
     ModelSpec.of(model).write(path, note)

@@ -45,14 +45,14 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from .effects import KNOWN, Effect, EffectLibrary
-from .core.errors import InputError
-from .core.input_files import read_input_text
-from .maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
-from .model import ValveModel
-from .core.outputs import atomic_file
-from .core.tomlio import dumps, loads
-from .valve import ValveParameters, load_valve, shipped_valve_path
+from ..effects import KNOWN, Effect, EffectLibrary
+from ..core.errors import InputError
+from ..core.input_files import read_input_text
+from ..maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
+from ..model import ValveModel
+from ..core.outputs import atomic_file
+from ..core.tomlio import dumps, loads
+from ..valve import ValveParameters, load_valve, shipped_valve_path
 
 FORMAT = 2
 _TOP_KEYS = {"model", "valve", "maps", "effects"}
