@@ -40,7 +40,7 @@ from ..effects.shapes import SHAPE_FREE
 from ..fitting.hysteresis import hysteresis_split
 from ..fitting.logfit import probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
-from ..leastsquares import free_parameters
+from ..fitting.leastsquares import free_parameters
 from ..model import ValveModel
 from ..core.parallel import blas_limited, single_threaded
 from ..core.units import from_si

@@ -6,8 +6,8 @@
    squares on the linearisation, then up to four Gauss–Newton steps in which every new point is
    replayed for real and the Jacobian is corrected by Broyden's update (one replay per step
    instead of one per parameter); a step that lowers the RSS by less than
-   :data:`surrogate.leastsquares.SETTLED_GAIN` of it ends the refit. Only the four front runners
-   after the first real replay (and any as good as the last of them) take those steps; the
+   :data:`surrogate.fitting.leastsquares.SETTLED_GAIN` of it ends the refit. Only the four front
+   runners after the first real replay (and any as good as the last of them) take those steps; the
    others keep the RMS of that first replay, an upper bound, as they are far behind. The
    reported RMS is that of a real replay at the reported parameters, never a linear estimate.
    Standard errors come from the final Jacobian, inflated by √(n/n_eff) because the samples are
@@ -25,7 +25,7 @@ from ..effects import Effect, PerRunEffect
 from ..fitting.heldout import Linearised
 from ..fitting.logfit import Column, ReadAlike, probe_column
 from ..fitting.residuals import LogReplay, effective_samples, noise_floor, replay_log
-from ..leastsquares import Evaluation, FitProblem, Minimizer
+from ..fitting.leastsquares import Evaluation, FitProblem, Minimizer
 from ..model import ValveModel
 from ..core.parallel import map_threads
 from ..core.progress import Stage

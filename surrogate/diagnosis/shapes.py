@@ -7,8 +7,8 @@ of 1 N everywhere, a friction band widened by 1 N ...) measures that sensitivity
 sample, and the Jacobian column of coefficient k is b_k(x)·s: a whole basis costs one replay,
 not one per coefficient. Where friction holds the piston, a sample answers the output it met when
 the piston last moved, not its own; the column is then approximate, and the refinement's real
-replays (Gauss–Newton with Broyden updates, :class:`~surrogate.leastsquares.Minimizer`) correct
-what it got wrong.
+replays (Gauss–Newton with Broyden updates,
+:class:`~surrogate.fitting.leastsquares.Minimizer`) correct what it got wrong.
 
 The roughness penalty's weight λ is chosen by the held-out runs: for each λ of
 :data:`ROUGHNESS_WEIGHTS` the linearised fit is refitted without each run, each temperature and
@@ -29,7 +29,7 @@ from ..effects.shapes import NU_REFERENCE, PRESSURE_DROP, SHAPE_FREE, ShapeFreeE
 from ..fitting.heldout import HEADLINE, POOLED, Linearised, RunBlocks, RunIndex
 from ..fitting.logfit import ReadAlike, probe_change
 from ..fitting.residuals import LogReplay
-from ..leastsquares import Minimizer, bounded_linear_fit, compress
+from ..fitting.leastsquares import Minimizer, bounded_linear_fit, compress
 from ..model import ValveModel
 from ..core.parallel import map_threads
 from ..core.progress import Stage

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..leastsquares import FitResult
+from .leastsquares import FitResult
 from ..model import ValveModel
 
 #: |correlation| of two fitted parameters' estimates above which the log fixes only their

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..data.loaders import BenchLog
 from ..effects import Effect
-from ..leastsquares import Evaluation, FitProblem, FitResult, Minimizer, free_parameters, split_key
+from .leastsquares import Evaluation, FitProblem, FitResult, Minimizer, free_parameters, split_key
 from ..model import ValveModel
 from ..core.parallel import blas_limited, map_threads, single_threaded
 from ..parameters import Parameter

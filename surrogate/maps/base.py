@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fluid import FluidState, broadcast_query
-from ..roots import invert_increasing
+from ..numerics.roots import invert_increasing
 from ..core.units import BAR, LPM
 from .cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, GAP_FORCE_ERROR, SEAT_FORCE_ERROR,
                         cavitation_error, gap_error, mesh_bias_share, seat_error)

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ..effects import DischargeScale, FlowForceScale
-from ..leastsquares import fit
+from ..fitting.leastsquares import fit
 from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
 from ..maps.registry import MapsSpec
 from ..model import ValveModel

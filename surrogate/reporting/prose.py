@@ -14,7 +14,7 @@ from ..diagnosis.lookalikes import MAPS_ERROR
 from ..diagnosis.naming import WITHIN, library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..fitting.heldout import HEADLINE
-from ..leastsquares import split_key
+from ..fitting.leastsquares import split_key
 from ..planning.bench_runs import Separation, search_range
 from ..core.units import from_si
 

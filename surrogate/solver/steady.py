@@ -10,7 +10,7 @@ with the load pressure p_L(u) = p_B + Δp(q, u) from the flow map, and s = +1 wh
 effect bends it: below): a wider opening needs less pressure for the same flow, and the spring
 pushes harder. As u → 0 with flow passing, Δp and hence h grow without bound, so the root is
 bracketed by a vanishing opening and the stop. All points are solved together
-(:func:`surrogate.roots.find_roots`).
+(:func:`surrogate.numerics.roots.find_roots`).
 
 Several equilibria
 ------------------
@@ -75,7 +75,7 @@ from ..maps.coverage import describe_all
 from ..model import ValveModel
 from ..core.parallel import map_threads
 from ..points import OperatingPoints
-from ..roots import find_roots, invert_increasing
+from ..numerics.roots import find_roots, invert_increasing
 from ..core.units import BAR, from_si
 from .map_tables import COARSE, balance_reader
 from .uncertainty import pressure_drop_std

@@ -33,7 +33,7 @@ from ..effects.per_opening import CALIBRATIONS, hat_basis
 from ..fitting.discrepancy import knots
 from ..fitting.heldout import HEADLINE, Prior, replayed_heldout_rms
 from ..fitting.residuals import LogReplay
-from ..leastsquares import FitResult, Minimizer
+from ..fitting.leastsquares import FitResult, Minimizer
 from ..model import ValveModel
 from ..core.parallel import map_threads
 

@@ -43,7 +43,7 @@ from ..fitting.identifiability import (Entangled, PushedToBound, entangled_pairs
                                        pushed_to_bounds)
 from ..fitting.logfit import Column, fit_to_log, probe_columns
 from ..fitting.residuals import LogReplay, noise_floor, replay_log
-from ..leastsquares import FitResult, free_parameters
+from ..fitting.leastsquares import FitResult, free_parameters
 from ..maps.registry import MapsSpec
 from ..core.memory import release_freed
 from ..model import ValveModel

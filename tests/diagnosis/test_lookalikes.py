@@ -9,7 +9,7 @@ from surrogate.diagnosis.lookalikes import (COLLINEAR, MAPS_ERROR, collinearity,
 from surrogate.diagnosis.result import Candidate, Label, Rival, Score
 from surrogate.diagnosis.rule import RULE
 from surrogate.fitting.identifiability import ENTANGLED, entangled_pairs, pushed_to_bounds
-from surrogate.leastsquares import FitResult
+from surrogate.fitting.leastsquares import FitResult
 from surrogate.description.presets import cfda
 
 RNG = np.random.default_rng(7)

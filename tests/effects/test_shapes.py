@@ -155,7 +155,7 @@ def test_a_shape_keeps_the_smoothness_its_diagnosis_chose_in_every_later_fit(
     """A shape's ``smoothing`` is a penalty every fit of its model minimises with the sum of
     squares (a workflow's next step, ``fit`` with a model file): without it the spline follows
     the noise, with it the fit stays smooth though the data are the same."""
-    from surrogate.leastsquares import fit
+    from surrogate.fitting.leastsquares import fit
     from surrogate.model import ValveModel
 
     rng = np.random.default_rng(1)

@@ -1,4 +1,4 @@
-"""The package's one minimiser (surrogate/leastsquares.py) on problems with known answers: a
+"""The package's one minimiser (surrogate/fitting/leastsquares.py) on problems with known answers: a
 linear fit against the normal equations, a bound that binds, the Gauss–Newton refinement with
 Broyden updates against the trust-region fit, and a penalty minimised with the sum of squares."""
 
@@ -9,8 +9,8 @@ import pytest
 from scipy.optimize import lsq_linear
 
 from surrogate.effects import Effect, Parameter
-from surrogate.leastsquares import (FunctionProblem, Minimizer, bounded_linear_fit, compress,
-                                    covariance, fit)
+from surrogate.fitting.leastsquares import (FunctionProblem, Minimizer, bounded_linear_fit,
+                                            compress, covariance, fit)
 from surrogate.model import ValveModel
 
 X = np.linspace(0.0, 1.0, 40)

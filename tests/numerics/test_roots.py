@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from surrogate.roots import find_roots
+from surrogate.numerics.roots import find_roots
 
 
 def test_known_end_values_stand_in_for_the_first_two_evaluations():
@@ -25,7 +25,7 @@ def test_known_end_values_stand_in_for_the_first_two_evaluations():
 
 
 def test_roots_are_scipys_to_the_bit():
-    """The port of Chandrupatla's method (surrogate.chandrupatla) returns what
+    """The port of Chandrupatla's method (surrogate.numerics.chandrupatla) returns what
     scipy.optimize.elementwise.find_root returns: the same roots, convergence and status, for
     good brackets, brackets without a sign change, non-finite ends and the iteration limit."""
     from scipy.optimize.elementwise import find_root

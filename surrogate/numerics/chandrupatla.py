@@ -1,13 +1,13 @@
 """Chandrupatla's bracketing root finder for many functions at once, without SciPy's framework.
 
-:func:`surrogate.roots.find_roots` solves thousands of one-dimensional roots together, a fit
+:func:`.roots.find_roots` solves thousands of one-dimensional roots together, a fit
 some twenty thousand per replay. SciPy's :func:`scipy.optimize.elementwise.find_root` runs
 Chandrupatla's method [1] inside a general framework (array-API dispatch, result objects,
 callbacks) whose bookkeeping cost about a fifth of a replay on the shipped log: more than the
 arithmetic. This is the same method with the same arithmetic in the same order (SciPy 1.17's
 ``scipy/optimize/_chandrupatla.py`` and ``scipy/_lib/_elementwise_iterative_method.py``: its
 tolerances, termination tests, status codes and compression of finished points), so that it
-returns SciPy's roots to the bit (tests/solver/test_roots.py compares them). Ported under
+returns SciPy's roots to the bit (tests/numerics/test_roots.py compares them). Ported under
 SciPy's BSD 3-Clause license (Copyright (c) 2001-2002 Enthought, Inc., 2003 SciPy Developers).
 
 [1] Chandrupatla, T. R. "A new hybrid quadratic/bisection algorithm for finding the zero of a

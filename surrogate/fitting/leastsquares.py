@@ -25,11 +25,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
-from .core.errors import InputError
-from .model import ValveModel
-from .core.parallel import map_threads
-from .parameters import Parameter
-from .core.units import from_si, to_si
+from ..core.errors import InputError
+from ..model import ValveModel
+from ..core.parallel import map_threads
+from ..parameters import Parameter
+from ..core.units import from_si, to_si
 
 #: residual of a solver failure, so that a fit is steered away from it [Pa]
 FAILURE_RESIDUAL = 1000e5
