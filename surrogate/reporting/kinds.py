@@ -4,7 +4,7 @@ which finding to trust.
 The workflow runs the same loop on grid, neural-network and Gaussian-process maps. Each kind's
 maps err in their own way, and a loop adds what makes up for its maps' error beside what the
 valve holds. So the effects the loops added are grouped by the physics they stand for
-(:func:`~surrogate.diagnosis.naming.family`: a friction of free shape rising with viscosity and
+(:func:`~surrogate.reporting.naming.family`: a friction of free shape rising with viscosity and
 the library's friction growing with viscosity are one family), and for each family:
 
 * added on **every** kind of map: the common physics, to trust; where the kinds chose different
@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..diagnosis.naming import Family, family
+from .naming import Family, family
 from ..core.units import from_si
 from .verdict import category_words, what
 

@@ -11,7 +11,7 @@ import re
 import numpy as np
 
 from ..diagnosis.lookalikes import MAPS_ERROR
-from ..diagnosis.naming import WITHIN, library_matches, shape_features
+from .naming import WITHIN, library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..fitting.heldout import HEADLINE
 from ..fitting.leastsquares import split_key

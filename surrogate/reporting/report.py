@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from ..diagnosis.naming import WITHIN, library_matches
+from .naming import WITHIN, library_matches
 from ..diagnosis.result import Diagnosis
 from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
                               NOISE_MARGIN, OTHER_KIND_GAIN)
@@ -300,7 +300,7 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
 
 def shape_figure(candidate) -> Figure:
     """A shape-free find against its variable with its one-σ band, and the closest library
-    terms of its kind fitted to it (:mod:`surrogate.diagnosis.naming`)."""
+    terms of its kind fitted to it (:mod:`surrogate.reporting.naming`)."""
     curve = candidate.curve
     figure = Figure(figsize=(7.5, 4.0), layout="constrained")
     axes = figure.subplots()

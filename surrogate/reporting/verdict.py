@@ -9,7 +9,7 @@
 
 Every number comes from the workflow (:class:`~surrogate.workbench.workflow.Workflow`): its
 final diagnosis (the final model's), its steps and its noise floor. Effects are named in the
-words of their titles and physical family (:func:`~surrogate.diagnosis.naming.family`); an
+words of their titles and physical family (:func:`~surrogate.reporting.naming.family`); an
 effect's name appears only where a command needs it.
 """
 
@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ..diagnosis.lookalikes import MAPS_ERROR
-from ..diagnosis.naming import family, shape_features
+from .naming import family, shape_features
 from ..core.units import from_si
 from .prose import NOISE_LEVEL, hysteresis_share, workflow_summary
 

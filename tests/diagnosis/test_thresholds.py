@@ -25,6 +25,7 @@ THRESHOLDS = {rule.BIC_THRESHOLD: "rule.BIC_THRESHOLD", -rule.BIC_THRESHOLD: "ru
 JUDGING = [*sorted((PACKAGE / "diagnosis").glob("*.py")),
            *(PACKAGE / name for name in ("reporting/prose.py", "reporting/verdict.py",
                                          "reporting/kinds.py", "reporting/staircase.py",
+                                         "reporting/naming.py",
                                          "workbench/workflow.py", "fitting/heldout.py"))]
 
 

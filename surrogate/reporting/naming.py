@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects.shapes import SHAPE_FREE, VARIABLES
-from .result import ShapeCurve
+from ..diagnosis.result import ShapeCurve
 
 #: a library shape fits a found one when it stays within this many of its standard deviations
 WITHIN = 2.0
