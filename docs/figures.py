@@ -45,7 +45,7 @@ def draw(workflow, run: str) -> Figure:
                    alpha=0.5, label=f"measured, ramp {ramp}")
     for step, style, name in ((workflow.steps[CFDA_STEP], "--", "CFDA (the paper)"),
                               (workflow.final, "-", "final model")):
-        predicted = from_si(step.played.replay.dp[rows], "bar")
+        predicted = from_si(step.log_replay.replay.dp[rows], "bar")
         for mask, shade in ((up, "tab:orange"), (~up, "tab:purple")):
             order = np.argsort(q[mask])
             right.plot(q[mask][order], _smooth(predicted[mask][order]), style, color=shade,

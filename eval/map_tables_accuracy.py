@@ -42,12 +42,12 @@ def accuracy(kind: str, level: int = 0, seed: int = 0) -> dict:
     model = presets.cfda(maps_spec=presets.maps(kind)).build()
     log = load_bench_log(SHIPPED_BENCH_LOG)
     start = time.process_time()
-    played = replay_log(model, log, diagnostics=False)
+    log_replay = replay_log(model, log, diagnostics=False)
     replay_cpu = time.process_time() - start
     points = model.true_points(OperatingPoints.from_bench(log.frame))
     tables = MapTables(model)
     start = time.process_time()
-    tables.tabulate(model, points, played.replay.band)
+    tables.tabulate(model, points, log_replay.replay.band)
     tabulate_cpu = time.process_time() - start
     view = tables.view(points)
     held = np.flatnonzero(view.row >= 0)

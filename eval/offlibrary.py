@@ -82,10 +82,10 @@ def handed_over(workflow) -> dict[str, float]:
             path = write_effect_file(step.model.effect(name), Path(folder) / "found_shape.py")
             effect = load_effects_file(path)["found_shape"]()
         fitted = fit_to_log(before.model.with_effects([*before.model.effects, effect]),
-                            workflow.log, start=before.played)
-        played = replay_log(fitted.model, workflow.log, guess=fitted.evaluation.payload)
+                            workflow.log, start=before.log_replay)
+        log_replay = replay_log(fitted.model, workflow.log, guess=fitted.evaluation.payload)
         gain = before.heldout_check - step.heldout_check
-        kept[name] = float((before.heldout_check - heldout_rms(fitted, played, schemes))
+        kept[name] = float((before.heldout_check - heldout_rms(fitted, log_replay, schemes))
                            / gain) if gain > 0 else float("nan")
     return kept
 

@@ -89,8 +89,8 @@ def replay_noise_control(log, seed: int = 1) -> dict:
     result = {}
     for label, window in (("classic play", 1),
                           ("smoothed state", state_smoothing_samples(case.log))):
-        played = replay(case.truth, points, runs, smoothing=window)
-        residual = np.where(played.ok, played.dp - measured, np.nan)
+        solver_replay = replay(case.truth, points, runs, smoothing=window)
+        residual = np.where(solver_replay.ok, solver_replay.dp - measured, np.nan)
         rms = float(np.sqrt(np.nanmean(residual**2)))
         floor = noise_floor(residual, runs)
         result[label] = {"window_samples": window, "rms_bar": round(float(from_si(rms, "bar")), 3),

@@ -61,8 +61,8 @@ def run(args) -> int:
     model = fit_to_log(model, log, progress=progress).model
     progress(f"diagnosing {model.name}")
     # the comparison's tables are for the report alone: without --out the replay is all
-    played = replay_log(model, log).require_solved(model.name)
-    diagnosis = diagnose(model, log, library, base=played, candidates=args.candidates,
+    log_replay = replay_log(model, log).require_solved(model.name)
+    diagnosis = diagnose(model, log, library, base=log_replay, candidates=args.candidates,
                          progress=progress)
     progress(f"done in {progress.elapsed:.1f} s")
     document = diagnosis_document(diagnosis)
@@ -84,7 +84,7 @@ def run(args) -> int:
             (staging / "diagnosis.png").write_bytes(figure_png(diagnosis_figure(diagnosis)))
             write_html(staging / "report.html", f"Diagnosis: {model.name}",
                        [diagnosis_section(diagnosis),
-                        comparison_section(compare(model, log, played=played),
+                        comparison_section(compare(model, log, log_replay=log_replay),
                                            "The fitted model against the data")])
         progress(f"wrote {args.out}/report.html")
     if args.json:

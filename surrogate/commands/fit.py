@@ -48,9 +48,9 @@ def run(args) -> int:
                                name=name)
     progress(f"fitting {name}")
     result = fit_to_log(model, log, progress=progress)
-    played = replay_log(result.model, log).require_solved(result.model.name)
-    floor = noise_floor(played.residual, played.runs, source=played.log.source)
-    note = f"fitted to {log.source}: rms {from_si(played.rms(), 'bar'):.3f} bar"
+    log_replay = replay_log(result.model, log).require_solved(result.model.name)
+    floor = noise_floor(log_replay.residual, log_replay.runs, source=log_replay.log.source)
+    note = f"fitted to {log.source}: rms {from_si(log_replay.rms(), 'bar'):.3f} bar"
     if output.kind == "folder":
         with atomic_directory(output.path) as staging:
             save_model(result.model, staging / path.name, note=note)
@@ -60,7 +60,7 @@ def run(args) -> int:
     if args.json:
         print_json({
             "model": result.model.name, "added": args.add, "file": str(path),
-            "rms_bar": round(float(from_si(played.rms(), "bar")), 4),
+            "rms_bar": round(float(from_si(log_replay.rms(), "bar")), 4),
             "noise_floor_bar": round(float(from_si(floor, "bar")), 4),
             "parameters": result.model.parameters().to_records(free_only=True)})
     else:

@@ -165,7 +165,7 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
 
     workflow = workflows[main]
     final = workflow.final
-    comparison = compare(final.model, log, played=final.played)
+    comparison = compare(final.model, log, log_replay=final.log_replay)
     # the workflows live to the end: the figures' collections need not walk them
     settle_survivors()
     with atomic_directory(out) as staging:

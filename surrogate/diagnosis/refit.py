@@ -121,8 +121,8 @@ class DiagnosisProblem(FitProblem):
         self.base_evaluation = Evaluation(base.residual[self.ok], base)
 
     def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
-        played = replay_log(model, self.log, guess=self.base, diagnostics=False)
-        return Evaluation(played.residual[self.ok], played)
+        log_replay = replay_log(model, self.log, guess=self.base, diagnostics=False)
+        return Evaluation(log_replay.residual[self.ok], log_replay)
 
     def effective_samples(self, evaluation: Evaluation) -> float:
         return self.n_eff

@@ -367,13 +367,13 @@ class Prior:
     penalty: np.ndarray
 
 
-def replayed_heldout_rms(model: ValveModel, keys: list[str], played: LogReplay,
+def replayed_heldout_rms(model: ValveModel, keys: list[str], log_replay: LogReplay,
                          groups: dict[str, list[str]], prior: Prior | None = None,
                          columns: list | None = None) -> float:
     """RMS [Pa] of ``model``'s residual on each group of runs predicted by a fit to the others.
 
     The parameters ``keys`` (and ``prior``'s) are refitted without the group by the linear
-    refit of :meth:`RunBlocks.shifts` about ``played``, the model's replay of the log: the
+    refit of :meth:`RunBlocks.shifts` about ``log_replay``, the model's replay of the log: the
     parameters' ``columns`` (:func:`~surrogate.fitting.logfit.probe_columns` of ``keys``, probed
     here unless given), parameters on a bound held, the model's penalty kept (a shape stays as
     smooth as its fit made it). The group's runs are then *replayed* at the refitted values.
@@ -384,9 +384,9 @@ def replayed_heldout_rms(model: ValveModel, keys: list[str], played: LogReplay,
     case 4252 of eval/offlibrary.py), where the replay moves it by a fraction of a bar. The
     replays cost one replay of the log per scheme, the columns one per parameter (none when
     given: a workflow's step probes them once, for this check and the next diagnosis)."""
-    ok = played.ok
+    ok = log_replay.ok
     parameters = model.parameters()
-    columns = probe_columns(model, keys, played) if columns is None else columns
+    columns = probe_columns(model, keys, log_replay) if columns is None else columns
     nothing = np.zeros(int(ok.sum()))
     jacobian = np.column_stack([c.change if c.felt else nothing for c in columns]
                                or [np.zeros((len(nothing), 0))])
@@ -395,15 +395,15 @@ def replayed_heldout_rms(model: ValveModel, keys: list[str], played: LogReplay,
     penalty = model.penalty(keys, int(ok.sum()))
     roughness = (None if penalty is None else
                  (penalty[0] * steps, penalty[0] @ values + penalty[1]))
-    fit = Linearised(played.residual[ok], jacobian, roughness).held([parameters[key]
-                                                                     for key in keys])
+    fit = Linearised(log_replay.residual[ok], jacobian, roughness).held([parameters[key]
+                                                                         for key in keys])
     if prior is not None:
         fit = fit.beside(prior.columns, prior.penalty,
                          np.array([parameters[key].value for key in prior.keys]))
         keys = keys + prior.keys
         steps = np.r_[steps, np.ones(len(prior.keys))]
         values = np.r_[values, [parameters[key].value for key in prior.keys]]
-    blocks = RunBlocks(fit, None, played.runs[ok], 0.0)
+    blocks = RunBlocks(fit, None, log_replay.runs[ok], 0.0)
 
     def predict(entry) -> np.ndarray:
         held, shift = entry
@@ -412,12 +412,12 @@ def replayed_heldout_rms(model: ValveModel, keys: list[str], played: LogReplay,
         for key, value in zip(keys, values + shift * steps):
             parameter = moved[key]
             parameter.value = float(np.clip(value, parameter.min, parameter.max))
-        rows = np.flatnonzero(np.isin(played.runs.astype(str),
+        rows = np.flatnonzero(np.isin(log_replay.runs.astype(str),
                                       [blocks.labels[i] for i in held]))
-        again = replay_log(trial, played.log.take(rows), guess=played.take(rows),
+        again = replay_log(trial, log_replay.log.take(rows), guess=log_replay.take(rows),
                            diagnostics=False)
         # a sample the refitted model leaves unsolved keeps the residual it had before
-        return np.where(np.isfinite(again.residual), again.residual, played.residual[rows])
+        return np.where(np.isfinite(again.residual), again.residual, log_replay.residual[rows])
 
     residuals = [r[np.isfinite(r)]
                  for r in map_threads(predict, list(blocks.shifts(groups).values()))]

@@ -39,33 +39,33 @@ class LogProblem(FitProblem):
         self.last = start
 
     def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
-        played = replay_log(model, self.log, guess=self.last, diagnostics=False)
+        log_replay = replay_log(model, self.log, guess=self.last, diagnostics=False)
         # only the fit's own steps move the warm start: the Jacobian's columns, on threads,
         # start from the point they differentiate at, so the result does not depend on timing
         if own:
-            self.last = played
-        return Evaluation(played.residual, played)
+            self.last = log_replay
+        return Evaluation(log_replay.residual, log_replay)
 
     def column(self, model: ValveModel, parameter: Parameter):
         if parameter.scope is None:
             return super().column(model, parameter)
         rows = run_rows(self.log, parameter.scope)
         start = self.last
-        played = replay_log(model, self.log.take(rows), diagnostics=False,
-                            guess=None if start is None else start.take(rows))
-        return rows, played.residual
+        log_replay = replay_log(model, self.log.take(rows), diagnostics=False,
+                                guess=None if start is None else start.take(rows))
+        return rows, log_replay.residual
 
     def effective_samples(self, evaluation: Evaluation) -> float:
-        played = evaluation.payload
-        return effective_samples(played.residual, played.runs)
+        log_replay = evaluation.payload
+        return effective_samples(log_replay.residual, log_replay.runs)
 
     def changes(self, model: ValveModel, trials, evaluation: Evaluation) -> np.ndarray:
         """The Jacobian's changes from the replay's sensitivities
         (:func:`surrogate.solver.sensitivities.pressure_drop_changes`): one replay's balance
         states instead of a replay per parameter."""
-        played = evaluation.payload
+        log_replay = evaluation.payload
         return pressure_drop_changes(model, self._points, self.log.frame["run"].to_numpy(),
-                                     played.replay, trials, smoothing=self._smoothing)
+                                     log_replay.replay, trials, smoothing=self._smoothing)
 
     @cached_property
     def _points(self) -> OperatingPoints:
@@ -146,13 +146,13 @@ def probe_change(model: ValveModel, effect_name: str, parameter_name: str, log: 
     parameter = trial.effect(effect_name).params[parameter_name]
     step = probe_step(parameter)
     parameter.value += step
-    played = replay_log(trial, log, guess=base, diagnostics=False)
+    log_replay = replay_log(trial, log, guess=base, diagnostics=False)
     # the difference of two replays read alike: a replay that asked the maps is replayed as the
     # trial is, from the fit's tables (surrogate.solver.map_tables), so that their small
     # difference from the maps does not enter the column
-    if base.replay.tables is None and played.replay.tables is not None:
+    if base.replay.tables is None and log_replay.replay.tables is not None:
         base = (alike or ReadAlike(model, log, base))()
-    return step, played.replay.dp - base.replay.dp
+    return step, log_replay.replay.dp - base.replay.dp
 
 
 class ReadAlike:

@@ -136,13 +136,13 @@ def replay_log(model: ValveModel, log: BenchLog, *, guess: LogReplay | None = No
     points = guess.replay.points if same else OperatingPoints.from_bench(log.frame)
     # the points' run labels, as fixed-width text: the log's column is made of objects,
     # slower to read out and to compare
-    played = replay(model, points, points.run,
-                    guess=None if guess is None else guess.replay, diagnostics=diagnostics,
-                    smoothing=state_smoothing_samples(log), progress=progress)
+    solver_replay = replay(model, points, points.run,
+                           guess=None if guess is None else guess.replay, diagnostics=diagnostics,
+                           smoothing=state_smoothing_samples(log), progress=progress)
     measured = guess.measured if same else measured_dp(log)
-    residual = np.where(played.ok, played.dp - measured, np.nan)
+    residual = np.where(solver_replay.ok, solver_replay.dp - measured, np.nan)
     release_freed(len(log))
-    return LogReplay(log, played, measured, residual)
+    return LogReplay(log, solver_replay, measured, residual)
 
 
 #: solved samples a run needs for its second differences to say anything about the noise

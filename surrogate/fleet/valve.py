@@ -50,20 +50,20 @@ def valve_result(task: ValveTask, progress=None) -> dict:
     if model.parameters().free():
         fitted = fit_to_log(model, log)
         model = fitted.model
-    played = replay_log(model, log).require_solved(model.name)
-    floor = noise_floor(played.residual, played.runs, source=log.source)
+    log_replay = replay_log(model, log).require_solved(model.name)
+    floor = noise_floor(log_replay.residual, log_replay.runs, source=log.source)
     # a log of one run has no other run to predict it from
-    heldout = (heldout_rms(fitted, played, run_groups(log)) if len(log.run_ids) > 1
+    heldout = (heldout_rms(fitted, log_replay, run_groups(log)) if len(log.run_ids) > 1
                else float("nan"))
     result = {"model": model.name, "samples": len(log), "runs": len(log.run_ids),
               "converged": None if fitted is None else bool(fitted.success),
               "evaluations": 0 if fitted is None else int(fitted.evaluations),
-              "rms_bar": _bar(played.rms()), "heldout_rms_bar": _bar(heldout),
+              "rms_bar": _bar(log_replay.rms()), "heldout_rms_bar": _bar(heldout),
               "noise_floor_bar": _bar(floor), "conditions": conditions(log),
               "parameters": parameter_records(model)}
     if task.diagnose:
         say(f"{task.serial}: diagnosing")
-        result["diagnosis"] = diagnosis_record(model, log, played,
+        result["diagnosis"] = diagnosis_record(model, log, log_replay,
                                                _library(task.effects_files, task.model_sha256))
     return result
 
@@ -94,13 +94,13 @@ def conditions(log) -> dict[str, float]:
             "q_max_lpm": round(float(from_si(frame["q"].max(), "L/min")), 4)}
 
 
-def diagnosis_record(model: ValveModel, log, played, library: EffectLibrary) -> dict:
+def diagnosis_record(model: ValveModel, log, log_replay, library: EffectLibrary) -> dict:
     """The diagnosis of the fitted ``model`` on ``log`` in brief: its top-ranked candidate
     (name, category, ΔBIC, whether significant, one line on it) and its finding, if any."""
     from ..diagnosis.diagnose import diagnose
     from ..reporting.prose import explanation, summarise
 
-    diagnosis = diagnose(model, log, library, base=played)
+    diagnosis = diagnose(model, log, library, base=log_replay)
     top = diagnosis.candidates[0] if diagnosis.candidates else None
     best = diagnosis.best
     return {

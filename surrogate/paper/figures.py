@@ -113,8 +113,8 @@ def figure21(comparison: PaperComparison) -> Figure:
                   label="data, ramp up" if index == 0 else None, rasterized=True)
         axes.plot(q[~up], dp[~up], ".", color="tab:cyan", markersize=1.5, alpha=0.3,
                   label="data, ramp down" if index == 0 else None, rasterized=True)
-        played = replay(with_friction, OperatingPoints.from_bench(frame))
-        predicted = np.where(played.ok, from_si(played.dp, "bar"), np.nan)
+        solver_replay = replay(with_friction, OperatingPoints.from_bench(frame))
+        predicted = np.where(solver_replay.ok, from_si(solver_replay.dp, "bar"), np.nan)
         axes.plot(q[up], predicted[up], color="tab:red", linewidth=1.2,
                   label="CFDA with friction" if index == 0 else None)
         axes.plot(q[~up], predicted[~up], color="tab:blue", linewidth=1.2)

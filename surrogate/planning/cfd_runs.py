@@ -68,14 +68,14 @@ class Suggestion:
         ``variance_reduction_percent`` (of the log's map-implied Δp variance, given the runs
         above it), ``cumulative_percent`` and ``outside_samples`` (why the run lies outside the
         CFD samples; empty inside).
-    played : LogReplay
+    log_replay : LogReplay
         The replay of the log the suggestion weighs.
     dp_std_rms : float
         RMS over the log of the Δp standard deviation the maps imply [Pa].
     """
 
     runs: pd.DataFrame
-    played: LogReplay
+    log_replay: LogReplay
     dp_std_rms: float
 
     def to_json(self) -> dict:
@@ -101,14 +101,14 @@ class Suggestion:
 
 
 def suggest_cfd(model: ValveModel, log: BenchLog, runs: int = 8, *,
-                played: LogReplay | None = None) -> Suggestion:
+                log_replay: LogReplay | None = None) -> Suggestion:
     """The ``runs`` CFD runs that most reduce the maps' share of the Δp uncertainty over
     ``log`` (see the module docstring). ``model``'s maps must report an uncertainty."""
     if model.flow_map.calibration is None and model.force_map.calibration is None:
         raise ValueError(f"model {model.name!r} has maps without an uncertainty "
                          f"({model.flow_map.kind}); choose maps built from CFD samples")
-    played = played or replay_log(model, log)
-    replay = played.replay
+    log_replay = log_replay or replay_log(model, log)
+    replay = log_replay.replay
     ok = np.flatnonzero(replay.ok)[::EVERY]
     side = np.where(~replay.moving, 0.0, np.where(
         replay.u <= np.fmin(replay.band[0], replay.band[1]), 1.0, -1.0))
@@ -147,7 +147,7 @@ def suggest_cfd(model: ValveModel, log: BenchLog, runs: int = 8, *,
     })
     std = replay.dp_std
     rms = float(np.sqrt(np.nanmean(std[replay.ok] ** 2))) if std is not None else float("nan")
-    return Suggestion(table, played, rms)
+    return Suggestion(table, log_replay, rms)
 
 
 @dataclass(frozen=True)
@@ -261,16 +261,16 @@ def _rounded(values: pd.Series, step: float) -> pd.Series:
 def suggestion_figure(suggestion: Suggestion, model: ValveModel):
     """The log's operating points (opening over flow, shaded by the Δp standard deviation the
     maps imply) over the sampled openings, with the suggested runs numbered."""
-    return operating_points_figure(suggestion.played, model, suggestion.runs)
+    return operating_points_figure(suggestion.log_replay, model, suggestion.runs)
 
 
-def operating_points_figure(played, model: ValveModel, runs: pd.DataFrame | None = None):
-    """Where the bench operates: the openings and flows of a replay (``played``, with the maps'
+def operating_points_figure(log_replay, model: ValveModel, runs: pd.DataFrame | None = None):
+    """Where the bench operates: the openings and flows of a replay (``log_replay``, with the maps'
     Δp standard deviation) over the CFD's sampled openings, and the suggested CFD ``runs``
     numbered, if any."""
     from matplotlib.figure import Figure
 
-    replay = played.replay
+    replay = log_replay.replay
     ok = replay.ok
     figure = Figure(figsize=(9.5, 5.2))
     ax = figure.subplots()

@@ -116,7 +116,7 @@ def decimated(comparison: Comparison) -> tuple[View, View]:
     scatters). A log of at most :data:`FIGURE_SAMPLES` samples is drawn whole; a bigger one
     draws the first :data:`RUNS_PER_CONDITION` runs of each condition, and every k-th sample
     of the scatters (k the smallest that keeps :data:`FIGURE_SAMPLES`)."""
-    runs = comparison.played.runs
+    runs = comparison.log_replay.runs
     count = len(runs)
     if count <= FIGURE_SAMPLES:
         whole = View(slice(None))
@@ -143,7 +143,7 @@ def _samples(comparison: Comparison, view: View) -> pd.DataFrame:
     with each run's nominal temperature and set point, the measured p_L and the ramp up as a
     flag."""
     table = comparison.sample_table(view.rows)
-    log = comparison.played.log.frame
+    log = comparison.log_replay.log.frame
     nominal = dict(zip(comparison.runs["run"], comparison.runs["temperature_nominal_C"]))
     return table.assign(temperature_nominal_C=table["run"].map(nominal).to_numpy(),
                         p_Pe_bar=from_si(log["p_Pe_nominal"].to_numpy()[view.rows], "bar"),
@@ -170,7 +170,7 @@ def _title(comparison: Comparison, what: str) -> str:
 def caption(comparison: Comparison) -> str:
     """What every figure of the comparison shows, in full: the model and the data."""
     model = comparison.model.replace("+", " + ")  # so that a long name can wrap
-    return f"Model {model} against {Path(comparison.played.log.source).name}."
+    return f"Model {model} against {Path(comparison.log_replay.log.source).name}."
 
 
 def _tint(colour, amount: float):

@@ -511,7 +511,7 @@ def misfit_figures(workflow) -> dict[str, bytes]:
     # legend entries wrapped so that three fit side by side on a figure 14 inches wide
     models = [("\n".join(textwrap.wrap(f"{workflow.steps.index(step) + 1}. "
                                        + step_label(step, 200).replace("\n", " "), 44)),
-               step.played) for step in steps]
+               step.log_replay) for step in steps]
     pngs = {}
     views = residual_views(workflow.log, models)
     if views is not None:
@@ -519,7 +519,7 @@ def misfit_figures(workflow) -> dict[str, bytes]:
     if len(workflow.log.run_ids) <= LOOP_RUNS:
         pngs["run_loops"] = figure_png(run_loops(workflow.log, [models[0], models[-1]]))
     if workflow.final.model.flow_map.coverage is not None:
-        pngs["operating_points"] = figure_png(operating_points_figure(workflow.final.played,
+        pngs["operating_points"] = figure_png(operating_points_figure(workflow.final.log_replay,
                                                                       workflow.final.model))
     return pngs
 

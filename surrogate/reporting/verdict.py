@@ -160,10 +160,10 @@ def acts(diagnosis, candidate) -> str:
     return text + "."
 
 
-def worst_run(played) -> tuple[str, float]:
+def worst_run(log_replay) -> tuple[str, float]:
     """The run of largest residual RMS in a replay, and that RMS [Pa]."""
-    residual = pd.Series(np.asarray(played.residual, float))
-    rms = np.sqrt((residual**2).groupby(np.asarray(played.runs)).mean().dropna())
+    residual = pd.Series(np.asarray(log_replay.residual, float))
+    rms = np.sqrt((residual**2).groupby(np.asarray(log_replay.runs)).mean().dropna())
     return str(rms.idxmax()), float(rms.max())
 
 

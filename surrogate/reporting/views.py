@@ -98,10 +98,10 @@ def residual_views(log, models: list[tuple[str, object]]) -> Figure | None:
         for column, (name, words, unit, level) in enumerate(VARIABLES):
             ax = axes[row, column]
             x = from_si(at_bins[name], unit)
-            for (title, played), shade in zip(models, colours):
-                residual = np.nan_to_num(played.residual, nan=0.0)
+            for (title, log_replay), shade in zip(models, colours):
+                residual = np.nan_to_num(log_replay.residual, nan=0.0)
                 values = from_si(view @ residual, "bar") - from_si(0.0, "bar")
-                if played is last:
+                if log_replay is last:
                     ax.plot(x, values, ".", color=shade, markersize=3, alpha=0.35)
                 centres, medians = _binned_line(x, values, level)
                 # a variable held at levels (set points, temperatures): its levels' medians as
@@ -146,8 +146,8 @@ def run_loops(log, models: list[tuple[str, object]], columns: int = 4,
             step = max(1, int(rows_.sum() // 150))
             ax.plot(q[rows_][::step], measured[rows_][::step], marker, color=tint,
                     markersize=2.5, alpha=0.6)
-        for (title, played), shade in zip(models, colours):
-            predicted = from_si(played.replay.dp, "bar")
+        for (title, log_replay), shade in zip(models, colours):
+            predicted = from_si(log_replay.replay.dp, "bar")
             # both ramps as one line, broken between them: one artist instead of two
             x, y = [], []
             for ramp in (up, ~up):

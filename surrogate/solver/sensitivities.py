@@ -50,11 +50,11 @@ _FLOW_HOOKS = ("correct_inputs", "restriction_flow", "leakage")
 
 
 def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
-                          played: Replay, trials: Sequence[ValveModel], *, u_start: float = 0.0,
+                          replay: Replay, trials: Sequence[ValveModel], *, u_start: float = 0.0,
                           smoothing: int = 1) -> np.ndarray:
     """The change of the replay's Δp [Pa] at each sample that each of ``trials`` (``model``
     with one parameter shifted, as a Jacobian's forward difference shifts it) makes,
-    linearised: (n, len(trials)), NaN where ``played`` has no solution. The opening's change is
+    linearised: (n, len(trials)), NaN where ``replay`` has no solution. The opening's change is
     not followed where the piston rests on its stop or is closed (it does not move) or no flow
     passes (Δp does not depend on it); Δp's own change there is.
 
@@ -70,13 +70,13 @@ def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
     # 1. each band edge's du/dθ where the piston floats on it
     edge_change = np.zeros((2, count, columns))
     for row, sign in ((0, 1.0), (1, -1.0)):
-        u_edge = played.band[row]
+        u_edge = replay.band[row]
         floating = np.flatnonzero(np.isfinite(u_edge) & (points.q > 0) & (u_edge > 0)
                                   & (u_edge < stroke))
         if not floating.size:
             continue
         sub, at, sub_fluid = points[floating], u_edge[floating], fluid[floating]
-        balance_at = _balance_as_replayed(model, played, floating, sub, sub_fluid)
+        balance_at = _balance_as_replayed(model, replay, floating, sub, sub_fluid)
         balance = balance_at(at)
         state, here = balance.state, _g(balance, sign)
         step = _U_STEP * at
@@ -86,20 +86,20 @@ def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
                 g_theta = sum(_hooks(new, state, sign) - _hooks(old, state, sign)
                               for old, new in changed[j])
             else:
-                g_theta = _g(_balance_as_replayed(trial, played, floating, sub, sub_fluid)(at),
+                g_theta = _g(_balance_as_replayed(trial, replay, floating, sub, sub_fluid)(at),
                              sign) - here
             with np.errstate(divide="ignore", invalid="ignore"):
                 edge_change[row, floating, j] = -g_theta / g_u
 
     # 2. which edge each sample's opening is (the play, replayed on the band it found)
-    status_edges = np.where(np.isfinite(played.band), 0, -1)
+    status_edges = np.where(np.isfinite(replay.band), 0, -1)
     starts = segment_starts(segments, count)
-    *_, source = play(played.band[0], played.band[1], status_edges[0], status_edges[1],
+    *_, source = play(replay.band[0], replay.band[1], status_edges[0], status_edges[1],
                        starts, u_start, smoothing)
-    opens_low = ~(played.band[0] > played.band[1])  # the lower edge is the opening one
+    opens_low = ~(replay.band[0] > replay.band[1])  # the lower edge is the opening one
     low = np.where(opens_low[:, None], edge_change[0], edge_change[1])
     high = np.where(opens_low[:, None], edge_change[1], edge_change[0])
-    solved = np.isfinite(played.band).all(axis=0)
+    solved = np.isfinite(replay.band).all(axis=0)
     if smoothing > 1:  # the state follows the edges smoothed over each run: a linear filter
         state_low = smoothed_edge(low, starts, solved, smoothing) if columns else low
         state_high = smoothed_edge(high, starts, solved, smoothing) if columns else high
@@ -115,26 +115,26 @@ def pressure_drop_changes(model: ValveModel, points: OperatingPoints, segments,
 
     # 3. Δp at each sample's own opening: its direct change and its slope in u
     change = np.full((count, columns), np.nan)
-    solved_rows = np.flatnonzero(np.isfinite(played.dp))
+    solved_rows = np.flatnonzero(np.isfinite(replay.dp))
     if not solved_rows.size:
         return change
-    sub, at, sub_fluid = points[solved_rows], played.u[solved_rows], fluid[solved_rows]
-    dp = played.dp[solved_rows]
+    sub, at, sub_fluid = points[solved_rows], replay.u[solved_rows], fluid[solved_rows]
+    dp = replay.dp[solved_rows]
     step = _U_STEP * np.maximum(at, 1e-3 * stroke)
-    balance_at = _balance_as_replayed(model, played, solved_rows, sub, sub_fluid)
+    balance_at = _balance_as_replayed(model, replay, solved_rows, sub, sub_fluid)
     dp_u = (balance_at(at + step).dp - dp) / step
     for j, trial in enumerate(trials):
         direct = 0.0 if fast[j] else (
-            _balance_as_replayed(trial, played, solved_rows, sub, sub_fluid)(at).dp - dp)
+            _balance_as_replayed(trial, replay, solved_rows, sub, sub_fluid)(at).dp - dp)
         change[solved_rows, j] = direct + dp_u * du[solved_rows, j]
     return change
 
 
-def _balance_as_replayed(model, played: Replay, rows, points, fluid):
+def _balance_as_replayed(model, replay: Replay, rows, points, fluid):
     """``balance(u)`` of the samples ``rows`` as the replay evaluated ``model`` (or a trial of
     it): from the map tables it read (:mod:`.map_tables`), or from the maps."""
     read = balance_reader(model, points, fluid,
-                          None if played.tables is None else played.tables[rows])
+                          None if replay.tables is None else replay.tables[rows])
     index = np.arange(len(points))
     return lambda u: read(u, index)
 

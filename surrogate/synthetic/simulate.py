@@ -132,16 +132,16 @@ def simulate(truth: ValveModel, sequence: BenchLog, *, noise: SensorNoise | None
         silently missing value).
     """
     noise = SensorNoise() if noise is None else noise
-    played = replay_log(truth, sequence, diagnostics=False)
-    if not played.ok.all():
-        bad = np.flatnonzero(~played.ok)
+    log_replay = replay_log(truth, sequence, diagnostics=False)
+    if not log_replay.ok.all():
+        bad = np.flatnonzero(~log_replay.ok)
         raise InputError(f"the truth model {truth.name!r} cannot be solved at {bad.size} "
                          f"sample(s) of the sequence (first: index {bad[0]}); choose a smaller "
                          "magnitude")
     rng = np.random.default_rng(seed)
     frame = sequence.frame.copy()
     size = len(frame)
-    frame["p_L"] = frame["p_B"] + played.replay.dp + noise.p_L * rng.standard_normal(size)
+    frame["p_L"] = frame["p_B"] + log_replay.replay.dp + noise.p_L * rng.standard_normal(size)
     frame["p_P"] = frame["p_P"] + noise.p_P * rng.standard_normal(size)
     frame["p_B"] = frame["p_B"] + noise.p_B * rng.standard_normal(size)
     spread = noise.q_relative * frame["q"] + noise.q_absolute

@@ -74,19 +74,19 @@ class BenchCalibration:
     values: np.ndarray
     sigma: np.ndarray
 
-    def heldout_rms(self, fitted: FitResult | None, played: LogReplay,
+    def heldout_rms(self, fitted: FitResult | None, log_replay: LogReplay,
                     schemes: dict[str, dict[str, list[str]]], columns=None) -> float:
         """RMS on held-out runs [Pa] of the calibrated model refitted to the others and
         replayed (:func:`~surrogate.fitting.heldout.replayed_heldout_rms`): its own free
-        parameters (``fitted``'s, replayed as ``played``) and the calibration's values together,
+        parameters (``fitted``'s, replayed as ``log_replay``) and the calibration's values together,
         these under their prior; ``columns``: the free parameters' probe columns, if made."""
         model = self.model if fitted is None else fitted.model
         keys = [f"{name}.{coefficient}" for name in self.names
                 for coefficient in model.effect(name).coefficient_names()]
-        prior = Prior(keys, self.columns[played.ok], self.prior)
+        prior = Prior(keys, self.columns[log_replay.ok], self.prior)
         keys = ([] if fitted is None else list(fitted.names) if columns is None
                 else [column.key for column in columns])
-        return replayed_heldout_rms(model, keys, played, schemes[HEADLINE], prior,
+        return replayed_heldout_rms(model, keys, log_replay, schemes[HEADLINE], prior,
                                     columns=columns)
 
     def describe(self) -> str:
@@ -119,30 +119,30 @@ def prior_sigma(name: str, replay, ok: np.ndarray, at: np.ndarray) -> np.ndarray
     return np.minimum(np.sqrt(np.where(total > 1e-9, near, float(np.mean(variance)))), limit)
 
 
-def calibrate_maps(model: ValveModel, log: BenchLog, played: LogReplay, *,
+def calibrate_maps(model: ValveModel, log: BenchLog, log_replay: LogReplay, *,
                    workers: int | None = None) -> BenchCalibration | None:
-    """The maps of ``model`` (fitted to ``log``, replayed as ``played`` with diagnostics)
+    """The maps of ``model`` (fitted to ``log``, replayed as ``log_replay`` with diagnostics)
     calibrated per opening (module docstring); None for maps without samples or uncertainty
     (an orifice equation), or when the model already has a calibration."""
     at = knots(model)
-    if (played.replay.map_gain is None or at.size < 2
+    if (log_replay.replay.map_gain is None or at.size < 2
             or any(model.has_effect(cls.name) for cls in CALIBRATIONS)):
         return None
-    problem = DiagnosisProblem(log, played)
+    problem = DiagnosisProblem(log, log_replay)
     ok = problem.ok
-    state = state_at_samples(model, played)
+    state = state_at_samples(model, log_replay)
     probes = [probe_of(cls) for cls in CALIBRATIONS]
-    found = list(map_threads(lambda probe: sensitivity(model, probe, played), probes,
+    found = list(map_threads(lambda probe: sensitivity(model, probe, log_replay), probes,
                              workers=workers))
     trial = model.copy()
     columns, sigma, names = [], [], []
     for cls, sensitivities in zip(CALIBRATIONS, found):
         effect = cls.on_knots(at)
-        shaped = shape_columns(cls, state, sensitivities, ok, played.replay.moving,
-                               played.runs, effect=effect)
+        shaped = shape_columns(cls, state, sensitivities, ok, log_replay.replay.moving,
+                               log_replay.runs, effect=effect)
         trial.effects.append(effect)
         columns.append(shaped.columns / shaped.steps)  # per unit value
-        sigma.append(prior_sigma(cls.name, played.replay, ok, at))
+        sigma.append(prior_sigma(cls.name, log_replay.replay, ok, at))
         names += [f"{cls.name}.{name}" for name in effect.coefficient_names()]
     columns, sigma = np.hstack(columns), np.concatenate(sigma)
     prior = np.diag(np.sqrt(problem.noise_floor**2 * ok.sum() / problem.n_eff) / sigma)

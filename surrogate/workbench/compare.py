@@ -53,7 +53,7 @@ class Comparison:
     ----------
     model : str
         The model's name.
-    played : LogReplay
+    log_replay : LogReplay
         The model's replay of the log.
     rms : float
         Residual RMS over the solved samples [Pa].
@@ -81,7 +81,7 @@ class Comparison:
     """
 
     model: str
-    played: LogReplay = field(repr=False)
+    log_replay: LogReplay = field(repr=False)
     rms: float
     noise_floor: float
     runs: pd.DataFrame = field(repr=False)
@@ -91,11 +91,11 @@ class Comparison:
 
     @property
     def samples(self) -> int:
-        return len(self.played.residual)
+        return len(self.log_replay.residual)
 
     @property
     def solved(self) -> int:
-        return int(self.played.ok.sum())
+        return int(self.log_replay.ok.sum())
 
     @property
     def rms_over_noise(self) -> float:
@@ -105,22 +105,24 @@ class Comparison:
     @property
     def extrapolating_fraction(self) -> float:
         """Fraction of the solved samples at which the model extrapolates its maps."""
-        ok = self.played.ok
-        return float(np.mean(self.played.replay.extrapolating[ok])) if ok.any() else float("nan")
+        ok = self.log_replay.ok
+        if not ok.any():
+            return float("nan")
+        return float(np.mean(self.log_replay.replay.extrapolating[ok]))
 
     @property
     def outside_shares(self) -> dict[str, float]:
         """Share of the solved samples outside the CFD samples, for any reason and per reason."""
-        return shares(self.played.replay.reasons_outside[self.played.ok])
+        return shares(self.log_replay.replay.reasons_outside[self.log_replay.ok])
 
     @property
     def dp_std(self) -> float:
         """RMS over the solved samples of the Δp standard deviation the maps' uncertainty
         implies [Pa]; NaN for maps without one."""
-        std = self.played.replay.dp_std
-        if std is None or not self.played.ok.any():
+        std = self.log_replay.replay.dp_std
+        if std is None or not self.log_replay.ok.any():
             return float("nan")
-        return float(np.sqrt(np.nanmean(std[self.played.ok] ** 2)))
+        return float(np.sqrt(np.nanmean(std[self.log_replay.ok] ** 2)))
 
     def to_json(self) -> dict:
         """Plain JSON data in display units, numbers rounded to 4 decimals, NaN as null."""
@@ -130,7 +132,7 @@ class Comparison:
         pivot = self.pivot.stack().rename("rms_bar").reset_index()
         return {
             "model": self.model,
-            "source": self.played.log.source,
+            "source": self.log_replay.log.source,
             "samples": self.samples,
             "solved": self.solved,
             "rms_bar": _plain(from_si(self.rms, "bar")),
@@ -148,7 +150,7 @@ class Comparison:
         """A plain-text summary for a terminal: headline, per-run table, pivot, worst regions."""
         rms, floor = from_si(self.rms, "bar"), from_si(self.noise_floor, "bar")
         lines = [
-            f"{self.model} vs {Path(self.played.log.source).name}: {self.samples} samples in "
+            f"{self.model} vs {Path(self.log_replay.log.source).name}: {self.samples} samples in "
             f"{len(self.runs)} runs" + (f", {self.samples - self.solved} not solved"
                                         if self.solved < self.samples else ""),
             f"  residual (model − measured Δp) RMS {rms:.3f} bar, noise floor {floor:.3f} bar "
@@ -197,7 +199,7 @@ class Comparison:
         measured and model Δp, the model's Δp standard deviation from the maps, residual,
         solver status, whether the piston moved, and why the maps' query lies outside the CFD
         samples (empty inside)."""
-        log, played, replay = self.played.log.frame, self.played, self.played.replay
+        log, log_replay, replay = self.log_replay.log.frame, self.log_replay, self.log_replay.replay
         dp_std = replay.dp_std
 
         def column(name):
@@ -212,11 +214,11 @@ class Comparison:
             "p_P_bar": from_si(column("p_P"), "bar"),
             "p_B_bar": from_si(column("p_B"), "bar"),
             "temperature_C": from_si(column("temperature"), "degC"),
-            "dp_measured_bar": from_si(played.measured[rows], "bar"),
+            "dp_measured_bar": from_si(log_replay.measured[rows], "bar"),
             "dp_model_bar": from_si(replay.dp[rows], "bar"),
-            "dp_std_bar": from_si(np.full(len(played.residual), np.nan)[rows] if dp_std is None
+            "dp_std_bar": from_si(np.full(len(log_replay.residual), np.nan)[rows] if dp_std is None
                                   else dp_std[rows], "bar"),
-            "residual_bar": from_si(played.residual[rows], "bar"),
+            "residual_bar": from_si(log_replay.residual[rows], "bar"),
             "status": status_names(replay.status[rows]),
             "moving": replay.moving[rows],
             "outside_samples": describe_all(replay.reasons_outside[rows]),
@@ -225,7 +227,7 @@ class Comparison:
     def write_samples(self, path, chunk: int = 200_000) -> None:
         """Write :meth:`sample_table` as CSV, a chunk of rows at a time (the table of a big log
         is never held whole)."""
-        count = len(self.played.residual)
+        count = len(self.log_replay.residual)
         with open(path, "w", encoding="utf-8", newline="") as stream:
             for start in range(0, max(count, 1), chunk):
                 self.sample_table(slice(start, min(start + chunk, count))).to_csv(
@@ -257,27 +259,27 @@ class Comparison:
         return head + ("; outside the CFD samples: " + ", ".join(reasons) if reasons else "")
 
 
-def compare(model: ValveModel, log: BenchLog, *, played: LogReplay | None = None,
+def compare(model: ValveModel, log: BenchLog, *, log_replay: LogReplay | None = None,
             progress=None) -> Comparison:
     """Replay ``model`` over ``log`` and summarise the residual (see the module doc).
 
-    ``played``: the model's replay of ``log``, if already computed. It must have been made with
+    ``log_replay``: the model's replay of ``log``, if already computed. It must have been made with
     diagnostics on (the default of :func:`~surrogate.fitting.residuals.replay_log`), or every
     region reads as inside the maps
     and no uncertainty is shown. ``progress`` hears how far the replay of a big log got.
     """
-    played = played if played is not None else replay_log(model, log, progress=progress)
-    if len(played.residual) != len(log):
-        raise ValueError(f"the replay has {len(played.residual)} samples, the log {len(log)}")
-    played.require_solved(model.name)
-    samples = _samples(played)
+    log_replay = log_replay if log_replay is not None else replay_log(model, log, progress=progress)
+    if len(log_replay.residual) != len(log):
+        raise ValueError(f"the replay has {len(log_replay.residual)} samples, the log {len(log)}")
+    log_replay.require_solved(model.name)
+    samples = _samples(log_replay)
     solved_rows = samples["residual"].notna().to_numpy()
     solved = samples if solved_rows.all() else samples[solved_rows]  # no copy when all solve
     comparison = Comparison(
         model=model.name,
-        played=played,
-        rms=played.rms(),
-        noise_floor=noise_floor(played.residual, played.runs, source=played.log.source),
+        log_replay=log_replay,
+        rms=log_replay.rms(),
+        noise_floor=noise_floor(log_replay.residual, log_replay.runs, source=log_replay.log.source),
         runs=_run_table(samples, solved, log.run_ids),
         pivot=_pivot(solved),
         regions=_regions(solved, samples["q"]),
@@ -338,19 +340,19 @@ def _widths(codes: np.ndarray, q: np.ndarray, up: np.ndarray, dp: np.ndarray,
     return gap.groupby(level="run", sort=False).mean()
 
 
-def _samples(played: LogReplay) -> pd.DataFrame:
+def _samples(log_replay: LogReplay) -> pd.DataFrame:
     """What the statistics need of each sample (SI): the log's run, flow, ramp direction (up
     as True), temperature and set point, the measured and predicted Δp, the residual and its
     square, the Δp variance the maps imply, whether they extrapolate, and the run's nominal
     temperature. Only these: a log of millions of samples is not copied whole."""
-    log, replay = played.log.frame, played.replay
-    std = np.full(len(played.residual), np.nan) if replay.dp_std is None else replay.dp_std
+    log, replay = log_replay.log.frame, log_replay.replay
+    std = np.full(len(log_replay.residual), np.nan) if replay.dp_std is None else replay.dp_std
     samples = pd.DataFrame({name: log[name].to_numpy() for name in (
         "run", "q", "temperature", "p_Pe_nominal")})
     samples["up"] = log["direction"].to_numpy() == "up"
-    samples["dp_measured"] = played.measured
+    samples["dp_measured"] = log_replay.measured
     samples["dp_predicted"] = replay.dp
-    samples["residual"] = played.residual
+    samples["residual"] = log_replay.residual
     samples["extrapolating"] = replay.extrapolating
     samples["residual_squared"] = samples["residual"] ** 2
     samples["dp_variance"] = std ** 2

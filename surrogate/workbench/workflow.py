@@ -73,7 +73,7 @@ class Step:
         What the step is, for the steps no diagnosis chose (the paper's, the starting model,
         the maps' calibration); "" for a diagnosed step, whose reason is its diagnosis
         (:func:`surrogate.reporting.documents.step_reason` words it).
-    played : LogReplay
+    log_replay : LogReplay
         Its replay of the log.
     rms : float
         Residual RMS [Pa].
@@ -102,7 +102,7 @@ class Step:
     model: ValveModel
     added: tuple[str, ...]
     reason: str
-    played: LogReplay
+    log_replay: LogReplay
     rms: float
     diagnosis: Diagnosis | None = None
     category: str = ""
@@ -171,17 +171,17 @@ def paper_steps(valve: ValveSource, maps_spec: MapsSpec
     ]
 
 
-def heldout_rms(fitted: FitResult | None, played: LogReplay,
+def heldout_rms(fitted: FitResult | None, log_replay: LogReplay,
                 schemes: dict[str, dict[str, list[str]]], columns=None) -> float:
     """A fitted model's RMS on held-out runs [Pa], each run predicted by a refit to the others
     and replayed (:func:`~surrogate.fitting.heldout.replayed_heldout_rms`; ``columns``: the
-    free parameters' probe columns at ``played``, if already made); without free parameters it
+    free parameters' probe columns at ``log_replay``, if already made); without free parameters it
     is the RMS itself."""
     if fitted is None or not fitted.names:
-        return played.rms()
+        return log_replay.rms()
     keys = fitted.names if columns is None else [column.key for column in columns]
     # the other schemes judge candidates, not steps: refit only for the runs left out
-    return replayed_heldout_rms(fitted.model, keys, played, schemes[HEADLINE], columns=columns)
+    return replayed_heldout_rms(fitted.model, keys, log_replay, schemes[HEADLINE], columns=columns)
 
 
 class _Staircase:
@@ -206,7 +206,7 @@ class _Staircase:
         (``calibration``: the :class:`.bench_calibration.BenchCalibration` it adds, which its
         held-out figure refits too)."""
         if near is None and self.steps and self.last.model.flow_map is model.flow_map:
-            near = self.last.played
+            near = self.last.log_replay
         fitted = None
         if model.parameters().free():
             self.say(f"fitting {model.name} ({len(model.parameters().free())} free "
@@ -214,19 +214,19 @@ class _Staircase:
             fitted = fit_to_log(model, self.log, start=near, progress=self.say)
             model = fitted.model
         release_freed()  # the fit's working arrays, before the step's replay and checks
-        played = replay_log(model, self.log, guess=near)
+        log_replay = replay_log(model, self.log, guess=near)
         # probed once: for the step's held-out check and the next diagnosis' linearisation
         if fitted is not None:
             self.say("checking the step on held-out runs (each run refitted without it and "
                      "replayed)")
         columns = tuple(probe_columns(model, [key for key, _ in free_parameters(model)],
-                                      played)) if fitted is not None else ()
-        check = (heldout_rms(fitted, played, self.schemes, list(columns)) if calibration is None
-                 else calibration.heldout_rms(fitted, played, self.schemes, list(columns)))
+                                      log_replay)) if fitted is not None else ()
+        check = (heldout_rms(fitted, log_replay, self.schemes, list(columns)) if calibration is None
+                 else calibration.heldout_rms(fitted, log_replay, self.schemes, list(columns)))
         best = None if diagnosis is None else diagnosis.best
         pushed = (pushed_to_bounds(self.last.model, model, added) if self.steps else [])
-        step = Step(model=model, added=tuple(added), reason=reason, played=played,
-                    rms=played.rms(), diagnosis=diagnosis, category=category,
+        step = Step(model=model, added=tuple(added), reason=reason, log_replay=log_replay,
+                    rms=log_replay.rms(), diagnosis=diagnosis, category=category,
                     heldout_rms=check if best is None else best.heldout_rms,
                     heldout_check=check, entangled=tuple(entangled_pairs(fitted)),
                     pushed=tuple(pushed), columns=columns)
@@ -246,7 +246,7 @@ class _Staircase:
         current, refused = self.last, refused or []
         self.say(f"diagnosing {current.model.name} ..."
                  + (f" (without {', '.join(refused)})" if refused else ""))
-        diagnosis = self.diagnoser.diagnose(current.model, self.log, base=current.played,
+        diagnosis = self.diagnoser.diagnose(current.model, self.log, base=current.log_replay,
                                             exclude=refused,
                                             own_columns=list(current.columns) or None)
         if self.narrate is not None:
@@ -298,7 +298,7 @@ class _Staircase:
         runs no better than the step before; return whether it was added."""
         current = self.last
         self.say(f"calibrating the maps of {current.model.name} to the bench ...")
-        calibration = calibrate_maps(current.model, self.log, current.played)
+        calibration = calibrate_maps(current.model, self.log, current.log_replay)
         if calibration is None:
             return False
         step = self.record(calibration.model.copy(name=f"{current.model.name}+calibrated maps"),
@@ -369,8 +369,8 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     else:
         loop_end = None
     steps = staircase.steps
-    floor = noise_floor(steps[-1].played.residual, steps[-1].played.runs,
-                        source=steps[-1].played.log.source)
+    floor = noise_floor(steps[-1].log_replay.residual, steps[-1].log_replay.runs,
+                        source=steps[-1].log_replay.log.source)
     for step in steps:  # the fits are done: their tables go (the steps' replays asked the maps)
         release_tables(step.model)
     return Workflow(log=log, steps=tuple(steps), final_diagnosis=diagnosis, noise_floor=floor,

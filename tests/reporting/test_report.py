@@ -38,7 +38,7 @@ def workflow(bench_log):
 
 @pytest.fixture(scope="module")
 def comparison(workflow):
-    return compare(workflow.final.model, workflow.log, played=workflow.final.played)
+    return compare(workflow.final.model, workflow.log, log_replay=workflow.final.log_replay)
 
 
 @pytest.fixture(scope="module")
@@ -157,7 +157,7 @@ def test_every_table_scrolls_inside_its_box(page):
 def _report_figures(workflow, comparison):
     from surrogate.reporting.views import residual_views, run_loops
 
-    models = [(f"step {i + 1}", step.played) for i, step in enumerate(workflow.steps)]
+    models = [(f"step {i + 1}", step.log_replay) for i, step in enumerate(workflow.steps)]
     return {**all_figures(comparison),
             "staircase": staircase_figure(workflow.steps, workflow.noise_floor),
             "diagnosis": diagnosis_figure(workflow.final_diagnosis),
@@ -198,8 +198,8 @@ def test_one_sign_convention_in_every_figure_table_and_sentence(workflow, compar
     panels = all_figures(comparison)["residuals"]
     assert "model − measured" in panels.axes[0].get_ylabel()
     plotted = np.sort(panels.axes[0].collections[0].get_offsets()[:, 1])
-    played = comparison.played
-    expected = (played.replay.dp - played.measured)[played.ok] / 1e5
+    log_replay = comparison.log_replay
+    expected = (log_replay.replay.dp - log_replay.measured)[log_replay.ok] / 1e5
     assert plotted.size and np.all(np.isin(np.round(plotted, 9), np.round(expected, 9)))
 
 
@@ -221,8 +221,8 @@ def test_the_misfit_views_are_the_runs_median_lines_and_half_widths(workflow):
     from surrogate.fitting.hysteresis import hysteresis_split
     from surrogate.reporting.views import VARIABLES, residual_views
 
-    last = workflow.final.played
-    figure = residual_views(workflow.log, [("first", workflow.steps[0].played), ("last", last)])
+    last = workflow.final.log_replay
+    figure = residual_views(workflow.log, [("first", workflow.steps[0].log_replay), ("last", last)])
     axes = np.array(figure.axes).reshape(2, len(VARIABLES))
     split = hysteresis_split(workflow.log.frame)
     residual = np.nan_to_num(last.residual)
@@ -235,7 +235,7 @@ def test_the_misfit_views_are_the_runs_median_lines_and_half_widths(workflow):
 def test_every_run_has_its_own_loop_on_its_own_scale(workflow):
     from surrogate.reporting.views import run_loops
 
-    figure = run_loops(workflow.log, [("final", workflow.final.played)])
+    figure = run_loops(workflow.log, [("final", workflow.final.log_replay)])
     shown = [ax for ax in figure.axes if ax.get_visible() and ax.get_title()]
     assert len(shown) == len(workflow.log.run_ids)
     spans = [ax.get_ylim()[1] - ax.get_ylim()[0] for ax in shown]

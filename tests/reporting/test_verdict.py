@@ -79,9 +79,9 @@ def test_with_nothing_found_the_verdict_says_so_and_where_what_is_left_lies():
     assert "force map near 0.16 mm (0.14 bar RMS)" in found.where
     assert "suggest-cfd" in found.next and "force map near 0.16 mm" in found.next
     # no map limits: the worst run, and a run the log lacks to test the model beyond it
-    played = SimpleNamespace(residual=np.array([0.5, -0.5, 2.0, -2.0]) * BAR,
-                             runs=np.array(["R01", "R01", "R02", "R02"]))
-    found = verdict(_workflow(_diagnosis(0.85 * BAR, [idle], base=played)))
+    log_replay = SimpleNamespace(residual=np.array([0.5, -0.5, 2.0, -2.0]) * BAR,
+                                 runs=np.array(["R01", "R01", "R02", "R02"]))
+    found = verdict(_workflow(_diagnosis(0.85 * BAR, [idle], base=log_replay)))
     assert "largest on run R02 (2.00 bar RMS)" in found.where
     assert found.next.startswith("a bench run at a temperature or pilot pressure the log lacks")
 

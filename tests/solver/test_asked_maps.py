@@ -62,7 +62,7 @@ def test_a_solvers_balance_with_the_kept_reading_is_the_maps_own(setting, name):
     """A model whose flow is the measured one (a pilot transducer's offset) reads the kept
     sweeps; one that changes the flow (a discharge correction, a flowmeter's gain) asks the
     grid: both give the balance the maps give."""
-    log, model, played = setting
+    log, model, log_replay = setting
     trial = model.copy()
     trial.effects.append(LIBRARY[name].for_runs(log.run_ids))
     for parameter in trial.effect(name).params.values():
@@ -75,7 +75,7 @@ def test_a_solvers_balance_with_the_kept_reading_is_the_maps_own(setting, name):
     balance = asked_balance(trial, points, fluid, keep=True)
     assert isinstance(balance, AskedBalance)
     rng = np.random.default_rng(5)
-    u = played.replay.u[flowing]
+    u = log_replay.replay.u[flowing]
     for _ in range(3):
         index = np.sort(rng.choice(len(points), len(points) // 2, replace=False))
         at = np.where(np.isfinite(u[index]), u[index], 1e-4) * rng.uniform(0.9, 1.1, len(index))

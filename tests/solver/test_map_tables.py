@@ -34,10 +34,10 @@ def test_a_grid_maps_pressure_drop_is_tabulated_exactly_and_its_flow_force_close
     """Between the grid's sampled openings (nodes of the table) ln Δp is linear in ln u: the
     table holds it to the rounding of its single-precision slopes. The flow force bends along
     u; its cubic is third order."""
-    log, model, played = setting
+    log, model, log_replay = setting
     points = OperatingPoints.from_bench(log.frame)
     tables = MapTables(model)
-    tables.tabulate(model, points, played.replay.band)
+    tables.tabulate(model, points, log_replay.replay.band)
     view = tables.view(points)
     held = np.flatnonzero(view.row >= 0)
     assert held.size > 0.9 * np.count_nonzero(points.q > 0)
@@ -63,10 +63,10 @@ def test_on_the_stop_the_tables_give_the_maps_own_answers(setting):
     bit; at another flow or Δp, and at another opening outside the windows, it asks the maps."""
     from surrogate.solver.map_tables import TabulatedMaps
 
-    log, model, played = setting
+    log, model, log_replay = setting
     points = OperatingPoints.from_bench(log.frame)
     tables = MapTables(model)
-    tables.tabulate(model, points, played.replay.band)
+    tables.tabulate(model, points, log_replay.replay.band)
     view = tables.view(points)
     fluid = model.fluid(points)
     rng = np.random.default_rng(5)
@@ -90,31 +90,31 @@ def test_on_the_stop_the_tables_give_the_maps_own_answers(setting):
 
 
 def test_outside_its_window_a_sample_is_not_in_the_table(setting):
-    log, model, played = setting
+    log, model, log_replay = setting
     points = OperatingPoints.from_bench(log.frame)
     tables = MapTables(model)
-    tables.tabulate(model, points, played.replay.band)
+    tables.tabulate(model, points, log_replay.replay.band)
     view = tables.view(points)
     flowing = np.flatnonzero(view.row >= 0)[:50]
-    far = played.replay.band[0, flowing] * 10.0
+    far = log_replay.replay.band[0, flowing] * 10.0
     *_, inside = view[flowing].lookup(far)
     assert not inside.any()
-    *_, inside = view[flowing].lookup(played.replay.band[0, flowing])
+    *_, inside = view[flowing].lookup(log_replay.replay.band[0, flowing])
     assert inside.all()
 
 
 def test_a_replay_from_the_tables_matches_one_from_the_maps(setting):
     """A fit's inner loop (a guess, no diagnostics) reads the tables; what it replays is the
     maps' replay to well under the noise of a bench log (tenths of a bar)."""
-    log, model, played = setting
-    tabulated = replay_log(model, log, guess=played, diagnostics=False)
+    log, model, log_replay = setting
+    tabulated = replay_log(model, log, guess=log_replay, diagnostics=False)
     assert tabulated.replay.tables is not None
-    assert played.replay.tables is None
-    both = np.isfinite(tabulated.replay.dp) & np.isfinite(played.replay.dp)
+    assert log_replay.replay.tables is None
+    both = np.isfinite(tabulated.replay.dp) & np.isfinite(log_replay.replay.dp)
     assert both.mean() > 0.9
-    difference = tabulated.replay.dp[both] - played.replay.dp[both]
+    difference = tabulated.replay.dp[both] - log_replay.replay.dp[both]
     assert np.sqrt(np.mean(difference ** 2)) < 5e-3 * BAR
-    assert np.array_equal(tabulated.replay.moving, played.replay.moving)
+    assert np.array_equal(tabulated.replay.moving, log_replay.replay.moving)
 
 
 FLOW_CHANGING = ["flowmeter_gain", "laminar_leakage", "discharge_scale"]
@@ -159,8 +159,8 @@ def test_effects_that_change_the_flow_read_smooth_maps_expansions(setting, gp_mo
 @pytest.mark.parametrize("name", FLOW_CHANGING)
 def test_effects_that_change_the_flow_ask_a_grid_map(setting, name):
     """A grid's sweeps have kinks in the flow and Δp that no polynomial follows."""
-    log, model, played = setting
-    again = replay_log(_with(model, name), log, guess=played, diagnostics=False)
+    log, model, log_replay = setting
+    again = replay_log(_with(model, name), log, guess=log_replay, diagnostics=False)
     assert again.replay.tables is None
 
 
@@ -234,16 +234,16 @@ def test_the_bucket_locator_finds_the_segment_a_binary_search_finds(seed, close)
 def test_a_full_store_keeps_each_samples_latest_row(setting, monkeypatch):
     """Renewed rows leave old ones behind; a store that would outgrow its bound keeps only the
     latest row of each sample (its older views then find none, and the maps answer)."""
-    log, model, played = setting
+    log, model, log_replay = setting
     points = OperatingPoints.from_bench(log.frame)
     tables = MapTables(model)
-    tables.tabulate(model, points, played.replay.band)
+    tables.tabulate(model, points, log_replay.replay.band)
     monkeypatch.setattr("surrogate.solver.map_tables.MAX_NODES", int(1.5 * tables.size))
     before = tables.view(points)
-    moved = played.replay.band * 1.3
+    moved = log_replay.replay.band * 1.3
     tables.tabulate(model, points, moved)
     assert tables.generation == 1 and tables.size < 1.5 * len(before.row) * 60
-    assert not before.lookup(played.replay.band[0])[2].any()
+    assert not before.lookup(log_replay.replay.band[0])[2].any()
     view = tables.view(points)
     held = np.flatnonzero(view.row >= 0)
     u = moved[0, held]

@@ -75,19 +75,19 @@ def test_play_gives_the_hand_computed_hysteresis_loop(valve):
     q = np.concatenate([np.linspace(1, 12, 300), np.linspace(12, 1, 300)]) * LPM
     p_B, p_Pe = 3 * BAR, 50 * BAR
     points = OperatingPoints.create(q, p_Pe + p_B, p_B, 313.15)
-    played = replay(model, points)
-    assert played.ok.all()
+    solver_replay = replay(model, points)
+    assert solver_replay.ok.all()
     rho = valve.oil.density(313.15)
     up = eq15_pressure_drop(valve, q, p_Pe, rho, valve.F_cr + K1)
     down = eq15_pressure_drop(valve, q, p_Pe, rho, valve.F_cr - K1)
     rising = slice(0, 300)
-    np.testing.assert_allclose(played.dp[rising], up[rising], rtol=1e-9)
+    np.testing.assert_allclose(solver_replay.dp[rising], up[rising], rtol=1e-9)
     falling = np.arange(300, 600)
-    stuck = falling[~played.moving[falling]]
-    sliding = falling[played.moving[falling]]
+    stuck = falling[~solver_replay.moving[falling]]
+    sliding = falling[solver_replay.moving[falling]]
     assert 5 < len(stuck) < 295 and stuck.max() < sliding.min()  # stick first, then slide
-    np.testing.assert_allclose(played.u[stuck], played.u[299])
-    np.testing.assert_allclose(played.dp[sliding], down[sliding], rtol=1e-9)
+    np.testing.assert_allclose(solver_replay.u[stuck], solver_replay.u[299])
+    np.testing.assert_allclose(solver_replay.dp[sliding], down[sliding], rtol=1e-9)
     # loop width at low flow tends to the friction band 2·K1/A_L
     tiny = OperatingPoints.create(np.full(2, 1e-4 * LPM), p_Pe + p_B, p_B, 313.15, [1, -1])
     width = np.diff(solve_steady(model, tiny).dp[::-1])[0]
@@ -112,9 +112,9 @@ def test_smoothed_state_does_not_ratchet_on_pilot_noise(valve):
         for seed in range(3):
             noise = 0.3 * BAR * np.random.default_rng(seed).standard_normal(len(q))
             noisy = OperatingPoints.create(q, p_Pe + p_B + noise, p_B, 313.15)
-            played = replay(model, noisy, smoothing=window)
-            ramp_errors.append(np.mean(played.dp[rising] - truth.dp[rising]))
-            leads.append(np.median(played.u[held] - truth.u[held]))
+            solver_replay = replay(model, noisy, smoothing=window)
+            ramp_errors.append(np.mean(solver_replay.dp[rising] - truth.dp[rising]))
+            leads.append(np.median(solver_replay.u[held] - truth.u[held]))
         bias[window], lead[window] = np.mean(ramp_errors), np.mean(leads)
     assert bias[1] < -0.1 * BAR and lead[1] > 0  # the classic play ratchets
     assert abs(bias[7]) < 0.3 * abs(bias[1])
@@ -137,9 +137,9 @@ def test_replay_without_friction_is_the_steady_solution(valve, grid_maps):
     flow_map, force_map = grid_maps
     model = ValveModel(valve, flow_map, force_map)
     points = OperatingPoints.from_display(np.linspace(1, 12, 50), 68.0, 3.0, 40.0)
-    played = replay(model, points)
+    solver_replay = replay(model, points)
     steady = solve_steady(model, points)
-    np.testing.assert_allclose(played.dp, steady.dp, rtol=1e-12)
+    np.testing.assert_allclose(solver_replay.dp, steady.dp, rtol=1e-12)
 
 
 def cfda_model(valve, grid_maps, K1=0.0, K2=0.0):

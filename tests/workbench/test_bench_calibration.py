@@ -107,13 +107,13 @@ def test_with_perfect_maps_the_calibration_stays_within_its_prior_and_gains_noth
     several σ). Each value's prior σ is at least the CFD's own error, more where the maps' own
     calibrated σ says they are unsure, and never beyond the values' bounds (±50 %)."""
     case = hidden_effect_case(None, sequence=sequence, seed=4743, maps_under_test=maps("grid"))
-    model, played = _fitted(case)
-    calibration = calibrate_maps(model, case.log, played)
+    model, log_replay = _fitted(case)
+    calibration = calibrate_maps(model, case.log, log_replay)
     assert calibration is not None
     assert calibration.names == [cls.name for cls in CALIBRATIONS]
     z = calibration.values / calibration.sigma
     assert np.sqrt(np.mean(z**2)) < 0.5, z
-    assert calibration.replay.rms() > 0.97 * played.rms()
+    assert calibration.replay.rms() > 0.97 * log_replay.rms()
     count = len(knots(model))
     force, flow = calibration.sigma[:count], calibration.sigma[count:]
     assert np.all(force >= 0.025 - 1e-12) and np.all(flow >= 0.0075 - 1e-12)

@@ -38,9 +38,9 @@ def comparison(model, log):
 def perfect_log(comparison, log):
     """The log with p_L replaced by the model's own prediction: data the model fits exactly."""
     frame = log.frame.copy()
-    played = comparison.played.replay
-    assert played.ok.all()
-    frame["p_L"] = frame["p_B"] + played.dp
+    replay = comparison.log_replay.replay
+    assert replay.ok.all()
+    frame["p_L"] = frame["p_B"] + replay.dp
     return BenchLog(frame, "perfect.csv")
 
 
