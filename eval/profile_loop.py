@@ -155,10 +155,10 @@ def main(argv: list[str] | None = None) -> int:
         stats.sort_stats(key)
         rows = []
         for function in stats.fcn_list[:TOP]:
-            calls, _, own, cumulative, _ = stats.stats[function]
+            calls, _, own_seconds, cumulative, _ = stats.stats[function]
             file, line, func = function
             rows.append({"function": f"{Path(file).name}:{line}({func})", "calls": calls,
-                         "own s": round(own, 2), "cumulative s": round(cumulative, 2)})
+                         "own s": round(own_seconds, 2), "cumulative s": round(cumulative, 2)})
         return rows
 
     report = {"job": name, "cpu seconds": round(cpu, 1), "counts": counts.as_dict(),

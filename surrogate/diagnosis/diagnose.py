@@ -118,7 +118,7 @@ class Diagnoser:
     workers: int | None = None
     progress: Callable[[str], None] | None = None
 
-    def say(self, message: str) -> None:
+    def note_progress(self, message: str) -> None:
         """Tell the progress callback, if there is one."""
         if self.progress is not None:
             self.progress(message)
@@ -149,10 +149,10 @@ class Diagnoser:
         classes = [cls for cls in candidate_effects(model, self.library, self.candidates)
                    if not getattr(cls, "shape_free", False) and cls.name not in exclude]
         results, refined = refit_candidates(model, classes, problem, own_columns, self.steps,
-                                            self.workers, self.say)
+                                            self.workers, self.note_progress)
         ground = _Ground.of(model, log, problem, own_columns, self.rule)
         results = ground.with_views([ground.judge.judge(candidate) for candidate in results])
-        _say_scores(self.say, results, refined)
+        _say_scores(self.note_progress, results, refined)
         results = ground.ranked(results)
         rivals = [maps_error_rival(ground.judge.maps_error_heldout())]
         beside_maps: dict[str, dict] = {}  # a shape's held-out RMS with the maps' error beside it
@@ -168,10 +168,11 @@ class Diagnoser:
                      own_columns: list | None) -> list:
         """The probe columns of the model's free parameters the data feel: those given, if they
         are every free parameter's, else made here."""
-        own = free_parameters(model)
-        if own_columns is None or [c.key for c in own_columns] != [key for key, _ in own]:
-            self.say(f"linearising the replay in the model's {len(own)} free parameter(s)")
-            own_columns = probe_columns(model, [key for key, _ in own], base,
+        free = free_parameters(model)
+        if own_columns is None or [c.key for c in own_columns] != [key for key, _ in free]:
+            self.note_progress(f"linearising the replay in the model's {len(free)} free "
+                               "parameter(s)")
+            own_columns = probe_columns(model, [key for key, _ in free], base,
                                         workers=self.workers, alike=problem.alike)
         return [column for column in own_columns if column.felt]
 
@@ -199,12 +200,12 @@ class Diagnoser:
             heldout_to_beat = finding.heldout_rms / (1.0 - rule.other_kind_gain)
         found, linear_rivals = shape_free_candidates(
             model, ground.problem, ground.own_columns, judge, shaped, steps=self.steps,
-            workers=self.workers, say=self.say, must_beat=must_beat,
+            workers=self.workers, progress=self.note_progress, must_beat=must_beat,
             heldout_to_beat=heldout_to_beat, finding_kind=finding and finding.kind)
         found = ground.with_views(found)
         # a shape refitted for real stands as its refit, not its linear fit
         rivals = [r for r in linear_rivals if r.name not in {c.name for c in found}]
-        _say_scores(self.say, found, set(range(len(found))))
+        _say_scores(self.note_progress, found, set(range(len(found))))
         together = ground.ranked(results + found)
         challenger = next((c for c in together if c.significant), None)
         if finding is None or (challenger is not None and challenger.shape_free
@@ -230,7 +231,7 @@ class Diagnoser:
                                          or ground.judge.maps_error_heldout(claim.linearised)))
         if withheld is None:
             return results, None
-        self.say(f"{claim.name} withheld: " + ", ".join(
+        self.note_progress(f"{claim.name} withheld: " + ", ".join(
             f"{r.name} {from_si(r.heldout_rms, 'bar'):.3f} bar" for r in withheld.rivals)
             + f" on held-out runs against its {from_si(claim.heldout_rms, 'bar'):.3f} bar, and"
               " as close on each condition left out")
@@ -324,15 +325,15 @@ def diagnose(model: ValveModel, log: BenchLog, library: EffectLibrary = LIBRARY,
                                                    own_columns=own_columns)
 
 
-def _say_scores(say, candidates: list[Candidate], refined: set[int]) -> None:
+def _say_scores(progress, candidates: list[Candidate], refined: set[int]) -> None:
     """One progress line per candidate: its RMS, held-out RMS and ΔBIC."""
     for number, candidate in enumerate(candidates, start=1):
-        say(f"  [{number}/{len(candidates)}] {candidate.name}: rms "
-            f"{from_si(candidate.rms_after, 'bar'):.3f} bar, "
-            + (f"held out {from_si(candidate.heldout_rms, 'bar'):.3f} bar"
+        progress(f"  [{number}/{len(candidates)}] {candidate.name}: rms "
+                 f"{from_si(candidate.rms_after, 'bar'):.3f} bar, "
+                 + (f"held out {from_si(candidate.heldout_rms, 'bar'):.3f} bar"
                if np.isfinite(candidate.heldout_rms) else "not judged on held-out runs (per run)")
-            + f", ΔBIC {candidate.delta_bic:.1f}"
-            + ("" if number - 1 in refined else " (not refined)"))
+                 + f", ΔBIC {candidate.delta_bic:.1f}"
+                 + ("" if number - 1 in refined else " (not refined)"))
 
 
 def residual_correlations(base: LogReplay) -> dict[str, float]:

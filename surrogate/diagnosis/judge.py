@@ -63,14 +63,14 @@ class Judge:
         self.schemes = run_groups(problem.log)
         parameters = model.parameters()
         held = [parameters[c.key] for c in own_columns]
-        own = held_at_bounds(
+        own_matrix = held_at_bounds(
             np.column_stack([c.change for c in own_columns]) if own_columns
             else np.zeros((int(ok.sum()), 0)), held)
-        self.own = own  # the model's own columns, at the samples the model solves
+        self.own_matrix = own_matrix  # the model's own columns, at the samples the model solves
         #: the model's own penalty (a shape's roughness) in those columns, and its residual
         self.own_roughness = own_roughness(model, own_columns, int(ok.sum()))
         #: the model's linearisation at its optimum, parameters on a bound held
-        self.fit = Linearised(problem.base_evaluation.residual, own, self.own_roughness
+        self.fit = Linearised(problem.base_evaluation.residual, own_matrix, self.own_roughness
                               ).held(held)
         self.base = RunBlocks(self.fit, self.discrepancy, self.run_index, self.penalty)
         self.ones = np.ones(len(self.base.labels))

@@ -56,10 +56,10 @@ COLLINEAR = 0.95
 COLLINEAR_PARAMETERS = 2
 
 
-def own_directions(candidate: Candidate, own: np.ndarray) -> np.ndarray | None:
+def own_directions(candidate: Candidate, own_matrix: np.ndarray) -> np.ndarray | None:
     """An orthonormal basis of ``candidate``'s own Jacobian columns at the model's point
     (:attr:`.result.Candidate.probe`) with the part the model's own parameters' columns
-    ``own`` can produce taken out; None when it has none, more than
+    ``own_matrix`` can produce taken out; None when it has none, more than
     :data:`COLLINEAR_PARAMETERS`, or a parameter per run (a per-run term is a sensor check,
     never a model's explanation)."""
     if candidate.probe is None or candidate.per_run or candidate.shape_free:
@@ -67,8 +67,8 @@ def own_directions(candidate: Candidate, own: np.ndarray) -> np.ndarray | None:
     mine = np.asarray(candidate.probe, float)
     if not 0 < mine.shape[1] <= COLLINEAR_PARAMETERS:
         return None
-    if own.size:
-        mine = mine - own @ np.linalg.lstsq(own, mine, rcond=None)[0]
+    if own_matrix.size:
+        mine = mine - own_matrix @ np.linalg.lstsq(own_matrix, mine, rcond=None)[0]
     basis, singular, _ = np.linalg.svd(mine, full_matrices=False)
     kept = singular > 1e-9 * max(singular[0], 1e-300)
     return basis[:, kept] if kept.any() else None
@@ -83,13 +83,13 @@ def collinearity(a: np.ndarray | None, b: np.ndarray | None) -> float:
 
 
 def grouped(candidates: list[Candidate], rule: SignificanceRule = RULE,
-            own: np.ndarray | None = None) -> list[Candidate]:
+            own_matrix: np.ndarray | None = None) -> list[Candidate]:
     """The candidates with their groups: each with the names of those it cannot be told from
-    (module docstring); ``own`` holds the columns of the model's own free parameters (samples ×
-    parameters)."""
-    own = np.zeros((0, 0)) if own is None else own
+    (module docstring); ``own_matrix`` holds the columns of the model's own free parameters
+    (samples × parameters)."""
+    own_matrix = np.zeros((0, 0)) if own_matrix is None else own_matrix
     groups = [[candidate.name] for candidate in candidates]
-    directions = [own_directions(candidate, own) for candidate in candidates]
+    directions = [own_directions(candidate, own_matrix) for candidate in candidates]
     for i, a in enumerate(candidates):
         for j in range(i + 1, len(candidates)):
             b = candidates[j]
@@ -133,7 +133,7 @@ def joined(candidates: list[Candidate], name: str, others: list[str]) -> list[Ca
             if c.name in members else c for c in candidates]
 
 
-def absorbed(candidates: list[Candidate], own: np.ndarray, own_keys: list[str]
+def absorbed(candidates: list[Candidate], own_matrix: np.ndarray, own_keys: list[str]
              ) -> dict[str, tuple[str, float]]:
     """The candidates of one parameter whose column at the model's point is collinear with one
     of the model's own parameters' (|cosine| above :data:`COLLINEAR`): on this log that
@@ -141,13 +141,13 @@ def absorbed(candidates: list[Candidate], own: np.ndarray, own_keys: list[str]
     friction in K1 when each run holds its pilot pressure nearly constant). {candidate name:
     (own parameter, cosine)}."""
     found = {}
-    norms = np.linalg.norm(own, axis=0)
+    norms = np.linalg.norm(own_matrix, axis=0)
     for candidate in candidates:
         if candidate.probe is None or candidate.per_run or candidate.probe.shape[1] != 1:
             continue
         column = candidate.probe[:, 0]
         size = np.linalg.norm(column) * norms
-        cosines = np.divide(own.T @ column, size, out=np.zeros(len(norms)), where=size > 0)
+        cosines = np.divide(own_matrix.T @ column, size, out=np.zeros(len(norms)), where=size > 0)
         if cosines.size and np.max(np.abs(cosines)) > COLLINEAR:
             best = int(np.argmax(np.abs(cosines)))
             found[candidate.name] = (own_keys[best], float(cosines[best]))

@@ -38,7 +38,7 @@ REFINED = 4  # candidates refined by those steps (with any as good as the last o
 
 def refit_candidates(model: ValveModel, classes: list[type[Effect]],
                      problem: "DiagnosisProblem", own_columns: list["Column"], steps: int,
-                     workers: int | None, say=None) -> tuple[list[Candidate], set[int]]:
+                     workers: int | None, progress=None) -> tuple[list[Candidate], set[int]]:
     """Every candidate refitted with the model's free parameters (module docstring, step 2):
     the candidates are independent, so they are linearised and refitted side by side. Each gets
     its linear solution evaluated for real; only the front runners are refined further, the
@@ -60,7 +60,7 @@ def refit_candidates(model: ValveModel, classes: list[type[Effect]],
                             problem.base_evaluation).refine(1)
         return minimizer, columns
 
-    linearised = Stage(say or (lambda message: None), "linearising the candidates",
+    linearised = Stage(progress or (lambda message: None), "linearising the candidates",
                        len(classes))
     refits = []
     for refit in map_threads(linearise, classes, workers=workers):
@@ -71,7 +71,7 @@ def refit_candidates(model: ValveModel, classes: list[type[Effect]],
     first = [candidate_of(cls, minimizer, len(columns), problem, probe)
              for cls, (minimizer, columns), probe in zip(classes, refits, probes)]
     chosen = front_runners(first)
-    refining = Stage(say or (lambda message: None), "refitting the front runners", len(chosen))
+    refining = Stage(progress or (lambda message: None), "refitting the front runners", len(chosen))
     refined = {}
     for i, candidate in zip(chosen, map_threads(
             lambda i: candidate_of(classes[i], refits[i][0].refine(steps), len(refits[i][1]),
@@ -120,7 +120,7 @@ class DiagnosisProblem(FitProblem):
         self.noise_floor = noise_floor(base.residual, base.runs, source=base.log.source)
         self.base_evaluation = Evaluation(base.residual[self.ok], base)
 
-    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
+    def evaluate(self, model: ValveModel, fit_step: bool = True) -> Evaluation:
         log_replay = replay_log(model, self.log, guess=self.base, diagnostics=False)
         return Evaluation(log_replay.residual[self.ok], log_replay)
 

@@ -233,21 +233,21 @@ class RoughnessChoice:
     fit: Linearised | None = None  # the linear fit's linearisation at its optimum
 
 
-def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own: np.ndarray,
+def choose_roughness(shape: ShapeColumns, residual: np.ndarray, own_matrix: np.ndarray,
                      runs: np.ndarray | RunIndex, discrepancy, prior: float, schemes: dict,
                      weights: tuple[float, ...] = ROUGHNESS_WEIGHTS,
                      own_roughness: tuple[np.ndarray, np.ndarray] | None = None
                      ) -> RoughnessChoice:
     """The weight of :data:`ROUGHNESS_WEIGHTS` whose linearised fit (the model's own columns
-    ``own`` refitted too, coefficients within their bounds) predicts held-out runs best, pooled
-    over the held-out schemes (:meth:`~surrogate.fitting.heldout.RunBlocks.heldout_rms`).
+    ``own_matrix`` refitted too, coefficients within their bounds) predicts held-out runs best,
+    pooled over the held-out schemes (:meth:`~surrogate.fitting.heldout.RunBlocks.heldout_rms`).
 
     ``residual`` [Pa] is the model's at its optimum on the solved samples, ``discrepancy`` and
     ``prior`` (s² [Pa²]) the maps' nuisance terms of the judgement, ``own_roughness`` the
-    model's own penalty on ``own`` (a shape it already has; :func:`.judge.own_roughness`).
+    model's own penalty on ``own_matrix`` (a shape it already has; :func:`.judge.own_roughness`).
     """
-    k, p = shape.columns.shape[1], own.shape[1]
-    jacobian = np.column_stack([own, shape.columns])
+    k, p = shape.columns.shape[1], own_matrix.shape[1]
+    jacobian = np.column_stack([own_matrix, shape.columns])
     parameters = shape.effect.params
     names = shape.effect.coefficient_names()
     lower = np.r_[[-np.inf] * p, [parameters[n].min / s for n, s in zip(names, shape.steps)]]
@@ -287,7 +287,7 @@ CURVE_POINTS = 41
 
 def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                           classes=SHAPE_FREE, *, steps: int, workers: int | None = None,
-                          say=None, must_beat: float | None = None,
+                          progress=None, must_beat: float | None = None,
                           heldout_to_beat: float | None = None,
                           finding_kind: str | None = None) -> tuple[list, list[Rival]]:
     """Every shape-free effect of ``classes`` fitted beside the model's own parameters and
@@ -309,20 +309,20 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
     With ``finding_kind`` (the library finding's kind), the best shape of that kind whose linear
     fit predicts held-out runs better is refitted too: the finding's look-alike, if any.
     """
-    say = say or (lambda message: None)
+    progress = progress or (lambda message: None)
     base, ok = problem.base, problem.ok
     state = state_at_samples(model, base)
     probes = list(dict.fromkeys(probe_of(cls) for cls in classes))
     sensitivities = reused_sensitivities(probes, own_columns, ok)
     probes = [probe for probe in probes if probe not in sensitivities]
-    say(f"probing how Δp answers {len(probes)} kind(s) of shape-free term")
+    progress(f"probing how Δp answers {len(probes)} kind(s) of shape-free term")
     sensitivities.update(zip(probes, map_threads(
         lambda probe: sensitivity(model, probe, base, problem.alike), probes, workers=workers)))
 
     def linear(cls):
         columns = shape_columns(cls, state, sensitivities[probe_of(cls)], ok,
                                 base.replay.moving, base.runs)
-        choice = choose_roughness(columns, problem.base_evaluation.residual, judge.own,
+        choice = choose_roughness(columns, problem.base_evaluation.residual, judge.own_matrix,
                                   judge.run_index, judge.discrepancy, judge.penalty,
                                   judge.schemes, own_roughness=judge.own_roughness)
         return cls, columns, choice
@@ -356,9 +356,9 @@ def shape_free_candidates(model: ValveModel, problem, own_columns, judge,
                  and all(fit[0] is not other[0] for other in fits)]
     if same_kind:
         fits.append(min(same_kind, key=linear_bic))
-    say(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
-        "better")
-    refitting = Stage(say, "refitting the shapes", len(fits))
+    progress(f"refitting {len(fits)} shape-free term(s) whose linear fit predicts held-out runs "
+             "better")
+    refitting = Stage(progress, "refitting the shapes", len(fits))
     done = []
     for candidate in map_threads(lambda fit: _refitted(model, problem, own_columns, judge, *fit,
                                                        steps=steps), fits, workers=workers):
@@ -483,27 +483,27 @@ def _refitted(model, problem, own_columns, judge, cls, columns: ShapeColumns,
                                              problem.n_eff, weight))
 
 
-def shape_curve(effect: ShapeFreeEffect, fit: Linearised, own: int, n_eff: float,
+def shape_curve(effect: ShapeFreeEffect, fit: Linearised, own_count: int, n_eff: float,
                 weight: float):
     """The fitted shape on :data:`CURVE_POINTS` points of its variable, with one standard
     deviation from the penalised fit's covariance (σ² from the residual, widened for the
     samples' correlation in time, like the fit's standard errors); ``fit`` is its linearisation
-    (coefficients on a bound held: they add no spread), its first ``own`` columns the model's
+    (coefficients on a bound held: they add no spread), its first ``own_count`` columns the model's
     own parameters, the rest the shape's coefficients."""
     x = np.linspace(effect.knots[0], effect.knots[-1], CURVE_POINTS)
     basis = effect.basis(x)
     jacobian, residual = fit.jacobian, fit.residual
     rough = fit.roughness[0] if fit.roughness is not None else np.zeros((0, jacobian.shape[1]))
     count, size = jacobian.shape
-    free = [i for i in range(size) if i < own or np.any(jacobian[:, i])]
+    free = [i for i in range(size) if i < own_count or np.any(jacobian[:, i])]
     jacobian, rough, size = jacobian[:, free], rough[:, free], len(free)
     variance = float(residual @ residual) / max(count - size, 1) * count / max(n_eff, 1.0)
     try:
         covariance = np.linalg.pinv(jacobian.T @ jacobian + rough.T @ rough) * variance
     except np.linalg.LinAlgError:
         covariance = np.full((size, size), np.nan)
-    coefficient = [i - own for i in free if i >= own]
-    shape_rows = [k for k, i in enumerate(free) if i >= own]
+    coefficient = [i - own_count for i in free if i >= own_count]
+    shape_rows = [k for k, i in enumerate(free) if i >= own_count]
     steps = np.array([float(to_si(1.0, effect.value_unit) - to_si(0.0, effect.value_unit))]
                      * len(effect.coefficients))
     scaled = basis[:, coefficient] * steps[coefficient]

@@ -240,7 +240,7 @@ def write_fmu(tables: ValveTables, grid: TableGrid, path: Path, extra: dict | No
     progress : callable, optional
         Told what is being done.
     """
-    say = progress or (lambda message: None)
+    progress = progress or (lambda message: None)
     identifier = model_identifier(tables.model)
     data = tables_bytes(tables)
     guid = "{" + str(uuid.UUID(hashlib.sha256(data).hexdigest()[:32])) + "}"
@@ -263,7 +263,7 @@ def write_fmu(tables: ValveTables, grid: TableGrid, path: Path, extra: dict | No
         if compiler is not None:
             (work / SOURCE).write_text(source)
             binary = work / f"{identifier}.so"
-            say(f"compiling the FMU's binary with {compiler}")
+            progress(f"compiling the FMU's binary with {compiler}")
             problem = compile_binary(work / SOURCE, binary, compiler)
             if problem is None:
                 compiled, used = True, compiler

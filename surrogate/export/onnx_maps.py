@@ -529,11 +529,11 @@ def flow_graph(flow_map: LearnedFlowMap):
 
 def write_onnx(maps: LearnedMaps, folder: Path, progress=None) -> list[Path]:
     """``flow.onnx``, ``force.onnx`` and ``onnx.json`` into ``folder``; returns the files."""
-    say = progress or (lambda message: None)
+    progress = progress or (lambda message: None)
     written = []
     for name, build, learned in (("flow", flow_graph, maps.flow),
                                  ("force", force_graph, maps.force)):
-        say(f"building the ONNX graph of the {maps.kind} {name} map")
+        progress(f"building the ONNX graph of the {maps.kind} {name} map")
         path = folder / f"{name}.onnx"
         path.write_bytes(build(learned).SerializeToString())
         written.append(path)

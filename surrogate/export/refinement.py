@@ -68,10 +68,10 @@ def refined_grid(model: ValveModel, grid: TableGrid, tolerance: float, progress=
     """Tabulate ``model`` on ``grid``, inserting nodes along each axis where the band's edges'
     Δp between nodes misses the solver's by more than ``tolerance`` [Pa] (see the module's
     docstring)."""
-    say = progress or (lambda message: None)
+    progress = progress or (lambda message: None)
     budget = NODE_BUDGET * _edge_count(grid)
     rng = np.random.default_rng(seed)
-    tables = tabulate(model, grid, say)
+    tables = tabulate(model, grid, progress)
     for round_ in range(1, ROUNDS + 1):
         worst, wanted = _check(model, tables, grid, tolerance, rng)
         count = sum(len(nodes) for nodes in wanted.values())
@@ -82,16 +82,16 @@ def refined_grid(model: ValveModel, grid: TableGrid, tolerance: float, progress=
             if len(nodes):
                 refined = refined.with_nodes(axis, nodes)
         if _edge_count(refined) > budget:
-            say(f"the grid would need {_edge_count(refined):,} nodes per edge to meet the "
-                f"tolerance everywhere, over the budget of {budget:,.0f}: keeping "
-                f"{_edge_count(grid):,}")
+            progress(f"the grid would need {_edge_count(refined):,} nodes per edge to meet the "
+                     f"tolerance everywhere, over the budget of {budget:,.0f}: keeping "
+                     f"{_edge_count(grid):,}")
             return Refinement(grid, tables, worst, round_ - 1, "budget")
         shown = ", ".join(f"{len(nodes)} along {axis}" for axis, nodes in wanted.items()
                           if len(nodes))
-        say(f"refining: {count} cell{'s' if count > 1 else ''} miss the solver by more than "
-            f"{from_si(tolerance, 'bar'):.3g} bar RMS in the middle (at most "
-            f"{from_si(max(worst.values()), 'bar'):.3g} bar); inserting nodes: {shown}")
-        grid, tables = refined, tabulate(model, refined, say, previous=tables)
+        progress(f"refining: {count} cell{'s' if count > 1 else ''} miss the solver by more than "
+                 f"{from_si(tolerance, 'bar'):.3g} bar RMS in the middle (at most "
+                 f"{from_si(max(worst.values()), 'bar'):.3g} bar); inserting nodes: {shown}")
+        grid, tables = refined, tabulate(model, refined, progress, previous=tables)
     worst, wanted = _check(model, tables, grid, tolerance, rng)
     return Refinement(grid, tables, worst, ROUNDS,
                       "rounds" if any(len(nodes) for nodes in wanted.values()) else "")

@@ -420,12 +420,13 @@ def tabulate(model: ValveModel, grid: TableGrid, progress=None,
         Where the model cannot be tabulated over the grid: no equilibrium at any flow of a
         (p_B, p_P, T) node, or no positive, finite pressure drop at some node.
     """
-    say = progress or (lambda message: None)
+    progress = progress or (lambda message: None)
     edge_nodes = grid.edge_nodes()
     known, new = _known(previous and previous.edges["u_open"], EDGE_AXES, edge_nodes)
     q, p_B, p_P, temperature = (m[new] for m in np.meshgrid(*edge_nodes, indexing="ij"))
-    say(f"tabulating {model.name}: the force balance at {q.size:,} grid nodes on each edge of "
-        "the friction band" + (f" (the other {int(known.sum()):,} kept)" if known.any() else ""))
+    progress(f"tabulating {model.name}: the force balance at {q.size:,} grid nodes on each edge "
+             "of the friction band"
+             + (f" (the other {int(known.sum()):,} kept)" if known.any() else ""))
     edges, failed = {}, previous.failed_nodes if previous else 0
     for side, direction in (("open", OPENING), ("close", CLOSING)):
         points = OperatingPoints.create(q, p_P, p_B, temperature, direction)
@@ -439,7 +440,7 @@ def tabulate(model: ValveModel, grid: TableGrid, progress=None,
             values[new] = np.where(good, solved, np.nan)
             edges[name] = Table(name, EDGE_AXES, edge_nodes, _stored(_filled_along_flow(
                 values, name)))
-        say(f"{side} edge: {int(good.sum()):,} of {q.size:,} nodes solved")
+        progress(f"{side} edge: {int(good.sum()):,} of {q.size:,} nodes solved")
     lowest = min(float(np.min(edges["u_open"].values)), float(np.min(edges["u_close"].values)))
     u_low = 0.5 * lowest
     if previous is not None and previous.dp.nodes[previous.dp.axes.index("u")][0] <= u_low:
@@ -451,8 +452,8 @@ def tabulate(model: ValveModel, grid: TableGrid, progress=None,
     axis_nodes = tuple(nodes[axis] for axis in axes)
     known, new = _known(previous and previous.dp, axes, axis_nodes)
     values = dict(zip(axes, (m[new] for m in np.meshgrid(*axis_nodes, indexing="ij"))))
-    say(f"tabulating Δp at {int(new.sum()):,} (flow, opening, ...) nodes"
-        + (f" (the other {int(known.sum()):,} kept)" if known.any() else ""))
+    progress(f"tabulating Δp at {int(new.sum()):,} (flow, opening, ...) nodes"
+             + (f" (the other {int(known.sum()):,} kept)" if known.any() else ""))
     points = OperatingPoints.create(values["q"], values.get("p_P", nodes["p_P"][0]),
                                     values["p_B"], values["temperature"])
     dp = np.full(new.shape, np.nan)

@@ -60,9 +60,9 @@ class FitProblem:
     #: where the residuals come from (a bench log's file), named by the messages about them
     source: str = ""
 
-    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
-        """The residuals of ``model``. ``own`` is False for the Jacobian's columns, which run on
-        threads: a problem that keeps a warm start moves it on its own steps only, so that the
+    def evaluate(self, model: ValveModel, fit_step: bool = True) -> Evaluation:
+        """The residuals of ``model``. ``fit_step`` is False for the Jacobian's columns, which run
+        on threads: a problem that keeps a warm start moves it on its own steps only, so that the
         result never depends on timing."""
         raise NotImplementedError
 
@@ -70,7 +70,7 @@ class FitProblem:
                                                                          np.ndarray]:
         """The residuals a step of ``parameter`` can change, for its Jacobian column: (rows,
         values), rows None for all of them. Default: all of them."""
-        return None, self.evaluate(model, own=False).residual
+        return None, self.evaluate(model, fit_step=False).residual
 
     def effective_samples(self, evaluation: Evaluation) -> float:
         """How many independent samples the residuals are worth (default: all of them)."""
@@ -91,7 +91,7 @@ class FunctionProblem(FitProblem):
     def __init__(self, residuals):
         self.residuals = residuals
 
-    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
+    def evaluate(self, model: ValveModel, fit_step: bool = True) -> Evaluation:
         return Evaluation(np.asarray(self.residuals(model), float))
 
 
@@ -259,11 +259,11 @@ class Minimizer:
         for parameter, unit, value in zip(parameters or self.parameters, self.units, x):
             parameter.value = float(to_si(value, unit))
 
-    def _evaluate(self, x, own: bool = True) -> Evaluation:
+    def _evaluate(self, x, fit_step: bool = True) -> Evaluation:
         self.assign(x)
-        evaluation = self.problem.evaluate(self.model, own)
+        evaluation = self.problem.evaluate(self.model, fit_step)
         evaluation.residual = _finite(evaluation.residual)
-        if own:
+        if fit_step:
             self.evaluations += 1
         if len(evaluation.residual) <= len(self.parameters):
             # as many unknowns as equations: the fit would pass through every point and report
@@ -382,8 +382,8 @@ class Minimizer:
         jacobian = (np.column_stack(changes) if len(changes)
                     else np.zeros((len(evaluation.residual), 0)))
         penalties = [(penalty, np.zeros(len(penalty)))] if penalty is not None else []
-        own = self.penalty(len(evaluation.residual))
-        penalties += [own] if own is not None else []
+        own_penalty = self.penalty(len(evaluation.residual))
+        penalties += [own_penalty] if own_penalty is not None else []
         combined = None if not penalties else (np.vstack([m for m, _ in penalties]),
                                                np.concatenate([b for _, b in penalties]))
         self._refinement = _Refinement(self, jacobian, np.asarray(steps, float), evaluation,

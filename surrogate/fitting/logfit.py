@@ -38,11 +38,11 @@ class LogProblem(FitProblem):
         self.source = log.source
         self.last = start
 
-    def evaluate(self, model: ValveModel, own: bool = True) -> Evaluation:
+    def evaluate(self, model: ValveModel, fit_step: bool = True) -> Evaluation:
         log_replay = replay_log(model, self.log, guess=self.last, diagnostics=False)
         # only the fit's own steps move the warm start: the Jacobian's columns, on threads,
         # start from the point they differentiate at, so the result does not depend on timing
-        if own:
+        if fit_step:
             self.last = log_replay
         return Evaluation(log_replay.residual, log_replay)
 
@@ -95,14 +95,14 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
     text every few seconds while the fit runs (its evaluations and RMS so far).
     """
     names = _felt(model, log, names, start)
-    say = None
+    minimiser_progress = None
     if progress is not None:
         # a fit's length is not known ahead (it stops when it settles): its evaluations and the
         # best RMS so far, every few seconds, against the most it may take
         clock = getattr(progress, "clock", time.perf_counter)
         state = {"best": np.inf, "said": clock()}
 
-        def say(evaluations: int, rss: float) -> None:
+        def minimiser_progress(evaluations: int, rss: float) -> None:
             state["best"] = min(state["best"], rss)
             if clock() - state["said"] >= Stage.INTERVAL:
                 state["said"] = clock()
@@ -110,7 +110,7 @@ def fit_to_log(model: ValveModel, log: BenchLog, names: Sequence[str] | None = N
                 progress(f"fitting {model.name}: {evaluations} evaluations (at most "
                          f"{max_evaluations}), rms so far {rms:.3f} bar")
     result = Minimizer(model, LogProblem(log, start), names).least_squares(
-        max_evaluations=max_evaluations, tolerance=tolerance, progress=say)
+        max_evaluations=max_evaluations, tolerance=tolerance, progress=minimiser_progress)
     if progress is not None:
         progress(f"fitted {model.name} in {result.evaluations} evaluations: rms "
                  f"{from_si(result.rms, 'bar'):.3f} bar")

@@ -166,10 +166,10 @@ def valve_with(model: ValveModel, parameters: dict[str, float], name: str) -> Va
     """``model`` (the valve's physics: no sensor or per-run terms) with the parameters
     ``{"effect.parameter": display value}`` it has."""
     valve = model.copy(name=name)
-    own = valve.parameters()
+    valve_parameters = valve.parameters()
     for key, value in parameters.items():
-        if key in own and np.isfinite(value):
-            own[key].set_display(value)
+        if key in valve_parameters and np.isfinite(value):
+            valve_parameters[key].set_display(value)
     return valve_physics(valve, name).model
 
 
@@ -195,11 +195,11 @@ def curves_figure(model: ValveModel, median: dict[str, float],
     axes = figure.subplots(down, across, squeeze=False).ravel()
     flow = from_si(q, "L/min")
     for ax, (serial, values) in zip(axes, outliers):
-        own = branches(valve_with(model, values, serial))
+        outlier_branches = branches(valve_with(model, values, serial))
         for branch, style in (("up", "-"), ("down", "--")):
             ax.plot(flow, reference[branch], style, color="0.45",
                     label=f"the fleet's median valve, {branch}")
-            ax.plot(flow, own[branch], style, color=OUTLIER_COLOUR,
+            ax.plot(flow, outlier_branches[branch], style, color=OUTLIER_COLOUR,
                     label=f"the valve named above, {branch}")
         ax.set_title(serial, fontsize=10)
         ax.set_xlabel("q [L/min]")

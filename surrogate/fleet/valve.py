@@ -42,7 +42,7 @@ def valve_result(task: ValveTask, progress=None) -> dict:
         For a log the loaders refuse (naming the file, line and column), or a model that cannot
         be fitted to it: the caller records it as the valve's failure.
     """
-    say = progress or (lambda message: None)
+    progress = progress or (lambda message: None)
     log = load_bench_log(task.log)
     model = _model(task.model_toml, task.model_label, task.effects_files,
                    task.model_sha256).copy()
@@ -62,7 +62,7 @@ def valve_result(task: ValveTask, progress=None) -> dict:
               "noise_floor_bar": _bar(floor), "conditions": conditions(log),
               "parameters": parameter_records(model)}
     if task.diagnose:
-        say(f"{task.serial}: diagnosing")
+        progress(f"{task.serial}: diagnosing")
         result["diagnosis"] = diagnosis_record(model, log, log_replay,
                                                _library(task.effects_files, task.model_sha256))
     return result

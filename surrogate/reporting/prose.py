@@ -108,8 +108,8 @@ def hysteresis_sentence(diagnosis: Diagnosis, candidate: Candidate) -> str:
              f"({from_si(diagnosis.median_before, 'bar'):.2f} → "
              f"{from_si(candidate.median_rms, 'bar'):.2f} bar).")
     friction = candidate.kind == "friction"
-    own = share if friction else 1.0 - share
-    if own < OWN_VIEW_SHARE:
+    own_view_share = share if friction else 1.0 - share
+    if own_view_share < OWN_VIEW_SHARE:
         views += (" Friction splits the ramps, so a friction term that gains mostly on the "
                   "median line, where the maps' error acts too, is provisional: refit it to the "
                   "hysteresis alone before trusting it." if friction else

@@ -750,16 +750,16 @@ class TabulatedMaps:
     def flow_force(self, dp: np.ndarray) -> np.ndarray:
         """f_ff [N] at the pressure drops ``dp`` [Pa] of all the points."""
         dp = np.asarray(dp, float)
-        own = np.exp(self.log_dp) if self._own_dp is None else self._own_dp
+        tables_dp = np.exp(self.log_dp) if self._own_dp is None else self._own_dp
         inside = self.inside
-        if np.array_equal(dp, own):  # Δp at the measured flow: the tables' own value
+        if np.array_equal(dp, tables_dp):  # Δp at the measured flow: the tables' own value
             ratio = self.ratio
         elif self.expanded is None:
-            same = dp == own
+            same = dp == tables_dp
             ratio, inside = np.where(same, self.ratio, np.nan), inside & same
         else:
             with np.errstate(divide="ignore", invalid="ignore"):
-                step = np.log(dp / own)
+                step = np.log(dp / tables_dp)
                 ratio = self.ratio + _taylor(self.expanded[4:], step)
             inside = inside & (np.abs(step) <= EXPANSION_REACH) & np.isfinite(ratio)
         force = ratio * dp

@@ -162,10 +162,10 @@ def _acts_on_flow(effect: Effect) -> bool:
 def _changed_effects(model: ValveModel, trial: ValveModel) -> list[tuple[Effect | None, Effect]]:
     """The (model's, trial's) effects whose parameters differ, matched by name; an effect the
     model lacks pairs with None (a candidate probed by adding it)."""
-    own = {effect.name: effect for effect in model.effects}
+    model_effects = {effect.name: effect for effect in model.effects}
     pairs = []
     for effect in trial.effects:
-        old = own.get(effect.name)
+        old = model_effects.get(effect.name)
         if old is None or any(old.params[key].value != effect.params[key].value
                               for key in effect.params):
             pairs.append((old, effect))

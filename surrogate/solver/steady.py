@@ -458,9 +458,9 @@ def _first_met(h: _FlowingBalance) -> None:
         index = np.broadcast_to(which[:, None], samples.shape)
         values[~repeated] = h.rough(samples[~repeated], index[~repeated])
         # a sign change the coarse tables see is checked on the fine ones, or the maps
-        near = ~repeated & np.where(opens[:, None], values <= 0, values >= 0)
-        if near.any():
-            values[near] = h(samples[near], index[near])
+        coarse_beyond = ~repeated & np.where(opens[:, None], values <= 0, values >= 0)
+        if coarse_beyond.any():
+            values[coarse_beyond] = h(samples[coarse_beyond], index[coarse_beyond])
         for k in range(1, width):
             values[repeated[:, k], k] = values[repeated[:, k], k - 1]
         # a sample "beyond": the rule's equilibrium lies further out than it (NaN: no evidence)
@@ -472,16 +472,16 @@ def _first_met(h: _FlowingBalance) -> None:
         # the farthest sample beyond is the bracket's near end; its far end is the next
         # sample out (not beyond, so of the other sign) or the floor or the stop
         far = width - 1 - np.argmax(beyond[rows, ::-1], axis=1)
-        near, h_near = samples[rows, far], values[rows, far]
+        near_end, h_near = samples[rows, far], values[rows, far]
         limit = np.where(opens, h.floor, h.stroke)
         outermost = far == width - 1
         out = np.where(outermost, limit, samples[rows, np.minimum(far + 1, width - 1)])
         h_out = np.where(outermost, np.nan, values[rows, np.minimum(far + 1, width - 1)])
-        ask = np.flatnonzero(outermost & (near != limit))
+        ask = np.flatnonzero(outermost & (near_end != limit))
         if ask.size:
             h_out[ask] = h(out[ask], points[ask])
         # the limit reached with h still beyond: no equilibrium from closed, or the stop
-        on_limit = (near == limit) | (outermost & np.where(opens, h_out <= 0, h_out >= 0))
+        on_limit = (near_end == limit) | (outermost & np.where(opens, h_out <= 0, h_out >= 0))
         closed = points[on_limit & opens]
         h.u[closed], h.status[closed] = np.nan, Status.NO_EQUILIBRIUM
         stopped = points[on_limit & ~opens]
@@ -491,8 +491,8 @@ def _first_met(h: _FlowingBalance) -> None:
         if not again.size:
             return
         up = opens[again]
-        lower = np.where(up, out[again], near[again])
-        upper = np.where(up, near[again], out[again])
+        lower = np.where(up, out[again], near_end[again])
+        upper = np.where(up, near_end[again], out[again])
         h_lower = np.where(up, h_out[again], h_near[again])
         h_upper = np.where(up, h_near[again], h_out[again])
         h.solve_in(lower, upper, points[again], h_lower, h_upper)

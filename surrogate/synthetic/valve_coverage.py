@@ -46,8 +46,8 @@ def regions(samples, valve) -> dict[str, pd.DataFrame]:
         """Every fluid state and flow of ``rows`` (their openings' neighbours) at each opening."""
         out = []
         for u, neighbours in opening_list:
-            near = rows[rows["u"].isin(neighbours)]
-            for (nu, rho), level in near.groupby(["nu", "rho"]):
+            neighbour_rows = rows[rows["u"].isin(neighbours)]
+            for (nu, rho), level in neighbour_rows.groupby(["nu", "rho"]):
                 flows = np.unique(level["q"])
                 out.append(pd.DataFrame({"u": u, "q": flows, "nu": nu, "rho": rho,
                                          "p_B": REFERENCE_BACK_BAR * BAR}))
@@ -63,15 +63,15 @@ def regions(samples, valve) -> dict[str, pd.DataFrame]:
                                                                       q=smallest["q"] * share)
                        for share in BELOW_SHARES], ignore_index=True)
     sampled_40 = reference[np.isclose(reference["temperature"], to_si(40.0, "degC"))]
-    own = [(u, (u,)) for u in openings]
+    sampled_openings = [(u, (u,)) for u in openings]
     temperatures = []
     for celsius in OTHER_TEMPERATURES_C:
         fluid = valve.oil.state(np.array([to_si(celsius, "degC")]))
-        rows = at_openings(own, sampled_40)
+        rows = at_openings(sampled_openings, sampled_40)
         temperatures.append(rows.assign(nu=float(fluid.nu[0]), rho=float(fluid.rho[0])))
-    oils = [at_openings(own, sampled_40).assign(nu=lambda t, f=factor: t["nu"] * f)
+    oils = [at_openings(sampled_openings, sampled_40).assign(nu=lambda t, f=factor: t["nu"] * f)
             for factor in VISCOSITY_FACTORS]
-    backs = [at_openings(own, sampled_40).assign(p_B=bar * BAR)
+    backs = [at_openings(sampled_openings, sampled_40).assign(p_B=bar * BAR)
              for bar in OTHER_BACK_PRESSURES_BAR]
     return {"sampled": frame[["u", "q", "nu", "rho", "p_B"]].reset_index(drop=True),
             "between": between, "gap": gap, "below": below,

@@ -114,9 +114,10 @@ def prior_sigma(name: str, replay, ok: np.ndarray, at: np.ndarray) -> np.ndarray
     variance = spread**2
     weights = hat_basis(at, np.nan_to_num(replay.u[ok], nan=at[0]))
     total = weights.sum(axis=0)
-    near = weights.T @ variance / np.where(total > 0, total, 1.0)
+    knot_variance = weights.T @ variance / np.where(total > 0, total, 1.0)
     limit = next(cls.value_limit for cls in CALIBRATIONS if cls.name == name)
-    return np.minimum(np.sqrt(np.where(total > 1e-9, near, float(np.mean(variance)))), limit)
+    return np.minimum(np.sqrt(np.where(total > 1e-9, knot_variance, float(np.mean(variance)))),
+                      limit)
 
 
 def calibrate_maps(model: ValveModel, log: BenchLog, log_replay: LogReplay, *,

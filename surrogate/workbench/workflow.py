@@ -187,10 +187,10 @@ def heldout_rms(fitted: FitResult | None, log_replay: LogReplay,
 class _Staircase:
     """The steps so far: each model fitted to the log, replayed, and reported."""
 
-    def __init__(self, log: BenchLog, say: Callable[[str], None], diagnoser: Diagnoser,
+    def __init__(self, log: BenchLog, progress: Callable[[str], None], diagnoser: Diagnoser,
                  narrate: Callable[[Diagnosis], str] | None = None):
-        self.log, self.say, self.narrate = log, say, narrate
-        self.diagnoser = replace(diagnoser, progress=lambda message: say(f"  {message}"))
+        self.log, self.progress, self.narrate = log, progress, narrate
+        self.diagnoser = replace(diagnoser, progress=lambda message: progress(f"  {message}"))
         self.steps: list[Step] = []
         self.schemes = run_groups(log)
         self.dropped = ""
@@ -200,25 +200,25 @@ class _Staircase:
         return self.steps[-1]
 
     def record(self, model: ValveModel, added: list[str], category: str, reason: str,
-               diagnosis: Diagnosis | None = None, near: LogReplay | None = None,
+               diagnosis: Diagnosis | None = None, warm_start: LogReplay | None = None,
                calibration=None) -> Step:
-        """Fit ``model`` (``near``: a replay close to its optimum), replay it, add the step
+        """Fit ``model`` (``warm_start``: a replay close to its optimum), replay it, add the step
         (``calibration``: the :class:`.bench_calibration.BenchCalibration` it adds, which its
         held-out figure refits too)."""
-        if near is None and self.steps and self.last.model.flow_map is model.flow_map:
-            near = self.last.log_replay
+        if warm_start is None and self.steps and self.last.model.flow_map is model.flow_map:
+            warm_start = self.last.log_replay
         fitted = None
         if model.parameters().free():
-            self.say(f"fitting {model.name} ({len(model.parameters().free())} free "
-                     "parameter(s))")
-            fitted = fit_to_log(model, self.log, start=near, progress=self.say)
+            self.progress(f"fitting {model.name} ({len(model.parameters().free())} free "
+                          "parameter(s))")
+            fitted = fit_to_log(model, self.log, start=warm_start, progress=self.progress)
             model = fitted.model
         release_freed()  # the fit's working arrays, before the step's replay and checks
-        log_replay = replay_log(model, self.log, guess=near)
+        log_replay = replay_log(model, self.log, guess=warm_start)
         # probed once: for the step's held-out check and the next diagnosis' linearisation
         if fitted is not None:
-            self.say("checking the step on held-out runs (each run refitted without it and "
-                     "replayed)")
+            self.progress("checking the step on held-out runs (each run refitted without it and "
+                          "replayed)")
         columns = tuple(probe_columns(model, [key for key, _ in free_parameters(model)],
                                       log_replay)) if fitted is not None else ()
         check = (heldout_rms(fitted, log_replay, self.schemes, list(columns)) if calibration is None
@@ -231,26 +231,26 @@ class _Staircase:
                     heldout_check=check, entangled=tuple(entangled_pairs(fitted)),
                     pushed=tuple(pushed), columns=columns)
         self.steps.append(step)
-        self.say(f"step {len(self.steps)}: {model.name:<28} rms "
-                 f"{from_si(step.rms, 'bar'):6.3f} bar, held out "
-                 f"{from_si(step.heldout_rms, 'bar'):6.3f} bar   (+ "
-                 f"{', '.join(added) or 'nothing'})")
+        self.progress(f"step {len(self.steps)}: {model.name:<28} rms "
+                      f"{from_si(step.rms, 'bar'):6.3f} bar, held out "
+                      f"{from_si(step.heldout_rms, 'bar'):6.3f} bar   (+ "
+                      f"{', '.join(added) or 'nothing'})")
         for moved in pushed:
-            self.say(f"  {moved.parameter} driven to its bound ({moved.before:.4g} -> "
-                     f"{moved.after:.4g} {moved.unit}) by {', '.join(moved.by)}")
+            self.progress(f"  {moved.parameter} driven to its bound ({moved.before:.4g} -> "
+                          f"{moved.after:.4g} {moved.unit}) by {', '.join(moved.by)}")
         return step
 
     def diagnose_last(self, refused: list[str] | None = None) -> Diagnosis:
         """Diagnose the last step's model (:class:`~surrogate.diagnosis.diagnose.Diagnoser`,
         from the step's replay and probe columns), without the candidates ``refused``."""
         current, refused = self.last, refused or []
-        self.say(f"diagnosing {current.model.name} ..."
-                 + (f" (without {', '.join(refused)})" if refused else ""))
+        self.progress(f"diagnosing {current.model.name} ..."
+                      + (f" (without {', '.join(refused)})" if refused else ""))
         diagnosis = self.diagnoser.diagnose(current.model, self.log, base=current.log_replay,
                                             exclude=refused,
                                             own_columns=list(current.columns) or None)
         if self.narrate is not None:
-            self.say(f"  {self.narrate(diagnosis)}")
+            self.progress(f"  {self.narrate(diagnosis)}")
         return diagnosis
 
     def add_diagnosed(self, max_additions: int) -> Diagnosis:
@@ -271,7 +271,7 @@ class _Staircase:
             categories = dict.fromkeys(c.category for c in diagnosis.explanations)
             step = self.record(best.model.copy(name=f"{current.model.name}+{best.name}"),
                                [best.name], " or ".join(categories), "", diagnosis,
-                               near=best.replay)
+                               warm_start=best.replay)
             if step.heldout_check > current.heldout_check:
                 # the diagnosis judged the term on its own linearised refit; refitted for real
                 # without each run and replayed there, it predicts unseen runs worse: refuse it
@@ -286,7 +286,7 @@ class _Staircase:
                                f"{from_si(current.heldout_check, 'bar'):.3f} to "
                                f"{from_si(step.heldout_check, 'bar'):.3f} bar")
                 self.dropped = "; ".join(dropped)
-                self.say(f"  {dropped[-1]}")
+                self.progress(f"  {dropped[-1]}")
                 if len(refused) > REFUSALS:
                     return diagnosis
                 continue
@@ -297,18 +297,18 @@ class _Staircase:
         """Add the maps' calibration (:mod:`.bench_calibration`) unless it predicts the held-out
         runs no better than the step before; return whether it was added."""
         current = self.last
-        self.say(f"calibrating the maps of {current.model.name} to the bench ...")
+        self.progress(f"calibrating the maps of {current.model.name} to the bench ...")
         calibration = calibrate_maps(current.model, self.log, current.log_replay)
         if calibration is None:
             return False
         step = self.record(calibration.model.copy(name=f"{current.model.name}+calibrated maps"),
                            calibration.names, "map correction", calibration.describe(),
-                           near=calibration.replay, calibration=calibration)
+                           warm_start=calibration.replay, calibration=calibration)
         if step.heldout_check > current.heldout_check:
             self.steps.pop()
-            self.say(f"  the calibration was not kept: it predicts the held-out runs worse "
-                     f"({from_si(current.heldout_check, 'bar'):.3f} -> "
-                     f"{from_si(step.heldout_check, 'bar'):.3f} bar)")
+            self.progress(f"  the calibration was not kept: it predicts the held-out runs worse "
+                          f"({from_si(current.heldout_check, 'bar'):.3f} -> "
+                          f"{from_si(step.heldout_check, 'bar'):.3f} bar)")
             return False
         return True
 

@@ -26,28 +26,28 @@ def candidate(name, probe, delta_bic=-50.0, change=None, **fields):
 def test_terms_that_differ_only_by_what_the_model_already_does_are_look_alikes():
     """Two columns that differ by a multiple of the model's own column are one finding,
     whatever their ΔBICs, and the bootstrap's preference plays no part."""
-    own = RNG.normal(size=(SAMPLES, 2))
+    own_matrix = RNG.normal(size=(SAMPLES, 2))
     shared = RNG.normal(size=SAMPLES)
-    a = candidate("preload", (shared + 3 * own[:, 0])[:, None], delta_bic=-500)
-    b = candidate("transducer", (2 * shared - own[:, 1])[:, None], delta_bic=-450)
+    a = candidate("preload", (shared + 3 * own_matrix[:, 0])[:, None], delta_bic=-500)
+    b = candidate("transducer", (2 * shared - own_matrix[:, 1])[:, None], delta_bic=-450)
     c = candidate("other", RNG.normal(size=(SAMPLES, 1)), delta_bic=-40)
-    assert collinearity(own_directions(a, own), own_directions(b, own)) > 0.999
-    assert collinearity(own_directions(a, own), own_directions(c, own)) < 0.3
+    assert collinearity(own_directions(a, own_matrix), own_directions(b, own_matrix)) > 0.999
+    assert collinearity(own_directions(a, own_matrix), own_directions(c, own_matrix)) < 0.3
     # without the model's columns taken out, they are not collinear: the test sees the model
     assert collinearity(own_directions(a, np.zeros((SAMPLES, 0))),
                         own_directions(b, np.zeros((SAMPLES, 0)))) < COLLINEAR
-    groups = {g.name: g.group for g in grouped([a, b, c], own=own)}
+    groups = {g.name: g.group for g in grouped([a, b, c], own_matrix=own_matrix)}
     assert set(groups["preload"]) == {"preload", "transducer"} == set(groups["transducer"])
     assert groups["other"] == ("other",)
 
 
 def test_per_run_and_wide_terms_are_left_to_their_prediction_changes():
-    own = np.zeros((SAMPLES, 0))
+    own_matrix = np.zeros((SAMPLES, 0))
     column = RNG.normal(size=(SAMPLES, 1))
     per_run = candidate("drift", np.hstack([column] * 2), per_run=True)
     wide = candidate("wide", RNG.normal(size=(SAMPLES, 3)))
-    assert own_directions(per_run, own) is None and own_directions(wide, own) is None
-    assert collinearity(own_directions(candidate("a", column), own), None) == 0.0
+    assert own_directions(per_run, own_matrix) is None and own_directions(wide, own_matrix) is None
+    assert collinearity(own_directions(candidate("a", column), own_matrix), None) == 0.0
 
 
 #: the model's held-out RMS per scheme before any candidate [Pa]

@@ -145,8 +145,9 @@ def test_a_shape_handed_over_as_an_effects_file_reproduces_it(cls, tmp_path):
     coefficients = np.array([effect.params[name].value if name in effect.coefficient_names()
                              else 0.0 for name in effect.params])
     for scale in (1.0, 0.4):
-        own = np.linalg.norm(effect.penalty(500) @ (scale * coefficients))
-        assert np.linalg.norm(handed.penalty(500) @ [scale]) == pytest.approx(own, rel=1e-5)
+        shape_penalty = np.linalg.norm(effect.penalty(500) @ (scale * coefficients))
+        assert np.linalg.norm(handed.penalty(500) @ [scale]) == pytest.approx(shape_penalty,
+                                                                              rel=1e-5)
 
 
 @pytest.mark.parametrize("smoothing, rough", [(0.0, True), (2.0, False)])

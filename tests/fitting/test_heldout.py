@@ -81,7 +81,7 @@ def test_the_discrepancy_is_refitted_with_the_parameters_so_undoing_a_bend_gains
     n = len(labels)
     x = np.linspace(0.0, 1.0, n)
     nuisance = np.column_stack([np.sin(np.pi * k * x) for k in (1, 2, 3)])
-    own = (x + 0.3 * rng.standard_normal(n))[:, None]  # a parameter that can bend toward N
+    own_column = (x + 0.3 * rng.standard_normal(n))[:, None]  # a parameter that can bend toward N
     step = (x > 0.5).astype(float)  # an effect of a shape the discrepancy does not have
     observed = (nuisance @ np.array([2.0, -1.0, 0.5]) + 0.3 * step
                 + 0.05 * rng.standard_normal(n))
@@ -92,13 +92,13 @@ def test_the_discrepancy_is_refitted_with_the_parameters_so_undoing_a_bend_gains
         fit = _at_optimum(-observed, columns)  # fitted without the discrepancy
         return RunBlocks(fit, discrepancy, labels, penalty).objective(np.ones(4))
 
-    before = objective(own)
-    undoing = own + nuisance @ np.array([0.7, 0.2, -0.4])[:, None]
+    before = objective(own_column)
+    undoing = own_column + nuisance @ np.array([0.7, 0.2, -0.4])[:, None]
     # fitted after the parameters instead, the discrepancy would leave the bend, and undoing
     # it would lower this sum of squares by a fifth
-    assert objective(np.column_stack([own, undoing])) == pytest.approx(before, rel=0.01)
+    assert objective(np.column_stack([own_column, undoing])) == pytest.approx(before, rel=0.01)
     shaped = step[:, None] + 0.02 * rng.standard_normal((n, 1))
-    assert objective(np.column_stack([own, shaped])) < 0.5 * before
+    assert objective(np.column_stack([own_column, shaped])) < 0.5 * before
 
 
 def test_a_parameter_on_its_bound_is_held_there_in_the_linear_refits():

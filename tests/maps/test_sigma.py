@@ -65,12 +65,12 @@ def test_variance_known_to_be_in_the_errors_is_not_learned_again():
     """Errors whose variance is 1 % of the map's own plus a known 2 %: the fit finds the map's
     1 %, where one that does not know of the 2 % takes all of it (√5 % ≈ 2.2 %) as its own."""
     rng = np.random.default_rng(5)
-    own, known = 0.01, np.full(4000, 0.02 ** 2)
-    errors = rng.normal(0.0, np.sqrt(own ** 2 + known))
+    own_sigma, known = 0.01, np.full(4000, 0.02 ** 2)
+    errors = rng.normal(0.0, np.sqrt(own_sigma ** 2 + known))
     told = SigmaCalibration.fit(errors, None, {}, use_spread=False, known=known)
     untold = SigmaCalibration.fit(errors, None, {}, use_spread=False)
-    assert told.floor == pytest.approx(own, rel=0.15)
-    assert untold.floor == pytest.approx(np.sqrt(own ** 2 + 0.02 ** 2), rel=0.05)
+    assert told.floor == pytest.approx(own_sigma, rel=0.15)
+    assert untold.floor == pytest.approx(np.sqrt(own_sigma ** 2 + 0.02 ** 2), rel=0.05)
 
 
 def test_the_meshes_biases_are_in_a_left_out_openings_errors_only(cfd_samples):

@@ -54,9 +54,9 @@ EFFECTS = sorted(set(LIBRARY) - {"pilot_zero_drift"}) + [
 def test_every_effects_column_matches_a_replay(name, setting):
     log, cfda = setting
     library = SHAPES if name.startswith("shape_") else LIBRARY
-    own = {effect.name for effect in cfda.effects}
+    model_effects = {effect.name for effect in cfda.effects}
     effects = [e.copy() for e in cfda.effects]
-    if name not in own:
+    if name not in model_effects:
         effects.append(switched_on(library[name]()))
     model = cfda.with_effects(effects)
     if name.startswith("shape_"):  # knots where the log is
@@ -113,9 +113,9 @@ def test_a_shared_read_alike_replay_is_the_candidates_own(name, setting):
         if shared is None:
             assert trial.may_change_the_flow or not model.has_friction, name
             continue
-        own = ReadAlike(trial, log, base)()
-        np.testing.assert_array_equal(shared().replay.dp, own.replay.dp)
-        np.testing.assert_array_equal(shared().replay.u, own.replay.u)
+        read_alone = ReadAlike(trial, log, base)()
+        np.testing.assert_array_equal(shared().replay.dp, read_alone.replay.dp)
+        np.testing.assert_array_equal(shared().replay.u, read_alone.replay.u)
 
 
 def test_a_logs_sampling_interval_is_the_median_step_within_its_runs_found_once():
