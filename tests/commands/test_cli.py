@@ -13,6 +13,7 @@ from surrogate.commands import COMMANDS
 COMMAND_NAMES = [command.__name__.rsplit(".", 1)[1].replace("_", "-") for command in COMMANDS]
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("name", COMMAND_NAMES)
 def test_help_lists_exit_codes_and_required_options_under_their_heading(name, capsys):
     assert main([name, "--help"]) == 0
@@ -24,11 +25,13 @@ def test_help_lists_exit_codes_and_required_options_under_their_heading(name, ca
             assert action.option_strings[-1] in text.split("required options:", 1)[1]
 
 
+@pytest.mark.pipeline
 def test_top_level_help_lists_exit_codes(capsys):
     assert main(["--help"]) == 0
     assert "exit codes:" in capsys.readouterr().out
 
 
+@pytest.mark.pipeline
 def test_quiet_silences_progress_but_not_results(one_run_log, capsys):
     assert main(["compare", "--model", "cfda", "--data", str(one_run_log)]) == 0
     loud = capsys.readouterr()
@@ -38,6 +41,7 @@ def test_quiet_silences_progress_but_not_results(one_run_log, capsys):
     assert quiet.err == "" and quiet.out == loud.out
 
 
+@pytest.mark.pipeline
 def test_written_files_get_the_usual_permissions(one_run_log, tmp_path, capsys):
     previous = os.umask(0o022)
     try:
@@ -53,6 +57,7 @@ def test_written_files_get_the_usual_permissions(one_run_log, tmp_path, capsys):
         os.umask(previous)
 
 
+@pytest.mark.pipeline
 def test_per_run_parameters_of_runs_the_log_lacks_are_refused(one_run_log, tmp_path, capsys):
     """The model was fitted to another log: its other parameters were fitted beside terms that
     act on no sample here, so it is refused (exit 2) rather than replayed with a warning."""
@@ -102,6 +107,7 @@ def test_a_file_named_like_a_preset_in_another_case_is_the_file(tmp_path, monkey
     assert model_name("Bmbe") == "bmbe"
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("argv, words", [
     (["compare", "--model", "cfad"], "unknown model 'cfad' (did you mean 'cfda'?)"),
     (["compare", "--model", "cfda-np"], "did you mean 'cfda-nn'?"),
@@ -114,6 +120,7 @@ def test_a_near_miss_gets_a_did_you_mean(argv, words, tmp_path, monkeypatch, cap
     assert words in capsys.readouterr().err
 
 
+@pytest.mark.pipeline
 def test_a_name_far_from_every_choice_gets_no_guess(capsys):
     assert main(["compare", "--model", "xyz"]) == 2
     assert "did you mean" not in capsys.readouterr().err
@@ -125,6 +132,7 @@ class _Stop(Exception):
     """Raised where the log would be read: what was said before is all a test needs."""
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("argv", [
     ["compare", "--model", "cfda"], ["diagnose", "--model", "cfda"],
     ["fit", "--model", "cfda", "--out", "m"], ["workflow", "--out", "w"],
@@ -148,6 +156,7 @@ def test_the_shipped_log_is_named_in_the_first_progress_line(argv, tmp_path, mon
                           "measurements/bench_measurements.csv"), first
 
 
+@pytest.mark.pipeline
 def test_a_given_log_is_read_without_that_line(one_run_log, capsys):
     assert main(["compare", "--model", "cfda", "--data", str(one_run_log)]) == 0
     assert "no --data given" not in capsys.readouterr().err
@@ -155,6 +164,7 @@ def test_a_given_log_is_read_without_that_line(one_run_log, capsys):
 
 # --- one vocabulary: --data and --out (a folder); the old spellings for one release -------------
 
+@pytest.mark.pipeline
 def test_fit_and_simulate_write_into_the_out_folder(one_run_log, tmp_path):
     assert main(["fit", "--model", "cfda", "--data", str(one_run_log), "--out",
                  str(tmp_path / "fitted"), "--quiet"]) == 0
@@ -164,6 +174,7 @@ def test_fit_and_simulate_write_into_the_out_folder(one_run_log, tmp_path):
     assert (tmp_path / "virtual" / "log.csv").is_file()
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("old, new", [
     (["fit", "--model", "cfda", "--data", "{log}", "--out", "{tmp}/m.toml"], "m.toml"),
     (["simulate", "--hidden", "none", "--sequence", "{log}", "--out", "{tmp}/v.csv"], "v.csv"),
@@ -179,6 +190,7 @@ def test_the_old_spellings_still_work_for_a_release_and_say_so(old, new, one_run
     assert "note:" in capsys.readouterr().err  # said even with --quiet
 
 
+@pytest.mark.pipeline
 def test_predict_writes_into_its_out_folder(tmp_path):
     queries = tmp_path / "queries.csv"
     queries.write_text("u_mm,p_L_bar,p_B_bar,temperature_C\n0.1,100,5,40\n0.2,80,5,20\n")

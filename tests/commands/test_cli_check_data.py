@@ -4,9 +4,12 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from surrogate.cli import main
 from surrogate.core.paths import PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES
 
+pytestmark = pytest.mark.pipeline  # every test here runs a command end to end
 
 def test_shipped_cfd_samples_summary(capsys):
     assert main(["check-data", str(SHIPPED_CFD_SAMPLES)]) == 0

@@ -11,6 +11,8 @@ from surrogate.cli import main
 from surrogate.effects import KNOWN, LIBRARY
 from surrogate.core.paths import PROJECT_ROOT
 
+pytestmark = pytest.mark.pipeline  # every test here runs a command end to end
+
 EXAMPLE = PROJECT_ROOT / "examples" / "seat_force.py"
 
 

@@ -5,6 +5,8 @@ import pytest
 
 from surrogate.cli import main
 
+pytestmark = pytest.mark.pipeline  # every test here runs a command end to end
+
 ANOTHER_OIL = "case,u_mm,p_L_bar,p_B_bar,nu_cSt,rho_kg_m3\nA,0.1,50,5,32,870\nB,0.63,20,2,150,900\n"
 
 

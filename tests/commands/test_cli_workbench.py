@@ -26,6 +26,7 @@ def run_json(capsys, argv):
     return json.loads(capsys.readouterr().out)
 
 
+@pytest.mark.pipeline
 def test_compare_json_contract(capsys, viscous_log, tmp_path):
     out = tmp_path / "compare"
     result = run_json(capsys, ["compare", "--model", "cfda", "--data", str(viscous_log),
@@ -46,6 +47,7 @@ def test_compare_json_contract(capsys, viscous_log, tmp_path):
     assert {"dp_model_bar", "dp_measured_bar", "outside_samples", "status"} <= set(samples)
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("kind", ["nn", "gp"])
 def test_compare_on_learned_maps(capsys, viscous_log, kind):
     result = run_json(capsys, ["compare", "--model", "cfda", "--maps", kind, "--data",
@@ -54,6 +56,7 @@ def test_compare_on_learned_maps(capsys, viscous_log, kind):
     assert result["dp_std_bar"] > 0
 
 
+@pytest.mark.pipeline
 def test_diagnose_json_contract_names_the_hidden_effect(capsys, viscous_log):
     result = run_json(capsys, ["diagnose", "--model", "cfda", "--data", str(viscous_log), "--json"])
     assert {"rms_before_bar", "noise_floor_bar", "summary", "candidates"} <= set(result)
@@ -78,6 +81,7 @@ def test_diagnose_json_contract_names_the_hidden_effect(capsys, viscous_log):
                for c in result["candidates"])
 
 
+@pytest.mark.pipeline
 def test_fit_writes_a_model_file_that_loads_and_compares(capsys, viscous_log, tmp_path):
     path = tmp_path / "fitted.toml"
     result = run_json(capsys, ["fit", "--model", "cfda", "--data", str(viscous_log),
@@ -89,6 +93,7 @@ def test_fit_writes_a_model_file_that_loads_and_compares(capsys, viscous_log, tm
     assert again["rms_bar"] == pytest.approx(result["rms_bar"], rel=1e-3)
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_workflow_json_contract(capsys, viscous_log, tmp_path):
     out = tmp_path / "workflow"
@@ -115,6 +120,7 @@ def test_workflow_json_contract(capsys, viscous_log, tmp_path):
     assert result["summary"].splitlines()[0] == f"Lacks: {result['verdict']['lacks']}"
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_workflow_shows_every_kinds_staircase_and_defaults_to_the_most_accurate(capsys,
                                                                                viscous_log,
@@ -138,6 +144,7 @@ def test_workflow_shows_every_kinds_staircase_and_defaults_to_the_most_accurate(
     assert "Where the kinds agree, where they differ, and what to trust" in report
 
 
+@pytest.mark.pipeline
 def test_workflow_writes_the_main_kinds_results_before_the_comparison_kinds(
         capsys, viscous_log, tmp_path, monkeypatch):
     """The main kind's results are on disk as soon as its staircase is done: a comparison kind
@@ -177,6 +184,7 @@ def test_model_file_round_trip(tmp_path):
         assert a.value == pytest.approx(b.value, rel=1e-12) and a.vary == b.vary
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("text, message", [
     ("[model]\nname = 'x'\n", "maps"),
     ("[model]\nmaps = { kind = 'grid' }\n[[effects]]\nname = 'no_such_effect'\n",
@@ -194,6 +202,7 @@ def test_bad_model_files_exit_2_with_a_message(capsys, viscous_log, tmp_path, te
     assert message in capsys.readouterr().err
 
 
+@pytest.mark.pipeline
 def test_unknown_preset_and_effect_exit_2(capsys, viscous_log, tmp_path):
     assert main(["compare", "--model", "nonsense", "--data", str(viscous_log)]) == 2
     assert "preset" in capsys.readouterr().err
@@ -203,6 +212,7 @@ def test_unknown_preset_and_effect_exit_2(capsys, viscous_log, tmp_path):
     assert not (tmp_path / "x.toml").exists()
 
 
+@pytest.mark.pipeline
 def test_simulate_a_valve_that_differs_from_its_cfd(tmp_path):
     """--mismatch makes the valve differ from the maps it is built around by about the CFD's own
     error (the shipped bench's noise and inputs unchanged, the same seed's); --mismatch 0 is the

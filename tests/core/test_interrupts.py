@@ -32,6 +32,7 @@ def _left_behind(folder: Path) -> list[str]:
     return sorted(path.name for path in folder.iterdir() if path.name != "log.csv")
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("signum, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_a_signal_while_writing_removes_the_staging_folder(signum, code, two_runs_here, tmp_path,
                                                            monkeypatch, capsys):
@@ -95,6 +96,7 @@ def test_deferred_raises_nothing_when_no_signal_came():
     assert reached == ["the block", "past it"]
 
 
+@pytest.mark.pipeline
 def test_a_real_process_stopped_by_sigterm_exits_143_and_leaves_nothing(two_runs_here, tmp_path):
     """The signal arrives at the workflow's first fit, seconds before it writes anything (a
     compare stopped as it began replaying finished first at times: a second of work was left)."""

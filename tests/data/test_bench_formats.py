@@ -118,6 +118,7 @@ def test_the_shipped_log_in_every_form_at_once(tmp_path):
                                                                         "1"]
 
 
+@pytest.mark.pipeline
 def test_check_data_prints_each_note_once_and_reports_them_in_json(tmp_path, capsys):
     path = _write(RAW.assign(operator="jk"), tmp_path / "log.csv", sep=";", decimal=",")
     assert main(["check-data", path]) == 0

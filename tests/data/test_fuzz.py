@@ -1196,6 +1196,7 @@ def run_case(folder: Path, case: Case, capsys, monkeypatch, *, as_json: bool = F
     return code, captured
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("case", CASES, ids=[case.id for case in CASES])
 def test_bad_input_exits_2_naming_the_problem_and_writes_nothing(case, tmp_path, capsys,
                                                                  monkeypatch, registry):
@@ -1217,6 +1218,7 @@ JSON_CASES = [case for case in CASES if case.id in (
     "effects: returns NaN", "cli: fit writing over its bench log")]
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("case", JSON_CASES, ids=[case.id for case in JSON_CASES])
 def test_json_mode_reports_errors_as_json(case, tmp_path, capsys, monkeypatch, registry):
     code, captured = run_case(tmp_path, case, capsys, monkeypatch, as_json=True)
@@ -1229,6 +1231,7 @@ def test_json_mode_reports_errors_as_json(case, tmp_path, capsys, monkeypatch, r
         assert any(p["line"] == 8 and p["column"] == "p_L_bar" for p in error["problems"])
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 @pytest.mark.parametrize("case", [CASES[0], JSON_CASES[1], next(
     case for case in CASES if case.id == "nesting: a valve file 3000 levels deep")],
@@ -1243,6 +1246,7 @@ def test_a_real_process_prints_no_traceback(case, tmp_path):
     assert "Traceback" not in done.stderr and case.words[0] in done.stderr
 
 
+@pytest.mark.pipeline
 def test_an_internal_error_is_one_line_and_a_file_of_details(tmp_path, capsys, monkeypatch):
     """A bug (simulated here) is not bad input: exit 1, one line, the traceback in a file."""
     from surrogate.commands import check_data
@@ -1269,6 +1273,7 @@ BAD_NUMBERS = st.one_of(
 )
 
 
+@pytest.mark.pipeline
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(kind=st.sampled_from(["cfd", "log"]), line=st.integers(2, 60), value=BAD_NUMBERS,
        data=st.data())
@@ -1348,6 +1353,7 @@ def test_generated_unknown_model_keys_are_refused(place, key):
 LEAK_CASES = [case for case in CASES if case.id.startswith("leak:")]
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("as_json", [False, True], ids=["text", "json"])
 @pytest.mark.parametrize("case", LEAK_CASES, ids=[case.id for case in LEAK_CASES])
 def test_a_file_a_model_names_is_never_quoted(case, as_json, tmp_path, capsys, monkeypatch,
@@ -1363,6 +1369,7 @@ def test_a_file_a_model_names_is_never_quoted(case, as_json, tmp_path, capsys, m
         assert error["exit_code"] == 2 and hint in error["message"]
 
 
+@pytest.mark.pipeline
 def test_a_file_the_user_names_is_quoted(tmp_path, capsys, monkeypatch):
     """The control of the test above: the same files, named directly, are quoted."""
     monkeypatch.chdir(tmp_path)
@@ -1452,6 +1459,7 @@ def test_training_refuses_an_out_folder_that_holds_its_cfd_samples(tmp_path):
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("greeting, words", [
     (b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n", "an HTTP server"),
     (b"\xff" * 16, "does not speak Dask's protocol"),

@@ -99,6 +99,7 @@ def test_paths_in_a_model_file_are_relative_to_the_file(tmp_path):
     assert ModelSpec.read(path) == spec
 
 
+@pytest.mark.pipeline
 def test_fit_records_and_uses_the_valve_it_was_given(two_run_log, tmp_path, capsys):
     valve_file = tmp_path / "my_valve.toml"
     valve_file.write_text(VALVE_TEXT.replace("F_cr_N = 226.0", "F_cr_N = 240.0"))
@@ -112,6 +113,7 @@ def test_fit_records_and_uses_the_valve_it_was_given(two_run_log, tmp_path, caps
     assert load_model(str(out)).valve.F_cr == 240.0
 
 
+@pytest.mark.pipeline
 def test_workflow_records_and_uses_the_valve_it_was_given(two_run_log, tmp_path, capsys):
     valve_file = tmp_path / "my_valve.toml"
     valve_file.write_text(VALVE_TEXT.replace("F_cr_N = 226.0", "F_cr_N = 240.0"))

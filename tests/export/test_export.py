@@ -46,12 +46,14 @@ def shipped_log():
     return log, OperatingPoints.from_bench(log.frame), log.frame["run"].to_numpy()
 
 
+@pytest.mark.pipeline
 def test_the_fmu_validates(exported):
     from fmpy.validation import validate_fmu
 
     assert validate_fmu(str(exported / "cfda.fmu")) == []
 
 
+@pytest.mark.pipeline
 def test_the_fmu_reproduces_the_replay_of_the_shipped_log(exported, shipped_log):
     log, points, runs = shipped_log
     model = valve_physics(load_model("cfda")).model
@@ -67,6 +69,7 @@ def test_the_fmu_reproduces_the_replay_of_the_shipped_log(exported, shipped_log)
     assert summary["resolution_error_bar"]["rms"] == pytest.approx(rms, abs=2e-4)
 
 
+@pytest.mark.pipeline
 def test_the_fmu_plays_friction_as_state(exported):
     """Up and down the same flows, the FMU's Δp differs by the friction band: its state."""
     q = np.r_[np.linspace(1, 10, 40), np.linspace(10, 1, 40)] / 60_000
@@ -90,6 +93,7 @@ def unseen_runs() -> tuple[OperatingPoints, np.ndarray]:
     return OperatingPoints.create(np.tile(ramp, len(states)), *columns), runs
 
 
+@pytest.mark.pipeline
 def test_the_fmu_follows_the_solver_on_runs_outside_the_fitted_log(exported):
     """The tables span the valve's envelope, not the log's: on smooth runs far from the log
     the FMU stays within the export's tolerance of the package's replay, and says it is
@@ -108,6 +112,7 @@ def test_the_fmu_follows_the_solver_on_runs_outside_the_fitted_log(exported):
     assert np.all(simulate_log(fmu, points, runs, output="outside") == 0)
 
 
+@pytest.mark.pipeline
 def test_runs_outside_the_fitted_log_need_the_valves_envelope(tmp_path):
     """The unseen runs are a real test of the envelope: an FMU over the log's own range (with a
     margin), held at its edges, misses the solver there by bars and says it is outside."""
@@ -125,6 +130,7 @@ def test_runs_outside_the_fitted_log_need_the_valves_envelope(tmp_path):
     assert np.any(simulate_log(fmu, points, runs, output="outside") > 0)
 
 
+@pytest.mark.pipeline
 def test_the_fmu_holds_its_inputs_to_the_tables_and_says_so(exported):
     """Far outside the grid the FMU answers with the edge's values, never NaN, and flags the
     inputs held (1 q, 2 p_B, 4 p_P, 8 T) on its output and through the logger, once."""
@@ -147,6 +153,7 @@ def test_the_fmu_holds_its_inputs_to_the_tables_and_says_so(exported):
     assert "outside the tables'" in warnings[0] and "bar" in warnings[0]
 
 
+@pytest.mark.pipeline
 def test_the_tables_files_say_what_they_hold(exported):
     from scipy.io import loadmat
 
@@ -174,6 +181,7 @@ def test_the_tables_files_say_what_they_hold(exported):
     assert inside["left_out"] == {} and inside["grid"] == manifest["grid"]
 
 
+@pytest.mark.pipeline
 def test_a_source_only_fmu_without_a_compiler_leaving_out_the_sensor_terms(tmp_path,
                                                                             monkeypatch, capsys):
     model = tmp_path / "with_sensor.toml"
@@ -204,6 +212,7 @@ def _with_sensor_term() -> str:
                                                   delta=0.5), name="cfda+offset").to_toml()
 
 
+@pytest.mark.pipeline
 def test_the_steady_characteristic(tmp_path):
     out = tmp_path / "steady"
     assert main(["steady", "--model", "cfda", "--p-P-bar", "65", "--p-B-bar", "5",

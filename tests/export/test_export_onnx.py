@@ -63,6 +63,7 @@ def test_below_the_smallest_opening_the_graphs_sigma_has_the_seats_floor(kind):
         assert np.max(np.abs(found - value) / np.abs(value)) < 1e-6, name
 
 
+@pytest.mark.pipeline
 def test_export_writes_the_onnx_files(tmp_path):
     out = tmp_path / "onnx"
     assert main(["export", "--model", "cfda-nn", "--format", "onnx", "--out", str(out),

@@ -114,6 +114,7 @@ def results(out: Path) -> dict[str, dict]:
     return {path.stem: json.loads(path.read_text()) for path in (out / "valves").glob("*.json")}
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow  # a whole fleet command: seconds
 def test_a_bad_log_is_recorded_with_its_located_error_and_the_others_are_written(local_run):
     code, document, err, out = local_run
@@ -158,6 +159,7 @@ def test_a_bad_log_is_recorded_with_its_located_error_and_the_others_are_written
     assert not [path for path in out.rglob(".*")], "a temporary file stayed behind"
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow  # a whole fleet command: seconds
 def test_a_rerun_skips_finished_valves_and_redoes_a_missing_or_changed_one(local_run, logs,
                                                                            tmp_path, capsys):
@@ -194,6 +196,7 @@ def test_a_rerun_skips_finished_valves_and_redoes_a_missing_or_changed_one(local
     assert results(out)["V1"]["parameters"] == results(finished)["V1"]["parameters"]
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow  # a whole fleet command: seconds
 def test_without_the_fleet_extra_it_runs_locally_and_says_parquet_is_missing(local_run, tmp_path,
                                                                              monkeypatch, capsys):
@@ -219,6 +222,7 @@ def test_importing_the_package_and_its_command_line_does_not_import_dask():
     subprocess.run([sys.executable, "-c", code], check=True, cwd=PROJECT_ROOT)
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow  # a whole fleet command: seconds
 def test_a_local_cluster_gives_the_same_results_as_the_local_pool(local_run, logs, tmp_path,
                                                                   capsys):
@@ -275,6 +279,7 @@ def test_an_interrupted_batch_leaves_whole_files_and_resumes(logs, tmp_path):
     assert (out / "valves.csv").exists()
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow  # a whole fleet command: seconds
 def test_diagnose_records_the_top_candidate_of_a_faulty_valve(sequence, samples, tmp_path,
                                                               capsys):
@@ -325,6 +330,7 @@ def test_an_earlier_result_stands_only_for_the_same_log_model_and_work():
 
 # --- the command line's own mistakes: exit 2, nothing written -------------------------------------
 
+@pytest.mark.pipeline
 @pytest.mark.parametrize("case", ["empty folder", "no match", "unknown model", "out in data",
                                   "workers and scheduler"])
 def test_command_line_mistakes_exit_2_and_write_nothing(case, logs, tmp_path, capsys):
@@ -353,6 +359,7 @@ def test_command_line_mistakes_exit_2_and_write_nothing(case, logs, tmp_path, ca
     assert sorted(path.name for path in logs.iterdir()) == before
 
 
+@pytest.mark.pipeline
 def test_a_scheduler_without_dask_names_the_extra(logs, tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "distributed", None)  # as if Dask were not installed
     monkeypatch.setenv("CBV_SCHEDULER", "tcp://127.0.0.1:1")
@@ -363,6 +370,7 @@ def test_a_scheduler_without_dask_names_the_extra(logs, tmp_path, monkeypatch, c
     assert not (tmp_path / "out" / "valves").exists()
 
 
+@pytest.mark.pipeline
 def test_the_environment_scheduler_conflicts_with_workers(logs, tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("CBV_SCHEDULER", "tcp://127.0.0.1:1")
     code, _, err = run_fleet(capsys, "--data", str(logs), "--model", "cfda", "--out",

@@ -31,6 +31,7 @@ def _cell_means(document) -> dict[str, float]:
     return frame.groupby("model")["mean_abs_bar"].mean().to_dict()
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_paper_command_succeeds_and_reports_progress(paper_run):
     code, _, _, stderr = paper_run
@@ -38,12 +39,14 @@ def test_paper_command_succeeds_and_reports_progress(paper_run):
     assert "Table 6" in stderr  # progress is shown while it works
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_cfda_beats_best_fit_beats_basic_effort_on_average(paper_run):
     means = _cell_means(paper_run[1])
     assert means["CFDA"] < means["BMBEBF"] < means["BMBE"], means
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_cfda_is_within_5_bar_in_most_cells(paper_run):
     cfda = [r for r in paper_run[1]["table5"] if r["model"] == "CFDA"]
@@ -51,6 +54,7 @@ def test_cfda_is_within_5_bar_in_most_cells(paper_run):
     assert sum(r["mean_abs_bar"] < 5.0 for r in cfda) >= 5
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_json_contract(paper_run):
     document = paper_run[1]
@@ -63,6 +67,7 @@ def test_json_contract(paper_run):
         (t, p) for t in (20, 40, 60) for p in (65, 50)}
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_the_papers_flow_force_scale_is_the_back_pressure_its_maps_left_out(paper_run, tmp_path):
     """The paper needed a flow-force scale of 0.9; its maps ignore the back pressure (eq. 19).
@@ -79,6 +84,7 @@ def test_the_papers_flow_force_scale_is_the_back_pressure_its_maps_left_out(pape
     assert 0.85 < json.loads(stdout.getvalue())["fitted"]["CFDA_flow_force_scale"] < 0.92
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_friction_grows_as_the_oil_cools(paper_run):
     """Table 6's finding: more hysteresis at lower temperature (friction at p_L = 80 bar)."""
@@ -87,6 +93,7 @@ def test_friction_grows_as_the_oil_cools(paper_run):
     assert friction[0] > friction[1] > friction[2], friction
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_paper_files_are_written(paper_run):
     out = paper_run[2]
@@ -98,6 +105,7 @@ def test_paper_files_are_written(paper_run):
     assert all(model in markdown for model in ("BMBE", "BMBEBF", "CFDA"))
 
 
+@pytest.mark.pipeline
 def test_paper_command_rejects_a_log_without_the_papers_runs(tmp_path, bench_lines, capsys):
     path = tmp_path / "one_run.csv"
     path.write_text("\n".join(bench_lines) + "\n")

@@ -8,6 +8,8 @@ import pytest
 from surrogate.cli import main
 from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
+pytestmark = pytest.mark.pipeline  # every test here runs a command end to end
+
 LEFT_OUT_MM = 0.08
 NEIGHBOURS_MM = (0.07, 0.10)  # the sampled openings around it
 

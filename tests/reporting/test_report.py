@@ -75,6 +75,7 @@ class _Cells(HTMLParser):
             self.text.append(data)
 
 
+@pytest.mark.pipeline
 def test_no_table_cell_is_longer_than_the_limit(page):
     cells = _Cells()
     cells.feed(page)
@@ -83,6 +84,7 @@ def test_no_table_cell_is_longer_than_the_limit(page):
     assert len(longest) <= CELL_LENGTH, longest
 
 
+@pytest.mark.pipeline
 def test_every_figure_has_a_caption(page):
     cells = _Cells()
     cells.feed(page)
@@ -90,6 +92,7 @@ def test_every_figure_has_a_caption(page):
     assert cells.captions == len(cells.images)
 
 
+@pytest.mark.pipeline
 def test_the_staircase_shows_step_added_and_rms_at_a_glance(page):
     head = page.split("<table>", 1)[1].split("</thead>", 1)[0].split("<tr>", 1)[1]
     columns = [part.split(">", 1)[1].split("<", 1)[0] for part in head.split("<th")[1:]]
@@ -98,6 +101,7 @@ def test_the_staircase_shows_step_added_and_rms_at_a_glance(page):
     assert "<details>" in page  # the parameters, one folded table per step
 
 
+@pytest.mark.pipeline
 def test_figure_titles_are_short(workflow, comparison):
     figures = [*all_figures(comparison).values(), diagnosis_figure(workflow.final_diagnosis),
                staircase_figure(workflow.steps, workflow.noise_floor)]
@@ -111,6 +115,7 @@ def page_caption(comparison) -> str:
     return comparison_section(comparison, "x").split("<figcaption>", 1)[1]
 
 
+@pytest.mark.pipeline
 def test_measured_and_model_differ_in_marker_and_colour(comparison):
     axes = all_figures(comparison)["dp_vs_q"].axes[0]
     measured = [line for line in axes.lines if line.get_linestyle() == "None"]
@@ -121,6 +126,7 @@ def test_measured_and_model_differ_in_marker_and_colour(comparison):
     assert {line.get_color() for line in measured}.isdisjoint(line.get_color() for line in model)
 
 
+@pytest.mark.pipeline
 def test_the_rms_chart_is_zoomed_to_its_range(workflow):
     axes = diagnosis_figure(workflow.final_diagnosis).axes[0]
     low, high = axes.get_xlim()
@@ -149,6 +155,7 @@ NARROW_PAGE = 1000 - 2 * 16
 SMALLEST_LEGEND = 10.0
 
 
+@pytest.mark.pipeline
 def test_every_table_scrolls_inside_its_box(page):
     """A wide table scrolls inside its own box; the page itself never scrolls sideways."""
     assert page.count("<table>") == page.count('<div class="scroll"><table>') > 0
@@ -165,6 +172,7 @@ def _report_figures(workflow, comparison):
             "run loops": run_loops(workflow.log, models[-2:])}
 
 
+@pytest.mark.pipeline
 def test_legends_stay_readable_on_a_narrow_page(workflow, comparison):
     """An image wider than the page shrinks to it: at 1,000 pixels every legend's text must
     still be 10 pixels high."""
@@ -187,6 +195,7 @@ def _texts(figure) -> list[str]:
     return [text.get_text() for text in figure.findobj(lambda artist: hasattr(artist, "get_text"))]
 
 
+@pytest.mark.pipeline
 def test_one_sign_convention_in_every_figure_table_and_sentence(workflow, comparison, page):
     """The residual is model − measured everywhere it is named (figures, tables, prose), and
     the residual figure plots exactly that: the model's Δp minus the measured one."""
@@ -203,6 +212,7 @@ def test_one_sign_convention_in_every_figure_table_and_sentence(workflow, compar
     assert plotted.size and np.all(np.isin(np.round(plotted, 9), np.round(expected, 9)))
 
 
+@pytest.mark.pipeline
 def test_no_label_or_cell_is_cut_short(workflow, comparison, page):
     """Labels, ticks, legends and table cells are wrapped or shortened in words, never cut
     with an ellipsis."""
@@ -215,6 +225,7 @@ def test_no_label_or_cell_is_cut_short(workflow, comparison, page):
     assert not [cell for cell in parser.cells if "…" in cell or cell.endswith("...")]
 
 
+@pytest.mark.pipeline
 def test_the_misfit_views_are_the_runs_median_lines_and_half_widths(workflow):
     """The dots of the residual views are each run's binned median line (top) and half-width
     (bottom) of the last model's residual, in bar, one per bin."""
@@ -232,6 +243,7 @@ def test_the_misfit_views_are_the_runs_median_lines_and_half_widths(workflow):
         assert np.allclose(dots, matrix @ residual / 1e5)
 
 
+@pytest.mark.pipeline
 def test_every_run_has_its_own_loop_on_its_own_scale(workflow):
     from surrogate.reporting.views import run_loops
 
@@ -242,6 +254,7 @@ def test_every_run_has_its_own_loop_on_its_own_scale(workflow):
     assert min(spans) < 0.5 * max(spans)  # zoomed per run: a 120-bar run is not a 30-bar one's
 
 
+@pytest.mark.pipeline
 def test_what_to_do_next_follows_from_what_the_workflow_found(workflow):
     """Each line of advice answers a finding: no shape-free step, no word of an effects file;
     the maps' limits named when the diagnosis shows them; never an empty list."""
@@ -258,6 +271,7 @@ def test_what_to_do_next_follows_from_what_the_workflow_found(workflow):
     assert html.count("<li>") == len(steps) and "`" not in html
 
 
+@pytest.mark.pipeline
 def test_the_report_shows_where_the_bench_operates_over_the_cfds_openings(workflow):
     """The misfit section draws the log's openings over the sampled ones (suggest-cfd's view,
     without its runs) for maps built from CFD samples."""
@@ -268,6 +282,7 @@ def test_the_report_shows_where_the_bench_operates_over_the_cfds_openings(workfl
     assert misfit_section(workflow, pngs).count("<figure>") == 3
 
 
+@pytest.mark.pipeline
 def test_a_long_report_opens_with_contents_linking_every_section(tmp_path, page):
     """A report of many sections (the workflow's is 12,500 pixels tall) lists them at the top,
     each a link to its heading."""
@@ -279,6 +294,7 @@ def test_a_long_report_opens_with_contents_linking_every_section(tmp_path, page)
     assert text.index("<nav") < text.index("<h2")
 
 
+@pytest.mark.pipeline
 def test_the_report_opens_with_the_verdict_of_the_final_model(tmp_path, page, workflow):
     """Under the title, before the contents, three lines: what the final model lacks, where,
     and what to run next, of the final diagnosis' model with its RMS."""
@@ -351,6 +367,7 @@ def rendered_widths(path, width: int) -> dict:
     return json.loads(unescape(found.group(1)))
 
 
+@pytest.mark.pipeline
 @pytest.mark.skipif(CHROMIUM is None, reason="no chromium: the rendered page cannot be measured")
 def test_nothing_overflows_a_1000_pixel_window(tmp_path, page, workflow):
     """Rendered at 1,000 pixels, with every folded table opened, no element reaches past the

@@ -43,6 +43,7 @@ def detent_case(bench_log):
                               maps_under_test=maps("grid"))
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_a_shape_found_by_diagnose_is_handed_over_as_a_file_that_does_its_work(
         detent_case, tmp_path, capsys, monkeypatch):
@@ -86,6 +87,7 @@ def test_a_shape_found_by_diagnose_is_handed_over_as_a_file_that_does_its_work(
     assert 0.5 < fitted.model.effect(name).params["scale"].value < 1.5
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_a_step_predicts_held_out_runs_as_its_diagnosis_judged_it(bench_log):
     """A leak that opens above a pressure drop (stress case 4252): the diagnosis judged its

@@ -70,6 +70,7 @@ def _fitted(case):
     return fitted, replay_log(fitted, case.log)
 
 
+@pytest.mark.pipeline
 @pytest.mark.slow
 def test_the_workflow_takes_the_maps_error_back_within_their_uncertainty(sequence):
     """A log with nothing hidden, from a valve whose CFD errs like a real one's: the workflow
