@@ -308,8 +308,9 @@ def _process(g: Graph, predictor: GaussianProcessPredictor, features: str
     (:class:`surrogate.maps.gp.NumpyGP`)."""
     from scipy.linalg import solve_triangular
 
-    a = predictor.arrays
-    z = g.div(g.sub(features, a.feature_mean[None]), a.feature_std[None])
+    scaling, kernel = predictor.arrays.features, predictor.arrays.kernel
+    training, output = predictor.arrays.training, predictor.arrays.output
+    z = g.div(g.sub(features, scaling.mean[None]), scaling.std[None])
     if predictor.gp.held is not None:  # held columns clamped to their training range
         low, high = predictor.gp.held
         z = g.max(g.min(z, high[None]), low[None])
@@ -325,8 +326,9 @@ def _process(g: Graph, predictor: GaussianProcessPredictor, features: str
         else:
             factor = None
         if part.kind == BRIDGE:
-            b = g.sub(g.op("Clip", g.column(z, part.dims[0]), g.const(float(a.bridge_range[0])),
-                           g.const(float(a.bridge_range[1]))), float(a.bridge_origin))
+            b = g.sub(g.op("Clip", g.column(z, part.dims[0]),
+                           g.const(float(kernel.bridge_range[0])),
+                           g.const(float(kernel.bridge_range[1]))), float(kernel.bridge_origin))
             minimum = g.min(g.op("Unsqueeze", b, g.const([1], np.int64)), part.bridge[None])
             factor = minimum if factor is None else g.mul(factor, minimum)
             part_prior = g.mul(b, part.amplitude)
@@ -344,13 +346,14 @@ def _process(g: Graph, predictor: GaussianProcessPredictor, features: str
                                                   if isinstance(part_prior, str)
                                                   or isinstance(prior, str)
                                                   else prior + part_prior)
-    mean = g.add(g.add(g.mul(g.matmul(total, a.dual), a.y_std), a.y_mean + a.trend[0]),
-                 g.matmul(z, a.trend[1:]))
-    inverse = solve_triangular(a.cholesky, np.eye(len(a.cholesky)), lower=True)
+    mean = g.add(g.add(g.mul(g.matmul(total, training.dual), output.std),
+                       output.mean + output.trend[0]),
+                 g.matmul(z, output.trend[1:]))
+    inverse = solve_triangular(training.cholesky, np.eye(len(training.cholesky)), lower=True)
     v = g.matmul(total, inverse.T.copy())
     prior_vector = prior if isinstance(prior, str) else g.add(g.mul(mean, 0.0), prior)
     variance = g.sub(prior_vector, g.sum_rows(g.square(v)))
-    return mean, g.mul(g.sqrt(g.max(variance, 0.0)), a.y_std)
+    return mean, g.mul(g.sqrt(g.max(variance, 0.0)), output.std)
 
 
 def _latent(g: Graph, predictor, features: str) -> tuple[str, str]:

@@ -28,7 +28,8 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import (RBF, ConstantKernel, Hyperparameter, Kernel, Matern,
                                               WhiteKernel)
 
-from ..maps.gp import PART_KINDS, GPArrays, bridge_coordinate
+from ..maps.gp import (PART_KINDS, FeatureScaling, GPArrays, KernelParts, OutputScaling,
+                       TrainingFit, bridge_coordinate)
 
 LENGTH_SCALE_BOUNDS = (0.3, 100.0)  # standardised units: smooth on the scale of the data
 NOISE_BOUNDS = (1e-8, 1e-2)
@@ -141,15 +142,17 @@ def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool
     for row, ((_, dims), ell) in enumerate(zip(parts, scales)):
         length_scales[row, : len(ell)] = ell
         part_dims[row, : len(dims)] = dims
-    return GPArrays(
-        np.array([PART_KINDS[kind] for kind, _ in parts]), part_dims, np.asarray(amplitudes),
-        length_scales, feature_mean, feature_std, trend, z,
-        np.asarray(regressor.alpha_, float).ravel(), np.asarray(regressor.L_, float),
-        float(fitted.k2.noise_level), float(regressor._y_train_mean),
-        float(regressor._y_train_std), float(np.linalg.cond(fitted(z))), span, origin,
-        np.asarray(held, int),
-        np.array([[z[:, c].min() - held_margin, z[:, c].max() + held_margin] for c in held],
-                 float).reshape(-1, 2))
+    kernel_parts = KernelParts(np.array([PART_KINDS[kind] for kind, _ in parts]), part_dims,
+                               np.asarray(amplitudes), length_scales,
+                               float(fitted.k2.noise_level), span, origin)
+    training = TrainingFit(z, np.asarray(regressor.alpha_, float).ravel(),
+                           np.asarray(regressor.L_, float), float(np.linalg.cond(fitted(z))))
+    held_range = np.array([[z[:, c].min() - held_margin, z[:, c].max() + held_margin]
+                           for c in held], float).reshape(-1, 2)
+    return GPArrays(FeatureScaling(feature_mean, feature_std, np.asarray(held, int), held_range),
+                    kernel_parts, training,
+                    OutputScaling(trend, float(regressor._y_train_mean),
+                                  float(regressor._y_train_std)))
 
 
 def additive_kernel(parts, z: np.ndarray) -> tuple[Kernel, np.ndarray, float]:

@@ -302,12 +302,13 @@ def train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, 
     flow = GaussianProcessPredictor(
         fit_gp(data.flow_features, data.log_discharge, FLOW_GP_PARTS, linear_mean=FLOW_GP_TREND,
                restarts=GP_RESTARTS), "log_discharge")
-    progress(f"GP flow (ln C_d): fitted, condition number {flow.arrays.condition_number:.1e}")
+    progress("GP flow (ln C_d): fitted, condition number "
+             f"{flow.arrays.training.condition_number:.1e}")
     target, name = force_target(data)
     force = GaussianProcessPredictor(
         fit_gp(data.force_features, target, FORCE_GP_PARTS, linear_mean=name == "plain_fraction",
                restarts=GP_RESTARTS, held=FORCE_HELD, held_margin=FORCE_HOLD_MARGIN),
         "fraction" if name == "plain_fraction" else name)
     progress(f"GP force ({force.target}): fitted, condition number "
-             f"{force.arrays.condition_number:.1e}")
+             f"{force.arrays.training.condition_number:.1e}")
     return flow, force

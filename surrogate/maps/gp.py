@@ -45,83 +45,138 @@ SQRT3 = float(np.sqrt(3.0))
 
 
 @dataclass(frozen=True)
-class GPArrays:
-    """Everything a fitted GP needs to predict, as plain arrays and numbers.
+class FeatureScaling:
+    """How a query's features reach the kernel: standardised, (x − ``mean``)/``std``, then the
+    ``held_columns`` clamped to ``held_range`` (one (low, high) row each, standardised)."""
 
-    ``part_kinds[i]`` is :data:`RBF`, :data:`BRIDGE` or :data:`MATERN`; ``part_dims[i]`` lists its
-    feature columns (−1 padded; for a bridge or a Matérn part the first is the opening column, the
-    rest enter its RBF factor); ``length_scales[i]`` pairs with the RBF columns, for a Matérn part
-    after the opening's own length scale; ``bridge_range`` is the training range of the
-    bridge column (standardised) and ``bridge_origin`` where its min kernel starts;
-    ``held_columns`` are clamped to ``held_range`` (one (low, high) row each, standardised)
-    before the kernel sees them.
-    """
-
-    part_kinds: np.ndarray
-    part_dims: np.ndarray
-    amplitudes: np.ndarray
-    length_scales: np.ndarray
-    feature_mean: np.ndarray
-    feature_std: np.ndarray
-    trend: np.ndarray  # linear mean: intercept then one coefficient per standardised feature
-    inputs: np.ndarray  # standardised training features
-    dual: np.ndarray  # K⁻¹·y (normalised y)
-    cholesky: np.ndarray  # lower Cholesky factor of K + noise
-    noise: float
-    y_mean: float
-    y_std: float
-    condition_number: float
-    bridge_range: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    bridge_origin: float = 0.0
+    mean: np.ndarray
+    std: np.ndarray
     held_columns: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
-    held_range: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # standardised
-
-    _FIELDS: ClassVar = ("part_kinds", "part_dims", "amplitudes", "length_scales", "feature_mean",
-               "feature_std", "trend", "inputs", "dual", "cholesky")
-    _SCALARS: ClassVar = ("noise", "y_mean", "y_std", "condition_number", "bridge_origin")
-
-    def to_npz(self) -> dict[str, np.ndarray]:
-        arrays = {name: np.asarray(getattr(self, name)) for name in self._FIELDS}
-        arrays.update({name: np.asarray(getattr(self, name)) for name in self._SCALARS})
-        arrays["bridge_range"] = np.asarray(self.bridge_range)
-        if len(self.held_columns):
-            arrays["held_columns"] = np.asarray(self.held_columns, int)
-            arrays["held_range"] = np.asarray(self.held_range, float)
-        return arrays
-
-    @classmethod
-    def from_npz(cls, data) -> "GPArrays":
-        if "part_kinds" not in data:  # format 1: additive RBF parts over "groups"
-            groups = np.asarray(data["groups"], int)
-            return cls(np.full(len(groups), RBF), groups, np.asarray(data["amplitudes"], float),
-                       np.asarray(data["length_scales"], float),
-                       *(np.asarray(data[key], float) for key in (
-                           "feature_mean", "feature_std", "trend", "inputs", "dual",
-                           "cholesky")),
-                       *(float(data[key]) for key in ("noise", "y_mean", "y_std",
-                                                      "condition_number")))
-        held = ((np.asarray(data["held_columns"], int), np.asarray(data["held_range"], float))
-                if "held_columns" in data else ())  # none before columns could be held
-        return cls(np.asarray(data["part_kinds"], int), np.asarray(data["part_dims"], int),
-                   *(np.asarray(data[key], float) for key in cls._FIELDS[2:]),
-                   *(float(data[key]) for key in cls._SCALARS[:-1]),
-                   np.asarray(data["bridge_range"], float), float(data["bridge_origin"]), *held)
+    held_range: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     def held_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) per standardised feature column: the held columns' range, ±inf elsewhere."""
-        low, high = np.full(len(self.feature_mean), -np.inf), np.full(len(self.feature_mean),
-                                                                      np.inf)
+        low, high = np.full(len(self.mean), -np.inf), np.full(len(self.mean), np.inf)
         low[self.held_columns], high[self.held_columns] = self.held_range.T
         return low, high
+
+
+@dataclass(frozen=True)
+class KernelParts:
+    """The fitted kernel: its additive parts and its white noise.
+
+    ``kinds[i]`` is :data:`RBF`, :data:`BRIDGE` or :data:`MATERN`; ``dims[i]`` lists its
+    feature columns (−1 padded; for a bridge or a Matérn part the first is the opening column, the
+    rest enter its RBF factor); ``length_scales[i]`` pairs with the RBF columns, for a Matérn part
+    after the opening's own length scale; ``bridge_range`` is the training range of the
+    bridge column (standardised) and ``bridge_origin`` where its min kernel starts.
+    """
+
+    kinds: np.ndarray
+    dims: np.ndarray
+    amplitudes: np.ndarray
+    length_scales: np.ndarray
+    noise: float
+    bridge_range: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    bridge_origin: float = 0.0
 
     def parts(self):
         """(kind, columns, amplitude, length scales) of each part: the scales of its RBF
         columns, for a Matérn part after the opening's."""
-        for kind, dims, amplitude, scales in zip(self.part_kinds, self.part_dims,
-                                                 self.amplitudes, self.length_scales):
+        for kind, dims, amplitude, scales in zip(self.kinds, self.dims, self.amplitudes,
+                                                 self.length_scales):
             dims = [int(d) for d in dims if d >= 0]
             count = len(dims) - 1 if kind == BRIDGE else len(dims)
             yield int(kind), dims, float(amplitude), np.asarray(scales[:count], float)
+
+
+@dataclass(frozen=True)
+class TrainingFit:
+    """What the fit keeps of its training points: their standardised ``inputs``, ``dual``
+    (K⁻¹·y, y normalised), the lower ``cholesky`` factor of K + noise, and K's
+    ``condition_number``."""
+
+    inputs: np.ndarray
+    dual: np.ndarray
+    cholesky: np.ndarray
+    condition_number: float
+
+
+@dataclass(frozen=True)
+class OutputScaling:
+    """The latent target from the GP's normalised output f: ``mean`` + ``std``·f, plus the
+    linear ``trend`` (intercept, then one coefficient per standardised feature)."""
+
+    trend: np.ndarray
+    mean: float
+    std: float
+
+
+#: the arrays of a GP file (.npz), each with the record and field that hold it, in the file's
+#: order; held_columns and held_range are written only when columns are held
+NPZ_KEYS = {"part_kinds": ("kernel", "kinds"), "part_dims": ("kernel", "dims"),
+            "amplitudes": ("kernel", "amplitudes"), "length_scales": ("kernel", "length_scales"),
+            "feature_mean": ("features", "mean"), "feature_std": ("features", "std"),
+            "trend": ("output", "trend"), "inputs": ("training", "inputs"),
+            "dual": ("training", "dual"), "cholesky": ("training", "cholesky"),
+            "noise": ("kernel", "noise"), "y_mean": ("output", "mean"),
+            "y_std": ("output", "std"), "condition_number": ("training", "condition_number"),
+            "bridge_origin": ("kernel", "bridge_origin"),
+            "bridge_range": ("kernel", "bridge_range"),
+            "held_columns": ("features", "held_columns"),
+            "held_range": ("features", "held_range")}
+#: the file's single numbers
+NPZ_SCALARS = ("noise", "y_mean", "y_std", "condition_number", "bridge_origin")
+
+
+@dataclass(frozen=True)
+class GPArrays:
+    """Everything a fitted GP needs to predict, as plain arrays and numbers, in four records:
+    how the features are scaled, the kernel, what the fit keeps of its training points, and how
+    the output is scaled back."""
+
+    features: FeatureScaling
+    kernel: KernelParts
+    training: TrainingFit
+    output: OutputScaling
+
+    def to_npz(self) -> dict[str, np.ndarray]:
+        arrays = {key: np.asarray(getattr(getattr(self, record), name))
+                  for key, (record, name) in NPZ_KEYS.items() if not key.startswith("held_")}
+        if len(self.features.held_columns):
+            arrays["held_columns"] = np.asarray(self.features.held_columns, int)
+            arrays["held_range"] = np.asarray(self.features.held_range, float)
+        return arrays
+
+    @classmethod
+    def from_npz(cls, data) -> "GPArrays":
+        """The arrays of a GP file, read in the file's order (a missing one raises KeyError)."""
+        plain = [key for key in NPZ_KEYS if not key.startswith(("part_", "bridge_", "held_"))]
+        if "part_kinds" not in data:  # format 1: additive RBF parts over "groups"
+            groups = np.asarray(data["groups"], int)
+            read = {"part_kinds": np.full(len(groups), RBF), "part_dims": groups}
+            rest = plain
+        else:
+            read = {key: np.asarray(data[key], int) for key in ("part_kinds", "part_dims")}
+            rest = plain + ["bridge_range", "bridge_origin"]
+        read.update({key: float(data[key]) if key in NPZ_SCALARS else np.asarray(data[key], float)
+                     for key in rest})
+        if "held_columns" in data and "part_kinds" in data:  # none before columns could be held
+            read["held_columns"] = np.asarray(data["held_columns"], int)
+            read["held_range"] = np.asarray(data["held_range"], float)
+        return cls.of(read)
+
+    @classmethod
+    def of(cls, values: dict) -> "GPArrays":
+        """The records of the arrays ``values`` names by their keys in a file (:data:`NPZ_KEYS`);
+        a key left out takes its field's default."""
+        records = {"features": FeatureScaling, "kernel": KernelParts, "training": TrainingFit,
+                   "output": OutputScaling}
+        fields = {record: {} for record in records}
+        for key, value in values.items():
+            record, name = NPZ_KEYS[key]
+            fields[record][name] = value
+        return cls(**{record: kind(**fields[record]) for record, kind in records.items()})
 
 
 def bridge_coordinate(values: np.ndarray, span: np.ndarray, origin: float) -> np.ndarray:
@@ -151,21 +206,24 @@ class NumpyGP:
 
     def __init__(self, arrays: GPArrays):
         self.arrays = arrays
-        self.held = arrays.held_bounds() if len(arrays.held_columns) else None
+        self.held = (arrays.features.held_bounds() if len(arrays.features.held_columns)
+                     else None)
         # L⁻¹ once: the posterior variance then costs a matrix product per block, about a tenth
         # of a triangular solve's time (L is well conditioned: sqrt of K's condition number)
+        training = arrays.training
         self._inverse_cholesky_t = np.ascontiguousarray(solve_triangular(
-            arrays.cholesky, np.eye(len(arrays.cholesky)), lower=True).T)
+            training.cholesky, np.eye(len(training.cholesky)), lower=True).T)
         self._parts = []
-        for kind, dims, amplitude, scales in arrays.parts():
+        for kind, dims, amplitude, scales in arrays.kernel.parts():
             rbf = dims if kind == RBF else dims[1:]
             opening_scale = float(scales[0]) if kind == MATERN else 1.0
             if kind == MATERN:
                 scales = scales[1:]
-            scaled = arrays.inputs[:, rbf] / scales if rbf else np.zeros((len(arrays.inputs), 0))
-            bridge = (bridge_coordinate(arrays.inputs[:, dims[0]], arrays.bridge_range,
-                                        arrays.bridge_origin) if kind == BRIDGE else None)
-            opening = arrays.inputs[:, dims[0]] / opening_scale if kind == MATERN else None
+            inputs = training.inputs
+            scaled = inputs[:, rbf] / scales if rbf else np.zeros((len(inputs), 0))
+            bridge = (bridge_coordinate(inputs[:, dims[0]], arrays.kernel.bridge_range,
+                                        arrays.kernel.bridge_origin) if kind == BRIDGE else None)
+            opening = inputs[:, dims[0]] / opening_scale if kind == MATERN else None
             self._parts.append(_Part(kind, dims, rbf, scales, amplitude, scaled,
                                      0.5 * np.sum(scaled**2, axis=1), bridge, opening_scale,
                                      opening))
@@ -179,7 +237,7 @@ class NumpyGP:
         Built in place, one part after another: with 150 training points the exponentials are
         the whole cost of a prediction, and temporaries the size of the block would double it.
         """
-        a = self.arrays
+        kernel = self.arrays.kernel
         # the bridge's and the Matérn's factors are made in scratch and spare, not in fresh
         # arrays: the same operations in the same order, without allocating and touching new
         # memory
@@ -192,7 +250,8 @@ class NumpyGP:
             else:
                 factor.fill(1.0)
             if part.kind == BRIDGE:
-                b = bridge_coordinate(z[:, part.dims[0]], a.bridge_range, a.bridge_origin)
+                b = bridge_coordinate(z[:, part.dims[0]], kernel.bridge_range,
+                                      kernel.bridge_origin)
                 np.minimum(b[:, None], part.bridge[None, :], out=scratch)
                 factor *= scratch
                 prior += part.amplitude * b
@@ -212,22 +271,23 @@ class NumpyGP:
     def predict(self, features: np.ndarray, return_std: bool = False):
         """Mean (and latent standard deviation) of the target at each row of ``features``,
         in blocks of :data:`_BLOCK` rows (so that the kernel matrix stays in cache)."""
-        a = self.arrays
-        z = (features - a.feature_mean) / a.feature_std
+        features_scaling, training, output = (self.arrays.features, self.arrays.training,
+                                              self.arrays.output)
+        z = (features - features_scaling.mean) / features_scaling.std
         if self.held is not None:
             z = np.clip(z, *self.held)
         mean = np.empty(len(z))
         std = np.empty(len(z)) if return_std else None
         for start in range(0, len(z), _BLOCK):
             block = z[start:start + _BLOCK]
-            cross, *work = _WORK.take(len(block), len(a.inputs))
+            cross, *work = _WORK.take(len(block), len(training.inputs))
             prior = self._cross(block, cross, *work)
-            mean[start:start + _BLOCK] = (a.y_mean + a.y_std * (cross @ a.dual)
-                                          + a.trend[0] + block @ a.trend[1:])
+            mean[start:start + _BLOCK] = (output.mean + output.std * (cross @ training.dual)
+                                          + output.trend[0] + block @ output.trend[1:])
             if return_std:
                 v = np.matmul(cross, self._inverse_cholesky_t, out=work[0])  # (L⁻¹·k*)ᵀ
                 variance = prior - np.einsum("ij,ij->i", v, v)
-                std[start:start + _BLOCK] = a.y_std * np.sqrt(np.clip(variance, 0.0, None))
+                std[start:start + _BLOCK] = output.std * np.sqrt(np.clip(variance, 0.0, None))
         return (mean, std) if return_std else mean
 
 
@@ -341,7 +401,7 @@ class GaussianProcessPredictor:
     @property
     def feature_count(self) -> int:
         """How many feature columns the GP reads."""
-        return len(self.arrays.feature_mean)
+        return len(self.arrays.features.mean)
 
     def latent(self, features: np.ndarray, return_std: bool = False):
         """The latent target L (and its standard deviation)."""
@@ -360,11 +420,12 @@ class GaussianProcessPredictor:
         return {"target": self.target,
                 "parts": [{"kind": _KIND_NAMES[kind], "columns": dims,
                            "amplitude": amplitude, "length_scales": scales.tolist()}
-                          for kind, dims, amplitude, scales in a.parts()],
-                "noise": a.noise, "condition_number": a.condition_number,
-                "training_points": len(a.inputs), "held_columns": a.held_columns.tolist(),
-                "feature_mean": a.feature_mean.tolist(),
-                "feature_std": a.feature_std.tolist(), "trend": a.trend.tolist()}
+                          for kind, dims, amplitude, scales in a.kernel.parts()],
+                "noise": a.kernel.noise, "condition_number": a.training.condition_number,
+                "training_points": len(a.training.inputs),
+                "held_columns": a.features.held_columns.tolist(),
+                "feature_mean": a.features.mean.tolist(),
+                "feature_std": a.features.std.tolist(), "trend": a.output.trend.tolist()}
 
 
 def save_predictor(folder: Path, name: str, predictor: GaussianProcessPredictor) -> dict:
@@ -383,9 +444,9 @@ def load_predictor(folder: Path, entry: dict, features: int) -> GaussianProcessP
     try:
         arrays = GPArrays.from_npz(data)
     except KeyError as error:
+        required = [key for key in NPZ_KEYS if not key.startswith("held_")]
         raise InputError(f"{path}: missing array {error.args[0]!r}; a GP holds "
-                         f"{', '.join(GPArrays._FIELDS + GPArrays._SCALARS)} and "
-                         "bridge_range") from None
+                         f"{', '.join(required[:-1])} and {required[-1]}") from None
     except (TypeError, ValueError):
         raise InputError(f"{path}: an array meant to hold one number holds several") from None
     check_arrays(arrays, str(path), features)
@@ -397,42 +458,46 @@ def check_arrays(a: GPArrays, where: str, d: int) -> None:
     d features, P kernel parts), values that are not finite, scales that are not positive, a
     Cholesky factor that is not lower triangular with a positive diagonal."""
     check = package.check_array
-    check(a.feature_mean, f"{where}, array 'feature_mean'", (d,))
-    check(a.feature_std, f"{where}, array 'feature_std'", (d,), low=0.0, above=True)
-    check(a.trend, f"{where}, array 'trend'", (d + 1,))
-    inputs = check(a.inputs, f"{where}, array 'inputs'", (None, d))
+    features, kernel, training = a.features, a.kernel, a.training
+    check(features.mean, f"{where}, array 'feature_mean'", (d,))
+    check(features.std, f"{where}, array 'feature_std'", (d,), low=0.0, above=True)
+    check(a.output.trend, f"{where}, array 'trend'", (d + 1,))
+    inputs = check(training.inputs, f"{where}, array 'inputs'", (None, d))
     n = len(inputs)
     if n == 0:
         raise InputError(f"{where}, array 'inputs': holds no training point")
-    check(a.dual, f"{where}, array 'dual'", (n,))
-    cholesky = check(a.cholesky, f"{where}, array 'cholesky'", (n, n))
+    check(training.dual, f"{where}, array 'dual'", (n,))
+    cholesky = check(training.cholesky, f"{where}, array 'cholesky'", (n, n))
     if np.any(np.triu(cholesky, 1) != 0) or not np.all(np.diag(cholesky) > 0):
         raise InputError(f"{where}, array 'cholesky': must be lower triangular with a positive "
                          "diagonal (a Cholesky factor)")
-    kinds = check(a.part_kinds, f"{where}, array 'part_kinds'", (None,), integer=True)
+    kinds = check(kernel.kinds, f"{where}, array 'part_kinds'", (None,), integer=True)
     parts = len(kinds)
     if parts == 0 or not np.all(np.isin(kinds, list(PART_KINDS.values()))):
         raise InputError(f"{where}, array 'part_kinds': one kind per part, each "
                          f"{' or '.join(f'{v} ({k})' for k, v in PART_KINDS.items())}")
-    dims = check(a.part_dims, f"{where}, array 'part_dims'", (parts, None), low=-1,
+    dims = check(kernel.dims, f"{where}, array 'part_dims'", (parts, None), low=-1,
                  integer=True)
     if np.any(dims >= d) or np.any(dims[:, :1] < 0):
         raise InputError(f"{where}, array 'part_dims': feature columns 0 to {d - 1} (−1 pads), "
                          "at least one per part")
-    check(a.amplitudes, f"{where}, array 'amplitudes'", (parts,), low=0.0)
-    check(a.length_scales, f"{where}, array 'length_scales'", (parts, dims.shape[1]), low=0.0,
+    check(kernel.amplitudes, f"{where}, array 'amplitudes'", (parts,), low=0.0)
+    check(kernel.length_scales, f"{where}, array 'length_scales'", (parts, dims.shape[1]), low=0.0,
           above=True)
     for name, low, above in (("noise", 0.0, False), ("y_mean", -np.inf, False),
                              ("y_std", 0.0, True), ("condition_number", 0.0, False),
                              ("bridge_origin", -np.inf, False)):
-        check(np.asarray(getattr(a, name)), f"{where}, array {name!r}", (), low=low, above=above)
-    span = check(a.bridge_range, f"{where}, array 'bridge_range'", (2,))
+        record, field_name = NPZ_KEYS[name]
+        check(np.asarray(getattr(getattr(a, record), field_name)), f"{where}, array {name!r}", (),
+              low=low, above=above)
+    span = check(kernel.bridge_range, f"{where}, array 'bridge_range'", (2,))
     if span[0] > span[1]:
         raise InputError(f"{where}, array 'bridge_range': must be (low, high)")
-    held = check(a.held_columns, f"{where}, array 'held_columns'", (None,), low=0, integer=True)
+    held = check(features.held_columns, f"{where}, array 'held_columns'", (None,), low=0,
+                 integer=True)
     if np.any(held >= d) or len(np.unique(held)) != len(held):
         raise InputError(f"{where}, array 'held_columns': distinct feature columns 0 to {d - 1}")
-    ranges = check(a.held_range, f"{where}, array 'held_range'", (len(held), 2))
+    ranges = check(features.held_range, f"{where}, array 'held_range'", (len(held), 2))
     if np.any(ranges[:, 0] > ranges[:, 1]):
         raise InputError(f"{where}, array 'held_range': one (low, high) row per held column")
 

@@ -35,10 +35,10 @@ def test_the_gp_graph_holds_its_inputs_beyond_the_data_as_the_package_does():
     states = random_states(flow.coverage, count=2_000, seed=1)
     states["p_L"] = states["p_B"] + (states["p_L"] - states["p_B"]) * 1e-3  # mbar drops
     states["nu"] = states["nu"] * 0.2  # a thin oil the CFD never ran
-    z = force.predictor.gp.arrays
+    scaling = force.predictor.gp.arrays.features
     standardised = (force.features(states["p_L"], states["p_B"], states["u"],
-                                   FluidState(states["nu"], states["rho"])) - z.feature_mean
-                    ) / z.feature_std
+                                   FluidState(states["nu"], states["rho"])) - scaling.mean
+                    ) / scaling.std
     low, high = force.predictor.gp.held
     assert np.mean((standardised < low) | (standardised > high)) > 0.2  # the clamp is at work
     compared = parity(flow, force, states)
@@ -91,7 +91,7 @@ def test_a_gp_with_a_matern_part_exports_as_the_package_evaluates_it():
     data = targets(flow.spec, load_cfd_samples(SHIPPED_CFD_SAMPLES).frame)
     arrays = fit_gp(data.flow_features, data.log_discharge, (("matern", (1, 0)), ("rbf", (1, 2))),
                     linear_mean=False, restarts=0)
-    assert MATERN in arrays.part_kinds
+    assert MATERN in arrays.kernel.kinds
     matern = LearnedFlowMap(flow.spec, GaussianProcessPredictor(arrays, "log_discharge"),
                             flow.domain, "gp", flow.calibration, flow.coverage)
     compared = parity(matern, force, random_states(flow.coverage, count=2_000, seed=2))

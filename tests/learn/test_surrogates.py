@@ -228,16 +228,17 @@ def test_gp_predictor_reproduces_scikit_learn(cfd_samples, valve, parts):
     data = targets(FeatureSpec.for_valve(valve), cfd_samples.frame)
     arrays = fit_gp(data.flow_features, data.log_discharge, parts, linear_mean=False,
                     restarts=0)
-    assert 1 < arrays.condition_number < 1e12
+    assert 1 < arrays.training.condition_number < 1e12
     # refit with the same (fixed) kernel in scikit-learn and compare the predictions
     from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
 
     from surrogate.learn.gaussian_process import BridgeKernel, ProjectedMatern, ProjectedRBF
 
-    kernel = WhiteKernel(arrays.noise, "fixed")
-    for kind, dims, amplitude, scales in arrays.parts():
+    kernel = WhiteKernel(arrays.kernel.noise, "fixed")
+    for kind, dims, amplitude, scales in arrays.kernel.parts():
         if kind == BRIDGE:
-            factor = (BridgeKernel(dims[0], tuple(arrays.bridge_range), arrays.bridge_origin)
+            factor = (BridgeKernel(dims[0], tuple(arrays.kernel.bridge_range),
+                                   arrays.kernel.bridge_origin)
                       * ProjectedRBF(tuple(dims[1:]), tuple(scales), "fixed"))
         elif kind == MATERN:
             factor = ProjectedMatern((dims[0],), (scales[0],), "fixed")
@@ -246,16 +247,16 @@ def test_gp_predictor_reproduces_scikit_learn(cfd_samples, valve, parts):
         else:
             factor = ProjectedRBF(tuple(dims), tuple(scales), "fixed")
         kernel = ConstantKernel(amplitude, "fixed") * factor + kernel
-    z = (data.flow_features - arrays.feature_mean) / arrays.feature_std
+    z = (data.flow_features - arrays.features.mean) / arrays.features.std
     reference = GaussianProcessRegressor(kernel, normalize_y=True, optimizer=None).fit(
         z, data.log_discharge)
     query = data.flow_features[::7] + 0.1
     mean, std = NumpyGP(arrays).predict(query, return_std=True)
-    ref_mean, ref_std = reference.predict((query - arrays.feature_mean) / arrays.feature_std,
+    ref_mean, ref_std = reference.predict((query - arrays.features.mean) / arrays.features.std,
                                           return_std=True)
     np.testing.assert_allclose(mean, ref_mean, rtol=1e-9, atol=1e-12)
     # scikit-learn's spread includes the white noise, the latent one does not
-    noise = arrays.noise * arrays.y_std**2
+    noise = arrays.kernel.noise * arrays.output.std**2
     np.testing.assert_allclose(std**2 + noise, ref_std**2, rtol=1e-6, atol=1e-14)
 
 
@@ -267,7 +268,7 @@ def test_a_gp_factor_made_per_distinct_value_is_the_per_row_one_to_the_bit(name,
     import surrogate.maps.gp as gp
 
     arrays = gp.GPArrays.from_npz(np.load(trained_folder("gp") / f"{name}.npz"))
-    training = arrays.inputs * arrays.feature_std + arrays.feature_mean
+    training = arrays.training.inputs * arrays.features.std + arrays.features.mean
     rng = np.random.default_rng(5)
     # each training point ten times, its other columns moved: a tenth of the values distinct
     query = np.repeat(training, 10, axis=0)
