@@ -20,7 +20,7 @@ package (a model to a bench log, the diagnosis' candidates, the paper's models) 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
@@ -40,13 +40,17 @@ DIFF_STEP = 1e-4
 SETTLED_GAIN = 1e-4
 
 
-@dataclass
+@dataclass(frozen=True)
 class Evaluation:
     """The residuals at one set of parameters, and what the problem made them from (a replay of
     a bench log, say), for the caller."""
 
     residual: np.ndarray
     payload: object = None
+
+    def finite(self) -> "Evaluation":
+        """The same with its residuals made finite (:func:`_finite`)."""
+        return replace(self, residual=_finite(self.residual))
 
 
 class FitProblem:
@@ -261,8 +265,7 @@ class Minimizer:
 
     def _evaluate(self, x, fit_step: bool = True) -> Evaluation:
         self.assign(x)
-        evaluation = self.problem.evaluate(self.model, fit_step)
-        evaluation.residual = _finite(evaluation.residual)
+        evaluation = self.problem.evaluate(self.model, fit_step).finite()
         if fit_step:
             self.evaluations += 1
         if len(evaluation.residual) <= len(self.parameters):
@@ -300,8 +303,7 @@ class Minimizer:
         each of the fit's own evaluations (not the Jacobian's columns).
         """
         if not self.parameters:
-            evaluation = self.problem.evaluate(self.model)
-            evaluation.residual = _finite(evaluation.residual)
+            evaluation = self.problem.evaluate(self.model).finite()
             return self._result(evaluation, None, True, "nothing to fit")
         last: dict = {"x": None, "evaluation": None}
 
@@ -563,8 +565,7 @@ class _Refinement:
             self.settled = True
             return
         self.assign(target)
-        evaluation = self.minimizer.problem.evaluate(self.minimizer.model)
-        evaluation.residual = _finite(evaluation.residual)
+        evaluation = self.minimizer.problem.evaluate(self.minimizer.model).finite()
         self.minimizer.evaluations += 1
         self.replays += 1
         new = evaluation.residual
