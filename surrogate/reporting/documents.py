@@ -7,8 +7,8 @@ workflow its verdict (:mod:`.verdict`).
 
 from __future__ import annotations
 
-from ..core.units import from_si
 from ..workbench.workflow import Step, Workflow
+from .display import in_bar
 from .prose import summarise
 from .verdict import summary_text, verdict
 
@@ -47,4 +47,4 @@ def workflow_document(workflow: Workflow) -> dict:
 
 def _bar(value: float) -> float:
     """[Pa] -> bar, to 4 decimals."""
-    return round(float(from_si(value, "bar")), 4)
+    return round(float(in_bar(value)), 4)

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .display import in_bar
 from .naming import Family, family
-from ..core.units import from_si
 from .verdict import category_words, what
 
 
@@ -65,7 +65,7 @@ class KindsComparison:
 
     def to_json(self) -> dict:
         return {"trusted": self.trusted,
-                "heldout_rms_bar": {kind: round(float(from_si(value, "bar")), 4)
+                "heldout_rms_bar": {kind: round(float(in_bar(value)), 4)
                                     for kind, value in self.heldout.items()},
                 "families": [{"family": across.family.words,
                               "added": {kind: [term.name for term in terms]
@@ -125,7 +125,7 @@ def _added(words: str, by_terms: str, family: Family) -> str:
 
 def trust_sentence(comparison: KindsComparison) -> str:
     """Which kind's final model predicts the runs left out best, with every kind's figure."""
-    figures = ", ".join(f"{kind} {from_si(value, 'bar'):.3f} bar"
+    figures = ", ".join(f"{kind} {in_bar(value):.3f} bar"
                         for kind, value in sorted(comparison.heldout.items(),
                                                   key=lambda item: item[1]))
     sentence = (f"The {comparison.trusted} maps' final model predicts the runs left out best "

@@ -11,12 +11,12 @@ import re
 import numpy as np
 
 from ..diagnosis.lookalikes import MAPS_ERROR
+from .display import in_bar
 from .naming import WITHIN, library_matches, shape_features
 from ..diagnosis.result import Candidate, Diagnosis, SensorCheck, rounded_bar
 from ..fitting.heldout import HEADLINE
 from ..fitting.leastsquares import split_key
 from ..planning.bench_runs import Separation, search_range
-from ..core.units import from_si
 
 # a residual within 1.3x the noise floor counts as noise in the summary: the floor estimate runs
 # ~10 % low when friction holds the piston (input noise then reaches Δp in bursts, not white)
@@ -36,7 +36,7 @@ def sensor_check_text(check: SensorCheck) -> str:
 
 def map_limit_texts(diagnosis: Diagnosis) -> list[str]:
     """Where the maps' error shows most, e.g. ``force map near 0.16 mm (1.34 bar RMS)``."""
-    return [f"{limit.where} ({from_si(limit.rms, 'bar'):.2f} bar RMS)"
+    return [f"{limit.where} ({in_bar(limit.rms):.2f} bar RMS)"
             for limit in diagnosis.map_limits]
 
 
@@ -102,11 +102,11 @@ def hysteresis_sentence(diagnosis: Diagnosis, candidate: Candidate) -> str:
     if not np.isfinite(share):
         return ""
     views = (f" Of its gain, {100 * share:.0f} % lies in the runs' hysteresis half-width "
-             f"({from_si(diagnosis.half_width_before, 'bar'):.2f} → "
-             f"{from_si(candidate.half_width_rms, 'bar'):.2f} bar RMS) and "
+             f"({in_bar(diagnosis.half_width_before):.2f} → "
+             f"{in_bar(candidate.half_width_rms):.2f} bar RMS) and "
              f"{100 * (1 - share):.0f} % in their median line "
-             f"({from_si(diagnosis.median_before, 'bar'):.2f} → "
-             f"{from_si(candidate.median_rms, 'bar'):.2f} bar).")
+             f"({in_bar(diagnosis.median_before):.2f} → "
+             f"{in_bar(candidate.median_rms):.2f} bar).")
     friction = candidate.kind == "friction"
     own_view_share = share if friction else 1.0 - share
     if own_view_share < OWN_VIEW_SHARE:
@@ -134,9 +134,9 @@ def summarise(diagnosis: Diagnosis) -> str:
     """Plain sentences: the most likely missing effect (with its category, held-out gain and
     inclusion frequency), or why none is named, where the maps limit the diagnosis, and what
     the per-run readings say about the sensors."""
-    before = from_si(diagnosis.rms_before, "bar")
-    floor = from_si(diagnosis.noise_floor, "bar")
-    expected = from_si(diagnosis.expected_rms, "bar")
+    before = in_bar(diagnosis.rms_before)
+    floor = in_bar(diagnosis.noise_floor)
+    expected = in_bar(diagnosis.expected_rms)
     best = diagnosis.best
     if best is None:
         unstable = next((c for c in diagnosis.candidates if not c.stable
@@ -180,9 +180,9 @@ def summarise(diagnosis: Diagnosis) -> str:
         params = ", ".join(str(p) for p in best.params if p.vary)
         sentence = (f"The most likely missing effect is {best.title} ({best.name}, "
                     f"{best.category}): adding it lowers the residual RMS from {before:.2f} to "
-                    f"{from_si(best.rms_after, 'bar'):.2f} bar and the RMS on held-out runs from "
-                    f"{from_si(diagnosis.heldout_before, 'bar'):.2f} to "
-                    f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor {floor:.2f} bar, "
+                    f"{in_bar(best.rms_after):.2f} bar and the RMS on held-out runs from "
+                    f"{in_bar(diagnosis.heldout_before):.2f} to "
+                    f"{in_bar(best.heldout_rms):.2f} bar (noise floor {floor:.2f} bar, "
                     f"ΔBIC {best.delta_bic:.0f} against the maps' own error, chosen in "
                     f"{100 * best.inclusion:.0f} % of resamples over runs) with {params}.")
         sentence += hysteresis_sentence(diagnosis, best)
@@ -207,7 +207,7 @@ def declined_sentence(diagnosis: Diagnosis) -> str:
     claim = declined.claim
 
     def held(value: float) -> str:
-        return f"{from_si(value, 'bar'):.2f} bar"
+        return f"{in_bar(value):.2f} bar"
 
     others = [rival for rival in declined.rivals if rival.name != MAPS_ERROR]
     maps = next((rival for rival in declined.rivals if rival.name == MAPS_ERROR), None)
@@ -319,11 +319,11 @@ def look_alike_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
     sentence = (f"The log holds one finding with {len(members)} explanations it cannot tell "
                 f"apart: " + ", or ".join(map(explanation, members)) + f". On this log {why}, "
                 "so neither is preferred: either lowers the residual RMS from "
-                f"{from_si(diagnosis.rms_before, 'bar'):.2f} to about "
-                f"{from_si(best.rms_after, 'bar'):.2f} bar and the RMS on held-out runs from "
-                f"{from_si(diagnosis.heldout_before, 'bar'):.2f} to about "
-                f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor "
-                f"{from_si(diagnosis.noise_floor, 'bar'):.2f} bar, ΔBIC {best.delta_bic:.0f}, "
+                f"{in_bar(diagnosis.rms_before):.2f} to about "
+                f"{in_bar(best.rms_after):.2f} bar and the RMS on held-out runs from "
+                f"{in_bar(diagnosis.heldout_before):.2f} to about "
+                f"{in_bar(best.heldout_rms):.2f} bar (noise floor "
+                f"{in_bar(diagnosis.noise_floor):.2f} bar, ΔBIC {best.delta_bic:.0f}, "
                 f"one of them chosen in {100 * diagnosis.group_inclusion(best):.0f} % of "
                 "resamples over runs).")
     advice = separation_advice(diagnosis.separation)
@@ -345,8 +345,8 @@ def maps_or_shape_sentence(diagnosis: Diagnosis) -> str:
     if shape is None:
         return ""
     return (f" A term of free shape, {shape.title} ({shape.name}), would lower the RMS to "
-            f"{from_si(shape.rms_after, 'bar'):.2f} bar and the held-out RMS to "
-            f"{from_si(shape.heldout_rms, 'bar'):.2f} bar, but the maps' own error could do "
+            f"{in_bar(shape.rms_after):.2f} bar and the held-out RMS to "
+            f"{in_bar(shape.heldout_rms):.2f} bar, but the maps' own error could do "
             f"nearly as much there (ΔBIC {shape.delta_bic:.1f} against it): this log cannot "
             f"tell a {shape.effect.quantity} of {shape.curve.label} from the maps' error. "
             "Runs at other pilot pressures and temperatures at the same operating points, or "
@@ -358,13 +358,13 @@ def shape_sentence(diagnosis: Diagnosis, best: Candidate) -> str:
     term has that shape, and how to take it over (its effects file)."""
     curve = best.curve
     effect = best.effect
-    before = from_si(diagnosis.rms_before, "bar")
+    before = in_bar(diagnosis.rms_before)
     sentence = (f"The log holds a {effect.quantity} that depends on {curve.label} with a shape of "
                 f"its own ({best.name}, {best.category}): a term of free shape lowers the "
-                f"residual RMS from {before:.2f} to {from_si(best.rms_after, 'bar'):.2f} bar and "
-                f"the RMS on held-out runs from {from_si(diagnosis.heldout_before, 'bar'):.2f} to "
-                f"{from_si(best.heldout_rms, 'bar'):.2f} bar (noise floor "
-                f"{from_si(diagnosis.noise_floor, 'bar'):.2f} bar, ΔBIC {best.delta_bic:.0f} "
+                f"residual RMS from {before:.2f} to {in_bar(best.rms_after):.2f} bar and "
+                f"the RMS on held-out runs from {in_bar(diagnosis.heldout_before):.2f} to "
+                f"{in_bar(best.heldout_rms):.2f} bar (noise floor "
+                f"{in_bar(diagnosis.noise_floor):.2f} bar, ΔBIC {best.delta_bic:.0f} "
                 f"against the maps' own error with {best.extra:.1f} effective parameters, chosen "
                 f"in {100 * best.inclusion:.0f} % of resamples over runs). ")
     sentence += shape_words(best) + " " + naming_words(best)

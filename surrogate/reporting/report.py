@@ -17,12 +17,13 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from .display import in_bar
 from .naming import WITHIN, library_matches
 from ..diagnosis.result import Diagnosis
 from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUSION_MIN,
                               NOISE_MARGIN, OTHER_KIND_GAIN)
 from ..core.outputs import atomic_file
-from ..core.units import from_si, label
+from ..core.units import label
 from ..workbench.compare import TEXT_RUNS, Comparison
 from .figures import DPI, PNG_OPTIONS, all_figures, caption
 from .prose import next_steps, sensor_check_text, summarise, workflow_summary
@@ -143,7 +144,7 @@ def comparison_section(comparison: Comparison, heading: str,
                        pngs: dict[str, bytes] | None = None) -> str:
     """Headline, per-run table, p_Pe × temperature table, worst regions and the figures
     (``pngs``: the figures already rendered, by name; else they are drawn here)."""
-    rms, floor = from_si(comparison.rms, "bar"), from_si(comparison.noise_floor, "bar")
+    rms, floor = in_bar(comparison.rms), in_bar(comparison.noise_floor)
     runs = comparison.runs.assign(extrapolating=100 * comparison.runs["extrapolating_fraction"])
     shown_runs = ""
     if len(runs) > TEXT_RUNS:  # a big log: its worst runs here, every run in runs.csv
@@ -238,13 +239,12 @@ def diagnosis_table(diagnosis: Diagnosis) -> pd.DataFrame:
     withheld = None if diagnosis.declined is None else diagnosis.declined.claim.name
     for c in diagnosis.candidates:
         rows.append({"effect": c.name, "what": c.title, "category": c.category,
-                     "rms after [bar]": from_si(c.rms_after, "bar"),
-                     "held out [bar]": from_si(c.heldout_rms, "bar"),
-                     "T left out [bar]": from_si(c.heldout.get("temperature", np.nan), "bar"),
-                     "p_P left out [bar]": from_si(c.heldout.get("pilot pressure", np.nan),
-                                                   "bar"),
-                     "median line [bar]": from_si(c.median_rms, "bar"),
-                     "half-width [bar]": from_si(c.half_width_rms, "bar"), "ΔBIC": c.delta_bic,
+                     "rms after [bar]": in_bar(c.rms_after),
+                     "held out [bar]": in_bar(c.heldout_rms),
+                     "T left out [bar]": in_bar(c.heldout.get("temperature", np.nan)),
+                     "p_P left out [bar]": in_bar(c.heldout.get("pilot pressure", np.nan)),
+                     "median line [bar]": in_bar(c.median_rms),
+                     "half-width [bar]": in_bar(c.half_width_rms), "ΔBIC": c.delta_bic,
                      "chosen in [%]": 100.0 * c.inclusion,
                      "significant": ("sensor check" if c.per_run
                                      else "yes" if c.significant
@@ -261,8 +261,8 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
     table = diagnosis_table(diagnosis)
     figure = Figure(figsize=(8, 0.35 * len(table) + 1.6), layout="constrained")
     axes = figure.subplots()
-    before = float(from_si(diagnosis.rms_before, "bar"))
-    floor = float(from_si(diagnosis.noise_floor, "bar"))
+    before = float(in_bar(diagnosis.rms_before))
+    floor = float(in_bar(diagnosis.noise_floor))
     after = table["rms after [bar]"].to_numpy(float)
     colours = ["tab:green" if s == "yes" else "tab:gray" for s in table["significant"]]
     positions = np.arange(len(table))[::-1]
@@ -327,7 +327,7 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
             f"calibrated size, refitted with the parameters, have explained what they can, "
             f"counted with the "
             f"{diagnosis.effective_samples:.0f} effectively independent samples), lowers the "
-            f"RMS on held-out runs (now {from_si(diagnosis.heldout_before, 'bar'):.3f} bar, each "
+            f"RMS on held-out runs (now {in_bar(diagnosis.heldout_before):.3f} bar, each "
             f"run predicted by a refit to the others) by more than {100 * HELDOUT_GAIN:g} %, "
             "and so the RMS with one temperature or one pilot pressure left out (<i>held out: "
             "runs / T / p_P</i>), the residual before exceeds "
@@ -345,8 +345,8 @@ def diagnosis_section(diagnosis: Diagnosis, heading: str = "Diagnosis") -> str:
             "run: such candidates are "
             "sensor checks, never part of the model. <i>median line</i> and <i>half-width</i>: "
             "the RMS of the runs' residual split into the mean of the up and down ramps at "
-            f"equal flow (now {from_si(diagnosis.median_before, 'bar'):.3f} bar) and half "
-            f"their difference (now {from_si(diagnosis.half_width_before, 'bar'):.3f} bar); "
+            f"equal flow (now {in_bar(diagnosis.median_before):.3f} bar) and half "
+            f"their difference (now {in_bar(diagnosis.half_width_before):.3f} bar); "
             "map error moves the first, friction the second.")
     correlations = pd.DataFrame(
         [{"variable": k.split("~")[1], "what": k.split("~")[0], "correlation": v}
@@ -384,8 +384,8 @@ def staircase_table(steps) -> pd.DataFrame:
         rows.append({"step": number, "added": ", ".join(step.added) or step.model.name,
                      "category": (step.category or "—")
                      + (", free shape" if getattr(step, "shape_free", False) else ""),
-                     "rms [bar]": from_si(step.rms, "bar"),
-                     "held out [bar]": from_si(step.heldout_rms, "bar"),
+                     "rms [bar]": in_bar(step.rms),
+                     "held out [bar]": in_bar(step.heldout_rms),
                      "parameters": parameters})
     return pd.DataFrame(rows)
 
@@ -410,12 +410,12 @@ def staircase_section(workflow, png: bytes | None = None) -> str:
     already rendered, as for staircase.png; else it is drawn here)."""
     if png is None:
         png = figure_png(staircase_figure(workflow.steps, workflow.noise_floor))
-    floor = from_si(workflow.noise_floor, "bar")
-    final = from_si(workflow.final.rms, "bar")
+    floor = in_bar(workflow.noise_floor)
+    final = in_bar(workflow.final.rms)
     return "\n".join([
         "<h2>Error staircase</h2>",
         f'<p class="summary">From the paper\'s basic model to the final one, the residual RMS '
-        f"fell from {from_si(workflow.steps[0].rms, 'bar'):.2f} to {final:.2f} bar "
+        f"fell from {in_bar(workflow.steps[0].rms):.2f} to {final:.2f} bar "
         f"({final / floor:.2f}× the noise floor of {floor:.2f} bar). "
         f"{_prose(workflow_summary(workflow))}</p>",
         "<p>Steps 1–4 are the paper's models (BMBE, BMBEBF, CFD maps, CFDA); later steps add the "
@@ -568,7 +568,7 @@ def staircases_section(workflows: dict, main: str, scores: dict | None = None) -
                      "steps": len(workflow.steps),
                      "added by diagnosis": ", ".join(
                          name for step in workflow.steps[4:] for name in step.added) or "—",
-                     "final rms [bar]": from_si(workflow.final.rms, "bar"),
+                     "final rms [bar]": in_bar(workflow.final.rms),
                      "× noise floor": workflow.final.rms / workflow.noise_floor})
     why = ("chosen with --maps" if not scores else
            "the kind whose flow force is the most accurate by cross-validation (mean relative "

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from ..maps.orifice import BASIC_DISCHARGE_COEFFICIENT
-from ..core.units import from_si
+from .display import in_bar
 from .figures import LEFT, RIGHT, extents, place_panels
 from .prose import NOISE_LEVEL
 
@@ -52,8 +52,8 @@ def plot_staircase(axes, steps, noise_floor: float, *, fontsize: float = 9,
     value, the held-out RMS as a diamond on it, and the noise floor and :data:`.prose.NOISE_LEVEL`
     times it [Pa in, bar shown]. A linear axis: the last steps' tenths of a bar are written on
     their bars, where a log axis hid them among its ticks. Returns the floor [bar]."""
-    rms = np.array([from_si(step.rms, "bar") for step in steps])
-    heldout = np.array([from_si(step.heldout_rms, "bar") for step in steps])
+    rms = np.array([in_bar(step.rms) for step in steps])
+    heldout = np.array([in_bar(step.heldout_rms) for step in steps])
     positions = np.arange(len(steps))
     axes.bar(positions, rms, width=0.7, color=[colour(step.category) for step in steps],
              alpha=0.85)
@@ -62,7 +62,7 @@ def plot_staircase(axes, steps, noise_floor: float, *, fontsize: float = 9,
     for x, y, h in zip(positions, rms, heldout):
         axes.annotate(f"{y:.2f}", (x, max(y, h)), textcoords="offset points", xytext=(0, 5),
                       ha="center", fontsize=fontsize)
-    floor = from_si(noise_floor, "bar")
+    floor = in_bar(noise_floor)
     axes.axhline(floor, color="black", linestyle="--", linewidth=1,
                  label=f"noise floor {floor:.2f} bar")
     axes.axhline(NOISE_LEVEL * floor, color="black", linestyle=":", linewidth=1,
@@ -106,7 +106,7 @@ def staircases_figure(workflows: dict) -> Figure:
     axes = figure.subplots(len(workflows), 1, sharey=True, squeeze=False)[:, 0]
     for ax, (kind, workflow) in zip(axes, workflows.items()):
         plot_staircase(ax, workflow.steps, workflow.noise_floor, fontsize=9, width=22)
-        final = from_si(workflow.final.rms, "bar")
+        final = in_bar(workflow.final.rms)
         ax.set_title(f"{kind} maps: {final:.2f} bar after {len(workflow.steps)} steps",
                      fontsize=10)
     return figure

@@ -21,8 +21,8 @@ import numpy as np
 import pandas as pd
 
 from ..diagnosis.lookalikes import MAPS_ERROR
+from .display import in_bar
 from .naming import family, shape_features
-from ..core.units import from_si
 from .prose import NOISE_LEVEL, hysteresis_share, workflow_summary
 
 #: what each category of effect is, in the verdict's words
@@ -50,7 +50,7 @@ class Verdict:
 
 def _bar(value: float) -> str:
     """[Pa] as "0.85 bar"."""
-    return f"{from_si(value, 'bar'):.2f} bar"
+    return f"{in_bar(value):.2f} bar"
 
 
 def explained(before: float, after: float) -> float:
@@ -84,7 +84,7 @@ def added_words(workflow) -> str:
         else:  # a step that followed the loop: the maps calibrated to the bench
             words = "the CFD maps calibrated within their uncertainty"
         parts.append(f"{words}: {category_words(step.category)}, "
-                     f"{from_si(before.rms, 'bar'):.2f} → {from_si(step.rms, 'bar'):.2f} bar")
+                     f"{in_bar(before.rms):.2f} → {in_bar(step.rms):.2f} bar")
     if not parts:
         return ""
     return (f"Beyond {start} ({_bar(steps[first].rms)} RMS) the loop added "
