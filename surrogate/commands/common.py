@@ -15,7 +15,6 @@ from ..core.input_files import DEFAULT_LIMIT_MB, LIMIT_VARIABLE, megabytes
 from ..maps.registry import MAP_KINDS, MapChoice
 from ..model import ValveModel
 from ..description.modelfile import PRESETS, load_spec, model_name
-from ..description.spec import ModelSpec
 from ..core.outputs import Output, check_outputs
 from ..core.paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES,
                           shipped)
@@ -185,11 +184,6 @@ def maps_help_text() -> str:
     return MAPS_HELP.format(kinds=", ".join(MAP_KINDS))
 
 
-def on_maps(spec: ModelSpec, choice: MapChoice, cfd: str | None = None) -> ModelSpec:
-    """``spec`` on the maps ``choice`` names (an option such as --maps), named for them."""
-    return spec.with_maps(choice.spec(cfd), f"{spec.name} ({choice} maps)")
-
-
 def guard_outputs(args, *outputs: Output) -> None:
     """Refuse outputs that would overwrite an input or cannot be written, before any work.
 
@@ -269,7 +263,7 @@ def load_inputs(args, progress: Progress) -> tuple[ValveModel | None, object, Ef
         spec = load_spec(args.model, args.valve)
         where = args.model if args.model not in PRESETS else f"preset {args.model!r}"
         if getattr(args, "maps", None):
-            spec = on_maps(spec, args.maps)
+            spec = spec.on_maps(args.maps)
         model = spec.build(library, where)
     log = load_bench_log(data, progress)
     progress(f"{len(log)} samples in {len(log.run_ids)} runs from {log.source}")

@@ -46,7 +46,6 @@ from .common import (
     maps_option,
     model_option,
     notice,
-    on_maps,
     positive_int,
     print_json,
     progress_for,
@@ -130,7 +129,7 @@ def run(args) -> int:
     library = effect_library(args, progress)
     spec = load_spec(args.model, args.valve)
     if args.maps:
-        spec = on_maps(spec, args.maps)
+        spec = spec.on_maps(args.maps)
     where = args.model if args.model not in PRESETS else f"preset {args.model!r}"
     model = spec.build(library, where)  # a model that cannot be built stops here, exit 2
     model_toml = spec.to_toml()  # its paths absolute: a worker reads it anywhere

@@ -13,7 +13,7 @@ from ..limits import FLOW, PRESSURE, PRESSURE_DIFFERENCE, TEMPERATURE
 from ..core.outputs import Output, atomic_directory
 from ..core.units import from_si, to_si
 from .common import (add_command, effect_library, guard_outputs, maps_help_text, maps_option,
-                     model_option, on_maps, print_json, progress_for, required)
+                     model_option, print_json, progress_for, required)
 
 
 def register(subparsers) -> None:
@@ -69,7 +69,7 @@ def run(args) -> int:
 
     spec = load_spec(args.model, args.valve)
     if args.maps:
-        spec = on_maps(spec, args.maps)
+        spec = spec.on_maps(args.maps)
     where = args.model if args.model not in PRESETS else f"preset {args.model!r}"
     model = spec.build(effect_library(args, progress), where)
     physics = valve_physics(model, args.model)

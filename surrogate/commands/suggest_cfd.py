@@ -12,7 +12,7 @@ from ..description.modelfile import PRESETS, load_spec
 from ..core.outputs import Output, atomic_directory
 from ..planning.cfd_runs import suggest_cfd, suggestion_figure
 from .common import (add_command, add_data_options, bench_log_path, effect_library, guard_outputs,
-                     model_option, on_maps, positive_int, print_json, progress_for)
+                     model_option, positive_int, print_json, progress_for)
 
 DEFAULT_RUNS = 8
 
@@ -51,7 +51,7 @@ def run(args) -> int:
     kind = args.maps
     if kind is None:
         kind = MapChoice.read(most_accurate_kind(spec.valve.parameters)[0])
-    spec = on_maps(spec, kind, args.cfd)
+    spec = spec.on_maps(kind, args.cfd)
     model = spec.build(library, args.model)
     if model.flow_map.calibration is None and model.force_map.calibration is None:
         raise InputError(f"--maps {kind}: these maps have no uncertainty to reduce; choose maps "

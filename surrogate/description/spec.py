@@ -48,7 +48,7 @@ from pathlib import Path
 from ..effects import KNOWN, Effect, EffectLibrary
 from ..core.errors import InputError
 from ..core.input_files import read_input_text
-from ..maps.registry import SHIPPED, MapsSpec, MapSource, build_maps, map_kind
+from ..maps.registry import SHIPPED, MapChoice, MapsSpec, MapSource, build_maps, map_kind
 from ..model import ValveModel
 from ..core.outputs import atomic_file
 from ..core.tomlio import dumps, loads
@@ -274,6 +274,10 @@ class ModelSpec:
 
     def with_maps(self, maps: MapsSpec, name: str | None = None) -> "ModelSpec":
         return replace(self, maps=maps, name=name or self.name)
+
+    def on_maps(self, choice: MapChoice, cfd: str | None = None) -> "ModelSpec":
+        """This spec on the maps ``choice`` names (an option such as --maps), named for them."""
+        return self.with_maps(choice.spec(cfd), f"{self.name} ({choice} maps)")
 
     def with_valve(self, valve: ValveSource) -> "ModelSpec":
         return replace(self, valve=valve)
