@@ -202,7 +202,7 @@ def test_the_grids_sigma_toward_the_seat_is_its_own_continuations_error():
     from surrogate.maps.grid import GridUncertainty, grid_maps_on
     from surrogate.maps.splits import leave_smallest_opening_out
     from surrogate.maps.crossval import errors_on
-    from surrogate.paths import SHIPPED_CFD_SAMPLES
+    from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 
     samples, valve = load_cfd_samples(SHIPPED_CFD_SAMPLES), load_valve(None)
     flow_map, force_map = grid_maps_on(samples, valve)
