@@ -655,11 +655,7 @@ class GridUncertainty:
         # narrow for the virtual valves' q there (docs/maps.md, "How the learned maps are
         # built")
         errors = self.errors
-        # a fold that drops a temperature's smallest sweeps goes on toward the seat from
-        # openings the grid never goes on from; how the grid errs there is its own fold's
-        toward_seat = ((errors["flow_distance:opening below"] > 0)
-                       | (errors["force_distance:opening below"] > 0)).to_numpy()
-        flow, force = calibrate(errors[~toward_seat], use_spread=False)
+        flow, force = calibrate(errors[~toward_seat(errors)], use_spread=False)
         seat = self.seat_slopes()
         return {"flow": replace(flow, seat=seat["flow"]),
                 "force": replace(force, seat=seat["force"])}
@@ -688,6 +684,16 @@ class GridUncertainty:
         """The cross-validation summary computed from this grid's errors, never the shipped
         one."""
         return summary(self.errors, self.calibrations["flow"], self.calibrations["force"])
+
+
+def toward_seat(errors) -> np.ndarray:
+    """True for the cross-validated errors (:func:`.crossval.errors_on` rows) a fold's grid
+    reached only by going on below its smallest opening. Such a fold drops a temperature's
+    smallest sweeps and goes on from openings the grid, holding them all, never goes on from;
+    how the grid errs toward the seat is its own fold's (:meth:`GridUncertainty.seat_slopes`),
+    and the calibration is fitted without them."""
+    return ((errors["flow_distance:opening below"] > 0)
+            | (errors["force_distance:opening below"] > 0)).to_numpy()
 
 
 def grid_maps_on(samples: CfdSamples, valve: ValveParameters, train=None

@@ -106,14 +106,13 @@ def _grid_coverage_off_the_seat(cfd_samples) -> dict:
     k-fold flow-force coverage (86 %) counts them (docs/maps.md)."""
     from surrogate import load_valve
     from surrogate.maps.crossval import standard_deviations
-    from surrogate.maps.grid import GridUncertainty
+    from surrogate.maps.grid import GridUncertainty, toward_seat
 
     grid = GridUncertainty(cfd_samples, load_valve(None))
     errors, calibrations = grid.errors, grid.calibrations
-    toward_seat = ((errors["flow_distance:opening below"] > 0)
-                   | (errors["force_distance:opening below"] > 0)).to_numpy()
-    assert toward_seat.any() and (errors.loc[toward_seat, "scheme"] == SCHEMES[0]).all()
-    kept = errors[~toward_seat]
+    left = toward_seat(errors)
+    assert left.any() and (errors.loc[left, "scheme"] == SCHEMES[0]).all()
+    kept = errors[~left]
     flow_std, force_std = standard_deviations(kept, calibrations["flow"], calibrations["force"])
     by_scheme = {}
     for scheme, part in kept.groupby("scheme"):
