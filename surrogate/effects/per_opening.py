@@ -73,9 +73,21 @@ class _PerOpening(ShapeFreeEffect):
         return hat_basis(self.knots, x)
 
     def shape(self, x: np.ndarray) -> np.ndarray:
-        knots = self.knots
+        knots, log_knots, coefficients = self._lines()
         return np.interp(np.log(np.clip(np.asarray(x, float), knots[0], knots[-1])),
-                         np.log(knots), self.coefficients)
+                         log_knots, coefficients)
+
+    def _lines(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The knots [m], their logarithms and the values at them, found again only when a
+        parameter has changed (as :meth:`.shapes.ShapeFreeEffect._spline` keeps its spline): a
+        replay asks the shape at every balance, and sorting the knots each time cost more than
+        the interpolation."""
+        values = tuple(parameter.value for parameter in self.params.values())
+        cached = getattr(self, "_lines_cached", None)
+        if cached is None or cached[0] != values:
+            knots = self.knots
+            cached = self._lines_cached = (values, (knots, np.log(knots), self.coefficients))
+        return cached[1]
 
     def roughness(self) -> np.ndarray:
         """Each value on its own: the fit's prior is a ridge (σ per knot), not a smoothness."""
