@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import re
 import textwrap
 from pathlib import Path
@@ -25,7 +24,7 @@ from ..diagnosis.rule import (BIC_THRESHOLD, GAIN_FRACTION, HELDOUT_GAIN, INCLUS
 from ..core.outputs import atomic_file
 from ..core.units import label
 from ..workbench.compare import TEXT_RUNS, Comparison
-from .figures import DPI, PNG_OPTIONS, all_figures, caption
+from .figures import BELOW, all_figures, caption, extents, place_panels, png_bytes
 from .prose import next_steps, sensor_check_text, summarise, workflow_summary
 from ..planning.cfd_runs import operating_points_figure
 from .staircase import staircase_figure, staircases_figure, step_label
@@ -65,10 +64,8 @@ def _prose(text: str) -> str:
 
 
 def figure_png(figure: Figure) -> bytes:
-    """The figure as PNG bytes."""
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=DPI, pil_kwargs=PNG_OPTIONS)
-    return buffer.getvalue()
+    """The figure as PNG bytes (:func:`.figures.png_bytes`)."""
+    return png_bytes(figure)
 
 
 def figure_html(png: bytes, alt: str, caption: str) -> str:
@@ -259,7 +256,7 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
     """RMS after adding each candidate: a line from the current RMS down to the candidate's, on
     an axis zoomed to the candidates' range so that close ones can be told apart."""
     table = diagnosis_table(diagnosis)
-    figure = Figure(figsize=(8, 0.35 * len(table) + 1.6), layout="constrained")
+    figure = Figure(figsize=(8, 0.35 * len(table) + 1.6))
     axes = figure.subplots()
     before = float(in_bar(diagnosis.rms_before))
     floor = float(in_bar(diagnosis.noise_floor))
@@ -294,7 +291,13 @@ def diagnosis_figure(diagnosis: Diagnosis) -> Figure:
                   label=f"noise floor {floor:.3f} bar (off the axis, to the left)")
     axes.set_xlabel("residual RMS after adding the candidate [bar] (axis zoomed)")
     axes.set_title("Diagnosis: RMS after each candidate (green: significant)")
-    figure.legend(loc="outside lower center", ncols=2, fontsize=8)  # clear of every line
+    legend = figure.legend(loc="lower center", ncols=2, fontsize=8)  # clear of every line
+    # placed by the legend's and the effect names' extents, measured once, instead of the
+    # constrained layout, which measured every label over again at each save (as the
+    # staircase's figure): the names left of the panel, the legend under its axis' label
+    (_, legend_height), *names = extents(figure, legend, *axes.get_yticklabels())
+    place_panels(figure, above=0.4, left=max((width for width, _ in names), default=0.0) + 0.2,
+                 right=0.25, below=legend_height + BELOW, across=0.0, down=0.0)
     return figure
 
 
