@@ -338,23 +338,45 @@ def _band(run: pd.DataFrame) -> list[np.ndarray]:
     polygon). σ is drawn as a running median over a twentieth of the ramp: it jumps between
     samples where friction holds the piston (the flow map's error alone) and where it slides
     (the force map's too), which would hide the band's course; samples.csv keeps every
-    sample's own."""
+    sample's own. In NumPy on the run's columns (a DataFrame and a rolling window per ramp
+    cost more than drawing the bands)."""
     polygons = []
-    if run["dp_std_bar"].isna().all():
+    std_all = run["dp_std_bar"].to_numpy(float)
+    if np.isnan(std_all).all():
         return polygons
-    ramp = (run["up"] != run["up"].shift()).cumsum()
-    for _, part in run.groupby(ramp, sort=False):
-        part = part[part["dp_std_bar"].notna() & part["dp_model_bar"].notna()]
-        if len(part) < 2:
+    model_all = run["dp_model_bar"].to_numpy(float)
+    q_all = run["q_lpm"].to_numpy()
+    up = run["up"].to_numpy()
+    # the ramps: where the direction changes
+    bounds = [0, *(np.flatnonzero(up[1:] != up[:-1]) + 1).tolist(), len(up)]
+    for begin, end in zip(bounds[:-1], bounds[1:]):
+        std, model = std_all[begin:end], model_all[begin:end]
+        kept = ~np.isnan(std) & ~np.isnan(model)
+        if kept.sum() < 2:
             continue
-        q = part["q_lpm"].to_numpy()
-        window = max(5, len(part) // 20)
-        std = part["dp_std_bar"].rolling(window, center=True, min_periods=1).median()
-        upper = (part["dp_model_bar"] + 2 * std).to_numpy()
-        lower = (part["dp_model_bar"] - 2 * std).to_numpy()
+        q, std, model = q_all[begin:end][kept], std[kept], model[kept]
+        std = centred_median(std, max(5, len(std) // 20))
+        upper, lower = model + 2 * std, model - 2 * std
         polygons.append(np.column_stack([np.concatenate([q, q[::-1]]),
                                          np.concatenate([upper, lower[::-1]])]))
     return polygons
+
+
+def centred_median(values: np.ndarray, window: int) -> np.ndarray:
+    """The running median of ``values`` over ``window`` samples, as pandas'
+    ``Series.rolling(window, center=True, min_periods=1).median()`` finds it (the window
+    shortened at the ends; for an even window, one more sample before than after)."""
+    count = len(values)
+    stop = np.arange(1, count + 1) + (window - 1) // 2
+    start, stop = np.maximum(stop - window, 0), np.minimum(stop, count)
+    result = np.empty(count)
+    full = stop - start == window
+    if full.any():
+        result[full] = np.median(
+            np.lib.stride_tricks.sliding_window_view(values, window)[start[full]], axis=1)
+    for row in np.flatnonzero(~full):
+        result[row] = np.median(values[start[row]:stop[row]])
+    return result
 
 
 RESIDUAL_PANELS = (("q_lpm", f"q [{LPM}]"), ("p_L_bar", f"p_L [{BAR}]"),
