@@ -470,7 +470,7 @@ def force_graph(force_map: LearnedForceMap):
     g, spec = Graph(), force_map.spec
     features = force_features(g, spec, "p_L", "p_B", "u", "nu", "rho", force_map.feature_count)
     latent, spread = _latent(g, force_map.predictor, features)
-    fraction = _target(g, force_map.predictor, latent)
+    fraction = _toward_seat(g, force_map, _target(g, force_map.predictor, latent))
     uniform = g.add(g.mul("p_L", spec.A_L), g.mul("p_B", spec.back_area))
     dp = g.max(g.sub("p_L", "p_B"), 0.0)
     force = g.add(uniform, g.mul(g.mul(fraction, spec.A_L), dp))
@@ -479,6 +479,28 @@ def force_graph(force_map: LearnedForceMap):
     return g.model({name: name for name, _, _ in INPUTS}, {"f_sim": force, "f_sim_std": std},
                    "force_map", f"{force_map.kind} force map of cbv-surrogate: f_sim [N] and "
                                 "its calibrated standard deviation")
+
+
+def _toward_seat(g: Graph, force_map: LearnedForceMap, fraction: str) -> str:
+    """α below the smallest sampled opening continued as the power of u the two smallest
+    openings give, as :meth:`~..maps.learned.LearnedForceMap.toward_seat` does (the predictor
+    asked again at both openings, with the query's other features)."""
+    coverage, predictor = force_map.coverage, force_map.predictor
+    if (not getattr(predictor, "holds_the_smallest_opening", False) or coverage is None
+            or len(coverage.openings) < 2):
+        return fraction
+    smallest, next_one = (float(opening) for opening in np.sort(coverage.openings)[:2])
+    edge, beyond = (
+        _target(g, predictor, _latent(g, predictor, force_features(
+            g, force_map.spec, "p_L", "p_B", g.add(g.mul("u", 0.0), opening), "nu", "rho",
+            force_map.feature_count))[0])
+        for opening in (smallest, next_one))
+    same_sign = g.greater(g.mul(edge, beyond), 0.0)
+    ratio = g.where(same_sign, g.div(beyond, edge), 1.0)  # a power of 0 where the signs differ
+    power = g.min(g.max(g.div(g.log(ratio), float(np.log(next_one / smallest))), 0.0), 1.0)
+    depth = g.log(g.div(g.max("u", 1e-300), smallest))  # ln(u/u₀), negative below
+    continued = g.mul(edge, g.exp(g.mul(power, depth)))
+    return g.where(g.greater(smallest, "u"), continued, fraction)
 
 
 def _log_pressure_drop(g: Graph, flow_map: LearnedFlowMap, log_q: str) -> str:

@@ -46,6 +46,13 @@ from .registry import (SHIPPED, MapKind, Option, learned_kinds, map_kind, resolv
 MANIFEST = package.MANIFEST
 
 
+#: the force features' column of ln(u/U) (:data:`surrogate.features.FORCE_FEATURE_NAMES`)
+_OPENING_COLUMN = 1
+#: the range of the power of u by which α goes on below the smallest opening, as the grid's
+#: (:data:`.grid._POWER_BELOW`): between holding it and falling in proportion to the opening
+_POWER_TOWARD_SEAT = (0.0, 1.0)
+
+
 class LearnedFlowMap(FlowMap):
     """Flow map whose discharge coefficient comes from a learned predictor of ln C_d.
 
@@ -127,10 +134,40 @@ class LearnedForceMap(ForceMap):
 
     def force(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        fraction = self.predictor.predict(self.features(p_L, p_B, u, fluid))
+        features = self.features(p_L, p_B, u, fluid)
+        fraction = self.toward_seat(self.predictor.predict(features), features, u)
         dp = np.maximum(p_L - p_B, 0.0).ravel()
         force = self.spec.uniform_force(p_L, p_B) + fraction * self.spec.A_L * dp
         return force.reshape(p_L.shape)
+
+    def toward_seat(self, fraction: np.ndarray, features: np.ndarray, u) -> np.ndarray:
+        """The flow-force fraction α of flattened queries (the predictor's ``fraction`` at their
+        ``features``), below the smallest sampled opening u₀ continued as the power of u the
+        two smallest openings give, α(u) = α(u₀)·(u/u₀)^k with 0 ≤ k ≤ 1 at the query's other
+        features, as the grid continues it (:mod:`.grid`), for a predictor whose features hold
+        their edge value there (networks: :attr:`~.nn.NetworkEnsemble.holds_the_smallest_opening`).
+        Such a predictor keeps the smallest opening's flow force down to the seat, where the jet's
+        momentum, and with it the flow force at a given Δp, vanishes as the valve closes; a GP's
+        kernel follows the CFD's own fall there."""
+        if (not getattr(self.predictor, "holds_the_smallest_opening", False)
+                or self.coverage is None or len(self.coverage.openings) < 2):
+            return fraction
+        smallest, next_one = np.sort(self.coverage.openings)[:2]
+        u = np.ravel(u)
+        below = u < smallest
+        if not below.any():
+            return fraction
+        at_smallest, at_next = features[below].copy(), features[below].copy()
+        at_smallest[:, _OPENING_COLUMN] = np.log(smallest / self.spec.length)
+        at_next[:, _OPENING_COLUMN] = np.log(next_one / self.spec.length)
+        edge, beyond = self.predictor.predict(at_smallest), self.predictor.predict(at_next)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            power = np.log(beyond / edge) / np.log(next_one / smallest)
+        power = np.where((edge * beyond > 0.0) & np.isfinite(power),
+                         np.clip(power, *_POWER_TOWARD_SEAT), 0.0)
+        continued = np.array(fraction, float, copy=True)
+        continued[below] = edge * np.exp(power * np.log(np.maximum(u[below], 1e-300) / smallest))
+        return continued
 
     def extrapolation_reasons(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray:
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
@@ -152,9 +189,11 @@ class LearnedForceMap(ForceMap):
         the predictor asked once for its mean and spread (the kernel or the networks are the
         cost)."""
         p_L, p_B, u, fluid = broadcast_query(p_L, p_B, u, fluid)
-        latent, spread, distances = _inputs(self, self.features(p_L, p_B, u, fluid), p_B, u)
+        features = self.features(p_L, p_B, u, fluid)
+        latent, spread, distances = _inputs(self, features, p_B, u)
         dp = np.maximum(p_L - p_B, 0.0).ravel()
-        flow_force = self.predictor.from_latent(latent) * self.spec.A_L * dp
+        fraction = self.toward_seat(self.predictor.from_latent(latent), features, u)
+        flow_force = fraction * self.spec.A_L * dp
         relative = self.against_valve(self.calibration.std(spread, distances), p_B, u)
         return np.reshape(np.abs(flow_force) * relative, p_L.shape)
 

@@ -38,6 +38,10 @@ class NetworkEnsemble:
     #: the members agree between openings about as well as on them, so the calibration also
     #: reads the opening's distance from the sampled ones (:mod:`.sigma`)
     spread_knows_openings = False
+    #: below the smallest sampled opening the members' features saturate (ln Re held at its
+    #: edge, the correction flat in ln u), so α would stay the smallest opening's down to the
+    #: seat: the force map continues it instead (:meth:`.learned.LearnedForceMap.toward_seat`)
+    holds_the_smallest_opening = True
 
     def __init__(self, architecture, states: list[dict[str, np.ndarray]],
                  feature_mean: np.ndarray, feature_std: np.ndarray, output: str,
