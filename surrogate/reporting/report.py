@@ -565,9 +565,11 @@ def staircases_section(workflows: dict, main: str, scores: dict | None = None) -
     """The staircases of every map kind side by side, and why ``main`` is the report's."""
     rows = []
     for kind, workflow in workflows.items():
-        rows.append({"maps": kind + (" (main)" if kind == main else ""),
-                     "flow-force CV error [%]": (100 * scores[kind] if scores and kind in scores
-                                                 else float("nan")),
+        # the kinds' cross-validation scores where they chose the main kind; chosen with --maps,
+        # none were computed and the column is left out rather than shown empty
+        scored = ({"flow-force CV error [%]": 100 * scores[kind] if kind in scores
+                   else float("nan")} if scores else {})
+        rows.append({"maps": kind + (" (main)" if kind == main else ""), **scored,
                      "steps": len(workflow.steps),
                      "added by diagnosis": ", ".join(
                          name for step in workflow.steps[4:] for name in step.added) or "—",

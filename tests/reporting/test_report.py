@@ -380,3 +380,15 @@ def test_nothing_overflows_a_1000_pixel_window(tmp_path, page, workflow):
     measured = rendered_widths(path, 1000)
     assert measured["page"] <= measured["viewport"], measured
     assert not measured["over"], measured["over"][:5]
+
+
+def test_the_kinds_table_shows_cross_validation_only_where_it_chose_the_kind(workflow):
+    """The kinds' flow-force CV error is a column where it chose the main kind; with the kind
+    chosen by --maps none was computed, and the column is left out, not shown empty."""
+    from surrogate.reporting.report import staircases_section
+
+    chosen = staircases_section({"gp": workflow, "grid": workflow}, "gp")
+    ranked = staircases_section({"gp": workflow, "grid": workflow}, "gp",
+                                scores={"gp": 0.021, "grid": 0.05})
+    assert "CV error" not in chosen and "chosen with --maps" in chosen
+    assert "flow-force CV error [%]" in ranked and "2.1" in ranked and "5.0" in ranked
