@@ -7,24 +7,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY
-from surrogate.fitting.residuals import replay_log
 from surrogate.fluid import FluidState
 from surrogate.description.modelfile import load_model
-from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver import asked_maps
 from surrogate.solver.asked_maps import AskedBalance, asked_balance, kept_flows
 
 
 @pytest.fixture(scope="module")
-def setting():
-    log = load_bench_log(SHIPPED_BENCH_LOG)
-    runs = log.frame["run"].unique()[::4][:4]
-    log = log.take(np.flatnonzero(log.frame["run"].isin(runs).to_numpy()))
-    model = load_model("cfda")
-    return log, model, replay_log(model, log, diagnostics=False)
+def setting(cfda_on_runs):
+    return cfda_on_runs(4)
 
 
 def same_bits(a: np.ndarray, b: np.ndarray) -> bool:

@@ -9,11 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from surrogate.description import presets
-from surrogate.data import load_bench_log
 from surrogate.effects import LIBRARY
 from surrogate.fitting.residuals import replay_log
 from surrogate.description.modelfile import load_model
-from surrogate.core.paths import SHIPPED_BENCH_LOG
 from surrogate.points import OperatingPoints
 from surrogate.solver.map_tables import FINE, MapTables, _Locator
 from surrogate.solver.replay import (FROM_START, OWN_HIGH, OWN_LOW, STATE_LOW, play,
@@ -22,12 +20,8 @@ from surrogate.core.units import BAR
 
 
 @pytest.fixture(scope="module")
-def setting():
-    log = load_bench_log(SHIPPED_BENCH_LOG)
-    runs = log.frame["run"].unique()[::4][:6]
-    log = log.take(np.flatnonzero(log.frame["run"].isin(runs).to_numpy()))
-    model = load_model("cfda")
-    return log, model, replay_log(model, log, diagnostics=False)
+def setting(cfda_on_runs):
+    return cfda_on_runs(6)
 
 
 def test_a_grid_maps_pressure_drop_is_tabulated_exactly_and_its_flow_force_closely(setting):
