@@ -105,22 +105,13 @@ def _grid_coverage_off_the_seat(cfd_samples) -> dict:
     the seat), which those folds, going on from 0.10-0.16 mm, exceed: the shipped summary's
     k-fold flow-force coverage (86 %) counts them (docs/maps.md)."""
     from surrogate import load_valve
-    from surrogate.maps.crossval import standard_deviations
     from surrogate.maps.grid import GridUncertainty, toward_seat
 
     grid = GridUncertainty(cfd_samples, load_valve(None))
     errors, calibrations = grid.errors, grid.calibrations
     left = toward_seat(errors)
     assert left.any() and (errors.loc[left, "scheme"] == SCHEMES[0]).all()
-    kept = errors[~left]
-    flow_std, force_std = standard_deviations(kept, calibrations["flow"], calibrations["force"])
-    by_scheme = {}
-    for scheme, part in kept.groupby("scheme"):
-        at = (kept["scheme"] == scheme).to_numpy()
-        by_scheme[scheme] = {
-            "q_coverage_2sigma": coverage_of(part["discharge_error"], flow_std[at]),
-            "flow_force_coverage_2sigma": coverage_of(part["force_error"], force_std[at])}
-    return by_scheme
+    return summary(errors[~left], calibrations["flow"], calibrations["force"])
 
 
 @pytest.mark.slow
