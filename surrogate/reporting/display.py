@@ -1,19 +1,15 @@
 """How the reporting layer shows a pressure: in bar, the display unit of every pressure it reports
 (residuals, RMS figures, noise floors), by the factor :mod:`surrogate.core.units` defines.
 
-One helper beside the modules that word and draw the numbers, instead of a conversion by unit
-name at each number; the same bits as ``from_si(value, "bar")``.
+One name beside the modules that word and draw the numbers, instead of a unit name spelled at
+each number; the conversion itself stays :func:`surrogate.core.units.from_si`'s.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from ..core.units import BAR
+from ..core.units import from_si
 
 
 def in_bar(value):
     """A pressure [Pa] in bar: a float for a number, an array for an array."""
-    if np.isscalar(value):
-        return float(value) / BAR
-    return np.asarray(value, dtype=float) / BAR
+    return from_si(value, "bar")
