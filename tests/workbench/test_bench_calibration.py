@@ -17,6 +17,7 @@ from surrogate.effects.per_opening import CALIBRATIONS, hat_basis
 from surrogate.fitting.discrepancy import knots
 from surrogate.fitting.logfit import fit_to_log
 from surrogate.fitting.residuals import replay_log
+from surrogate.maps.cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR
 from surrogate.description.modelfile import load_model, save_model
 from surrogate.description.presets import maps
 from surrogate.reporting.prose import workflow_summary
@@ -117,7 +118,10 @@ def test_with_perfect_maps_the_calibration_stays_within_its_prior_and_gains_noth
     assert calibration.replay.rms() > 0.97 * log_replay.rms()
     count = len(knots(model))
     force, flow = calibration.sigma[:count], calibration.sigma[count:]
-    assert np.all(force >= 0.025 - 1e-12) and np.all(flow >= 0.0075 - 1e-12)
+    # the CFD's own error (surrogate.maps.cfd_error): 2.5 % of the flow force; in ln C_d half
+    # the Δp error the mesh study and the samples' scatter give, pooled (1.3 % of Δp)
+    assert np.all(force >= FORCE_CFD_ERROR - 1e-12)
+    assert np.all(flow >= FLOW_CFD_ERROR - 1e-12)
     assert np.all(force <= 0.5) and np.all(flow <= 0.5) and np.any(force > 0.05)
     assert calibrate_maps(calibration.model, case.log, calibration.replay) is None
 

@@ -1,0 +1,79 @@
+"""The CFD's own error in Δp: the mesh study and the samples' scatter, pooled by their degrees of
+freedom (surrogate/maps/cfd_error.py)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from surrogate.maps import cfd_error
+from surrogate.maps.cfd_error import (CFD_ERROR, FLOW_CFD_ERROR, MESH_STUDY_DP_CHANGE,
+                                      TREND_DEGREE, mesh_study_variance, opening_scatter,
+                                      pooled_dp_error)
+
+OPENINGS = np.array([0.05, 0.08, 0.10, 0.13, 0.16, 0.20]) * 1e-3  # [m]
+
+
+def samples_with_biases(biases, openings=OPENINGS, jitter=0.0, seed=0) -> pd.DataFrame:
+    """An SI frame of sweeps at three temperatures and five flows whose ln Δp is a quadratic in
+    ln u (other at each temperature and flow) plus one bias per opening, shared by all its
+    sweeps, and ``jitter`` of independent scatter."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for temperature in (293.15, 313.15, 333.15):
+        for q in np.array([1.0, 3.0, 6.0, 9.0, 12.0]) / 6e4:
+            log_u = np.log(openings)
+            trend = 16.0 - 1.7 * log_u + 0.02 * log_u ** 2 + 0.3 * np.log(q * 6e4)
+            log_dp = trend + np.asarray(biases) + jitter * rng.standard_normal(len(openings))
+            rows.append(pd.DataFrame({"temperature": temperature, "u": openings, "q": q,
+                                      "nu": 4.6e-5, "p_B": 5e5,
+                                      "p_L": 5e5 + np.exp(log_dp) / 1e4}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def test_a_smooth_characteristic_has_no_mesh_scatter():
+    """No bias, no scatter: the quadratic in ln u takes the whole characteristic."""
+    squares, freedom = opening_scatter(samples_with_biases(np.zeros(len(OPENINGS))))
+    assert squares == pytest.approx(0.0, abs=1e-20)
+    assert freedom == len(OPENINGS) - (TREND_DEGREE + 1)
+
+
+def test_the_openings_biases_are_found_with_the_trend_taking_three_of_them():
+    """Biases drawn per opening (one mesh each) are estimated without bias over many draws: the
+    mean of s² matches their variance, the trend's three parameters counted out."""
+    rng = np.random.default_rng(1)
+    estimates = [opening_scatter(samples_with_biases(0.01 * rng.standard_normal(6)))[0]
+                 for _ in range(400)]
+    assert np.mean(estimates) == pytest.approx(0.01 ** 2, rel=0.12)
+
+
+def test_an_unsampled_gap_parts_the_runs_and_a_short_run_counts_nothing():
+    """An opening far above the others (0.63 mm beyond 0.20) is no part of their trend: adding
+    it, with any bias, changes neither s² nor ν."""
+    biases = 0.01 * np.random.default_rng(2).standard_normal(6)
+    alone = opening_scatter(samples_with_biases(biases))
+    with_far = opening_scatter(samples_with_biases(np.r_[biases, 0.2],
+                                                   np.r_[OPENINGS, 0.63e-3]))
+    assert with_far == pytest.approx(alone)
+
+
+def test_the_pooled_error_weighs_each_estimate_by_its_degrees_of_freedom():
+    """√((ν₁s₁² + ν₂s₂²)/(ν₁ + ν₂)), the mesh study's on one degree per change."""
+    frame = samples_with_biases(0.004 * np.random.default_rng(3).standard_normal(6))
+    study, study_freedom = mesh_study_variance()
+    assert study_freedom == len(MESH_STUDY_DP_CHANGE)
+    assert study == pytest.approx(np.mean(np.square(MESH_STUDY_DP_CHANGE)) / 1e4)
+    squares, freedom = opening_scatter(frame)
+    expected = np.sqrt((study_freedom * study + freedom * squares) / (study_freedom + freedom))
+    assert pooled_dp_error(frame) == pytest.approx(expected)
+
+
+def test_the_shipped_error_is_the_pooled_estimate_of_the_shipped_samples(cfd_samples):
+    """The constant every map adds is computed from the shipped samples, as the loader reads
+    them: about 1.3 % of Δp (0.53 % on 3 degrees of freedom from the samples, 1.59 % on 5 from
+    the mesh study), between the samples' and the mesh study's."""
+    assert CFD_ERROR["dp"] == pytest.approx(pooled_dp_error(cfd_samples.frame), rel=1e-9)
+    assert FLOW_CFD_ERROR == pytest.approx(CFD_ERROR["dp"] / 2)
+    squares, freedom = opening_scatter(cfd_samples.frame)
+    assert freedom == 3 and 0.004 < np.sqrt(squares) < 0.007
+    assert np.sqrt(squares) < CFD_ERROR["dp"] < np.sqrt(mesh_study_variance()[0])
+    assert CFD_ERROR["dp"] == pytest.approx(pooled_dp_error(cfd_error._shipped_frame()))
