@@ -36,7 +36,7 @@ from surrogate.data import load_cfd_samples
 from surrogate.learn.reproducibility import environment
 from surrogate.learn.training import KINDS, learned_maps_on, recalibrate, train_surrogate
 from surrogate.maps.crossval import calibrate, cross_validate, summary
-from surrogate.maps.grid import GridUncertainty
+from surrogate.maps.grid import GRID_MESHES, GridUncertainty
 from surrogate.maps.grid_sigma import SHIPPED_GRID_CALIBRATION, write_calibrations
 from surrogate.maps.package import file_hash
 from surrogate.core.errors import InputError
@@ -97,7 +97,8 @@ def main() -> int:
             path = args.out / "grid" / SHIPPED_GRID_CALIBRATION.name
             uncertainty = GridUncertainty(samples, valve)
             calibrations = uncertainty.fitted_calibrations()
-            accuracy = summary(uncertainty.errors, calibrations["flow"], calibrations["force"])
+            accuracy = summary(uncertainty.errors, calibrations["flow"], calibrations["force"],
+                               samples=samples, meshes=GRID_MESHES)
             write_calibrations(path, samples, valve, calibrations, accuracy)
             progress(f"GRID: calibration and cross-validation summary written to {path}")
             continue
