@@ -16,7 +16,8 @@ keep, without training (seconds): for a change in how σ is fitted.
 
 The grid maps are not trained, but their calibration (from their own cross-validation) and
 that cross-validation's summary are stored for the shipped samples too (``--kinds grid``, a few
-seconds).
+seconds), with the CFD's own Δp error that the mesh study and the samples give, pooled
+(``surrogate/trained/cfd/cfd_error.json``, :func:`surrogate.maps.cfd_error.pooled_dp_error`).
 
 Training the deployed maps takes under a minute on 2 cores (40 s on a quiet machine); the
 cross-validation retrains each kind once per fold (14 folds on the shipped samples), about five
@@ -35,6 +36,7 @@ from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.learn.reproducibility import environment
 from surrogate.learn.training import KINDS, learned_maps_on, recalibrate, train_surrogate
+from surrogate.maps.cfd_error import SHIPPED_CFD_ERROR, write_dp_error
 from surrogate.maps.crossval import calibrate, cross_validate, summary
 from surrogate.maps.grid import GRID_MESHES, GridUncertainty
 from surrogate.maps.grid_sigma import SHIPPED_GRID_CALIBRATION, write_calibrations
@@ -101,6 +103,12 @@ def main() -> int:
                                samples=samples, meshes=GRID_MESHES)
             write_calibrations(path, samples, valve, calibrations, accuracy)
             progress(f"GRID: calibration and cross-validation summary written to {path}")
+            # the CFD's own Δp error pooled from these samples, which every map's σ carries
+            # (read from the package's copy: the shipped samples')
+            path = args.out / SHIPPED_CFD_ERROR.parent.name / SHIPPED_CFD_ERROR.name
+            pooled = write_dp_error(path, samples.frame, training["data_sha256"])["dp"]
+            progress(f"CFD error in Δp {100 * pooled['pooled']:.2f} % (mesh study and samples "
+                     f"pooled) written to {path}")
             continue
         progress(f"training {kind.upper()} maps")
         trained = train_surrogate(kind, samples, valve, None, progress)

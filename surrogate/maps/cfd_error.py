@@ -13,7 +13,8 @@ How large a mesh's bias is, two things say: the mesh study, and how the shipped 
 openings (one mesh each) scatter about a smooth trend in ln u, which no map's interpolation
 error and no flow physics would bend opening by opening. Each is an estimate of one variance on
 its own degrees of freedom; σ_CFD of Δp pools them (:func:`pooled_dp_error`: 1.3 %, where the
-mesh study alone said 1.6 % and the samples alone 0.5 %).
+mesh study alone said 1.6 % and the samples alone 0.5 %), computed from the shipped samples and
+kept in the package (:data:`SHIPPED_CFD_ERROR`).
 
 So every map built from CFD samples reports σ² = σ_interpolation² + σ_CFD²: the first from its
 calibration (:mod:`.sigma`, fitted on cross-validation), the second from here, as
@@ -24,10 +25,13 @@ workbench's allowance for the maps' error (:mod:`surrogate.fitting.discrepancy`)
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 
-from ..core.paths import SHIPPED_CFD_SAMPLES
+from ..core.paths import SHIPPED_CFD_SAMPLES, SHIPPED_SURROGATES
 from ..core.units import P_ATM
 from .coverage import Coverage
 
@@ -84,6 +88,15 @@ def opening_scatter(frame: pd.DataFrame) -> tuple[float, int]:
     return (squares / freedom, freedom) if freedom > 0 else (0.0, 0)
 
 
+def dp_error_estimates(frame: pd.DataFrame) -> dict:
+    """Both estimates of one mesh's relative Δp error, {"mesh study": …, "samples": …}, each
+    {"sigma": s [1], "freedom": ν}, and {"pooled": σ [1]} (:func:`pooled_dp_error`)."""
+    estimates = {"mesh study": mesh_study_variance(), "samples": opening_scatter(frame)}
+    record = {name: {"sigma": float(np.sqrt(s2)), "freedom": int(nu)}
+              for name, (s2, nu) in estimates.items()}
+    return {**record, "pooled": pooled_dp_error(frame)}
+
+
 def pooled_dp_error(frame: pd.DataFrame) -> float:
     """One σ of the relative Δp error each opening's mesh puts on the samples [1]: the mesh
     study's estimate (:func:`mesh_study_variance`) and the samples' own
@@ -96,13 +109,31 @@ def pooled_dp_error(frame: pd.DataFrame) -> float:
     return float(np.sqrt(sum(nu * s2 for s2, nu in estimates) / freedom))
 
 
-def _shipped_frame() -> pd.DataFrame:
-    """The shipped CFD samples in SI, read without the loader's checks (they are the package's
-    own); only what :func:`opening_scatter` needs. Units cancel in its logarithms' residuals."""
-    raw = pd.read_csv(SHIPPED_CFD_SAMPLES)
-    return pd.DataFrame({"temperature": raw["temperature_C"], "u": raw["u_mm"] * 1e-3,
-                         "q": raw["q_lpm"], "p_B": raw["p_B_bar"] * 1e5,
-                         "p_L": raw["p_L_bar"] * 1e5, "nu": raw["nu_cSt"]})
+#: where the Δp error pooled from the shipped samples is kept: inside the package, which a wheel
+#: carries without the samples (``python training/train.py --kinds grid`` writes it; a test
+#: recomputes it from the samples and compares)
+SHIPPED_CFD_ERROR = SHIPPED_SURROGATES / "cfd" / "cfd_error.json"
+
+
+def write_dp_error(path: str | Path, frame: pd.DataFrame, samples_sha256: str) -> dict:
+    """Write :func:`dp_error_estimates` of the CFD samples ``frame`` (SI) to ``path`` (JSON),
+    with the SHA-256 of their file; returns what was written."""
+    record = {"cfd_sha256": samples_sha256, "dp": dp_error_estimates(frame)}
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text(json.dumps(record, indent=2) + "\n")
+    return record
+
+
+def shipped_dp_error(path: str | Path = SHIPPED_CFD_ERROR) -> float:
+    """The pooled relative Δp error of the shipped samples [1], as :func:`write_dp_error` kept
+    it at ``path``; without that file (a checkout before ``train.py`` first wrote it), computed
+    from the shipped samples."""
+    try:
+        return float(json.loads(Path(path).read_text())["dp"]["pooled"])
+    except (OSError, ValueError, KeyError):
+        from ..data.loaders import load_cfd_samples  # a checkout's samples; a wheel has none
+
+        return pooled_dp_error(load_cfd_samples(SHIPPED_CFD_SAMPLES).frame)
 
 
 #: one σ of the relative error each opening's mesh puts on Δp at a given flow and on the flow
@@ -111,7 +142,7 @@ def _shipped_frame() -> pd.DataFrame:
 #: (:class:`surrogate.synthetic.mismatch.MapMismatch`) stay the mesh study's. For the flow
 #: force, the cavitation model's 1.06 % of f_sim is 1.4 to 4.5 % of the flow force at 0.10 mm,
 #: 40 °C (no mesh study of it to pool with)
-CFD_ERROR = {"dp": pooled_dp_error(_shipped_frame()), "flow force": 0.025}
+CFD_ERROR = {"dp": shipped_dp_error(), "flow force": 0.025}
 
 #: the same in the calibrations' units: ln C_d (= −ln Δp / 2 at a given flow) and the relative
 #: flow force
@@ -219,6 +250,7 @@ def cavitation_error(central_back_pressure: float | None, p_B,
 
 __all__ = ["CAVITATION_FORCE_ERROR", "CFD_ERROR", "FLOW_CFD_ERROR", "FORCE_CFD_ERROR",
            "GAP_FLOW_ERROR", "MESH_STUDY_DP_CHANGE", "SEAT_EXPONENT_ERROR", "SEAT_FLOW_ERROR",
-           "SEAT_FORCE_ERROR", "TREND_DEGREE", "cavitation_error", "gap_error",
-           "mesh_bias_share", "mesh_study_variance", "opening_scatter", "pooled_dp_error",
-           "seat_error"]
+           "SEAT_FORCE_ERROR", "SHIPPED_CFD_ERROR", "TREND_DEGREE", "cavitation_error",
+           "dp_error_estimates", "gap_error", "mesh_bias_share", "mesh_study_variance",
+           "opening_scatter", "pooled_dp_error", "seat_error", "shipped_dp_error",
+           "write_dp_error"]

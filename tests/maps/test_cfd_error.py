@@ -5,10 +5,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from surrogate.maps import cfd_error
 from surrogate.maps.cfd_error import (CFD_ERROR, FLOW_CFD_ERROR, MESH_STUDY_DP_CHANGE,
-                                      TREND_DEGREE, mesh_study_variance, opening_scatter,
-                                      pooled_dp_error)
+                                      SHIPPED_CFD_ERROR, TREND_DEGREE, dp_error_estimates,
+                                      mesh_study_variance, opening_scatter, pooled_dp_error,
+                                      shipped_dp_error, write_dp_error)
 
 OPENINGS = np.array([0.05, 0.08, 0.10, 0.13, 0.16, 0.20]) * 1e-3  # [m]
 
@@ -68,12 +68,32 @@ def test_the_pooled_error_weighs_each_estimate_by_its_degrees_of_freedom():
 
 
 def test_the_shipped_error_is_the_pooled_estimate_of_the_shipped_samples(cfd_samples):
-    """The constant every map adds is computed from the shipped samples, as the loader reads
-    them: about 1.3 % of Δp (0.53 % on 3 degrees of freedom from the samples, 1.59 % on 5 from
-    the mesh study), between the samples' and the mesh study's."""
+    """The constant every map adds is what the shipped samples give, kept in the package (a
+    wheel carries no samples) for exactly the shipped sample file: about 1.3 % of Δp (0.53 % on
+    3 degrees of freedom from the samples, 1.59 % on 5 from the mesh study). Recomputed here, so
+    the kept file cannot drift from the samples (``python training/train.py --kinds grid``
+    writes it)."""
+    import json
+
+    from surrogate.core.paths import SHIPPED_CFD_SAMPLES
+    from surrogate.maps.package import file_hash
+
+    stored = json.loads(SHIPPED_CFD_ERROR.read_text())
+    assert stored["cfd_sha256"] == file_hash(SHIPPED_CFD_SAMPLES)
+    recomputed = dp_error_estimates(cfd_samples.frame)  # to rounding: another BLAS may differ
+    for name in ("mesh study", "samples"):
+        assert stored["dp"][name]["freedom"] == recomputed[name]["freedom"]
+        assert stored["dp"][name]["sigma"] == pytest.approx(recomputed[name]["sigma"], rel=1e-9)
+    assert CFD_ERROR["dp"] == stored["dp"]["pooled"]
     assert CFD_ERROR["dp"] == pytest.approx(pooled_dp_error(cfd_samples.frame), rel=1e-9)
     assert FLOW_CFD_ERROR == pytest.approx(CFD_ERROR["dp"] / 2)
     squares, freedom = opening_scatter(cfd_samples.frame)
     assert freedom == 3 and 0.004 < np.sqrt(squares) < 0.007
     assert np.sqrt(squares) < CFD_ERROR["dp"] < np.sqrt(mesh_study_variance()[0])
-    assert CFD_ERROR["dp"] == pytest.approx(pooled_dp_error(cfd_error._shipped_frame()))
+
+
+def test_without_the_kept_file_the_error_is_computed_from_the_samples(tmp_path, cfd_samples):
+    """A checkout before the file was first written still imports, with the same σ."""
+    assert shipped_dp_error(tmp_path / "absent.json") == pytest.approx(CFD_ERROR["dp"], rel=1e-9)
+    written = write_dp_error(tmp_path / "cfd" / "cfd_error.json", cfd_samples.frame, "0" * 64)
+    assert shipped_dp_error(tmp_path / "cfd" / "cfd_error.json") == written["dp"]["pooled"]
