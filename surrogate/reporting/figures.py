@@ -11,7 +11,6 @@ Figures are built with :class:`matplotlib.figure.Figure` directly (no pyplot sta
 
 from __future__ import annotations
 
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,10 +27,12 @@ from matplotlib.ticker import AutoLocator, Locator, ScalarFormatter
 from ..core.outputs import atomic_directory
 from ..core.units import from_si, label
 from ..workbench.compare import Comparison
+from .png import png_from_rgba
 
 DPI = 110
-#: how the PNGs are written: zlib at level 3, not Pillow's 6 (an off-library log's eight report
-#: figures: 1.53 instead of 1.63 CPU s drawn and written, 2 % larger files)
+#: how :func:`write_figures` has Pillow write its PNGs: zlib at level 3, not Pillow's 6 (an
+#: off-library log's eight report figures: 1.53 instead of 1.63 CPU s drawn and written, 2 % larger
+#: files; the report's own go through :mod:`.png`)
 PNG_OPTIONS = {"compress_level": 3}
 # the paper's colours for 20, 40 and 60 °C, then more for logs with more temperatures
 TEMPERATURE_COLOURS = ("tab:blue", "tab:green", "tab:red", "tab:purple", "tab:orange",
@@ -64,11 +65,11 @@ def place_panels(figure: Figure, *, above: float, left: float = LEFT, right: flo
 
 
 def png_bytes(figure: Figure) -> bytes:
-    """The figure drawn at :data:`DPI` as PNG bytes, as ``savefig`` writes them (zlib at
-    :data:`PNG_OPTIONS`' level), but cheaper:
+    """The figure drawn at :data:`DPI` as PNG bytes, the pixels ``savefig`` draws, but cheaper:
 
     * an opaque figure (every report figure) is written as RGB, without the alpha channel
-      that is 255 everywhere: a quarter less to filter and compress;
+      that is 255 everywhere, and deflated without Pillow's per-row filters
+      (:func:`.png.png_from_rgba`);
     * the figure is laid out once, not measured again at every draw (:func:`settled_layout`).
     """
     settled_layout(figure)
@@ -77,20 +78,9 @@ def png_bytes(figure: Figure) -> bytes:
     try:
         canvas = FigureCanvasAgg(figure)
         canvas.draw()
-        pixels = np.asarray(canvas.buffer_rgba())
+        return png_from_rgba(np.asarray(canvas.buffer_rgba()), DPI)
     finally:
         figure.dpi = dpi
-    from PIL import Image
-
-    image = Image.frombuffer("RGBA", (pixels.shape[1], pixels.shape[0]), pixels, "raw", "RGBA",
-                             0, 1)
-    if pixels[..., 3].min() == 255:
-        # Pillow drops the channel in C: NumPy's copy of the strided RGB view cost 4 ms a
-        # figure (a 1,540 × 980 one), the same pixels
-        image = image.convert("RGB")
-    buffer = io.BytesIO()
-    image.save(buffer, format="png", dpi=(DPI, DPI), **PNG_OPTIONS)
-    return buffer.getvalue()
 
 
 def settled_layout(figure: Figure) -> None:
