@@ -28,13 +28,13 @@ import traceback
 
 from . import __version__
 
+from .core.memory import loading
+
 # The commands import pandas, SciPy and the package: modules, classes and functions that live
 # as long as the process, none of them garbage, which the cyclic collector would otherwise walk
 # some two hundred times while they load, and again in every full collection after. So it
 # pauses while they load, and then leaves them out of its walks (gc.freeze).
-_COLLECTING = gc.isenabled()
-gc.disable()
-try:
+with loading():
     from .commands import COMMANDS
     from .commands.common import EXIT_CODES, CommandParser, HelpFormatter, UsageError
     from .data.errors import DataFileError
@@ -42,10 +42,6 @@ try:
     from .core.input_files import LIMIT_VARIABLE
     from .core.interrupts import exit_code, handling_interrupts
     from .core.parallel import blas_limited
-finally:
-    gc.freeze()
-    if _COLLECTING:
-        gc.enable()
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 

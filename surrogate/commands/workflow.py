@@ -9,7 +9,7 @@ import numpy as np
 from ..effects.handover import hand_over
 from ..maps.crossval import most_accurate_kind
 from ..maps.registry import MAP_KINDS
-from ..core.memory import release_freed, settle_survivors, settling
+from ..core.memory import loading, release_freed, settle_survivors, settling
 from ..description.modelfile import save_model
 from ..core.outputs import Output, atomic_directory
 from ..description.presets import maps
@@ -156,12 +156,13 @@ def write_results(out, log, workflows: dict, main: str, scores) -> dict:
     staircases of the kinds done so far beside it) into ``out``, all at once; return the
     JSON document."""
     # the figures draw with matplotlib: imported when the results are written, not at every
-    # command's start (half a second)
-    from ..reporting.report import (comparison_section, diagnosis_section, figure_png,
-                                    figure_pngs, misfit_figures, misfit_section,
-                                    next_steps_section, staircase_section, staircase_table,
-                                    staircases_section, verdict_html, write_html)
-    from ..reporting.staircase import staircase_figure
+    # command's start (half a second), with the collector paused as at the start (cli)
+    with loading():
+        from ..reporting.report import (comparison_section, diagnosis_section, figure_png,
+                                        figure_pngs, misfit_figures, misfit_section,
+                                        next_steps_section, staircase_section, staircase_table,
+                                        staircases_section, verdict_html, write_html)
+        from ..reporting.staircase import staircase_figure
 
     workflow = workflows[main]
     final = workflow.final
