@@ -27,7 +27,6 @@ import tempfile
 import traceback
 
 from . import __version__
-
 from .core.memory import loading
 
 # The commands import pandas, SciPy and the package: modules, classes and functions that live
@@ -79,20 +78,21 @@ def main(argv: list[str] | None = None) -> int:
         return _run(args, argv, as_json)
 
 
-
 def console() -> None:
     """``cbv-surrogate`` and ``python -m surrogate``: run the command line, then end the
     process with its exit code.
 
-    The process ends with the command, and its objects with it. The interpreter's finalisation
-    would first walk every one of them in full garbage collections, for nothing: 0.3–0.5 CPU s
-    after a workflow on an off-library log (about 265,000 tracked objects), a twentieth of its
-    run. Frozen (``gc.freeze``), they are freed as the modules are torn down, without the
-    walks (finalisation then took 0.08–0.12 CPU s). :func:`main` itself leaves the collector
-    as it was, for callers that go on."""
+    The process ends with the command, and its memory goes back to the system with it. The
+    interpreter's finalisation would first walk every object in full garbage collections, for
+    nothing: 0.3–0.5 CPU s after a workflow on an off-library log (about 265,000 tracked
+    objects), a twentieth of its run. Frozen (``gc.freeze``), they are left out of those walks
+    (finalisation then took 0.08–0.12 CPU s; what refers to nothing else is still freed as the
+    modules are torn down). :func:`main` itself leaves the collector as it was, for callers
+    that go on."""
     code = main()
     gc.freeze()
     sys.exit(code)
+
 
 def _run(args, argv: list[str], as_json: bool) -> int:
     bound = getattr(args, "max_input_mb", None)
