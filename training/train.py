@@ -38,7 +38,7 @@ from surrogate.learn.reproducibility import environment
 from surrogate.learn.training import KINDS, learned_maps_on, recalibrate, train_surrogate
 from surrogate.maps.cfd_error import SHIPPED_CFD_ERROR, write_dp_error
 from surrogate.maps.crossval import calibrate, cross_validate, summary
-from surrogate.maps.grid import GRID_MESHES, GridUncertainty
+from surrogate.maps.grid import GridUncertainty
 from surrogate.maps.grid_sigma import SHIPPED_GRID_CALIBRATION, write_calibrations
 from surrogate.maps.package import file_hash
 from surrogate.core.errors import InputError
@@ -99,8 +99,7 @@ def main() -> int:
             path = args.out / "grid" / SHIPPED_GRID_CALIBRATION.name
             uncertainty = GridUncertainty(samples, valve)
             calibrations = uncertainty.fitted_calibrations()
-            accuracy = summary(uncertainty.errors, calibrations["flow"], calibrations["force"],
-                               samples=samples, meshes=GRID_MESHES)
+            accuracy = summary(uncertainty.errors, calibrations["flow"], calibrations["force"])
             write_calibrations(path, samples, valve, calibrations, accuracy)
             progress(f"GRID: calibration and cross-validation summary written to {path}")
             # the CFD's own Δp error pooled from these samples, which every map's σ carries

@@ -166,19 +166,15 @@ def _run_fold(job) -> pd.DataFrame:
     return result.assign(scheme=fold.scheme, fold=fold.label)
 
 
-#: the quantities whose calibration takes the meshes' biases as known variance, by default
-QUANTITIES = ("flow", "force")
-
-
-def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None,
-              meshes: tuple[str, ...] = QUANTITIES) -> tuple[SigmaCalibration, SigmaCalibration]:
+def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None
+              ) -> tuple[SigmaCalibration, SigmaCalibration]:
     """The flow and force calibrations that make the cross-validated errors most likely, each
     scheme weighted alike, with ±2σ holding 90-98 % of every scheme's errors
     (:meth:`~surrogate.maps.sigma.SigmaCalibration.fit`). Given the CFD ``samples`` the errors
     were made on, the meshes' biases they carry are known variance, not the map's
-    (:func:`meshes_in_errors`), for the quantities named in ``meshes`` ("flow", "force")."""
+    (:func:`meshes_in_errors`)."""
     weights = 1.0 / errors.groupby("scheme")["case"].transform("size").to_numpy()
-    known = _known(errors, samples, meshes)
+    known = (None, None) if samples is None else meshes_in_errors(errors, samples)
     return tuple(SigmaCalibration.fit(errors[error], errors[f"{name}_spread"],
                                  _distances(errors, name), weights=weights,
                                  use_spread=use_spread, groups=errors["scheme"].to_numpy(),
@@ -204,16 +200,6 @@ def meshes_in_errors(errors: pd.DataFrame, samples: CfdSamples) -> tuple[np.ndar
     return FLOW_CFD_ERROR ** 2 * carried, FORCE_CFD_ERROR ** 2 * carried
 
 
-def _known(errors: pd.DataFrame, samples: CfdSamples | None,
-           meshes: tuple[str, ...]) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """:func:`meshes_in_errors` (flow, force) for the quantities named in ``meshes``, None for
-    the others and without ``samples``."""
-    if samples is None:
-        return None, None
-    return tuple(variance if name in meshes else None
-                 for name, variance in zip(QUANTITIES, meshes_in_errors(errors, samples)))
-
-
 def standard_deviations(errors: pd.DataFrame, flow: SigmaCalibration, force: SigmaCalibration):
     """The calibrated standard deviations (of ln C_d, of the flow force) at each row."""
     return tuple(np.asarray(calibration.std(errors[f"{name}_spread"], _distances(errors, name)))
@@ -221,15 +207,16 @@ def standard_deviations(errors: pd.DataFrame, flow: SigmaCalibration, force: Sig
 
 
 def summary(errors: pd.DataFrame, flow: SigmaCalibration, force: SigmaCalibration, *,
-            samples: CfdSamples | None = None, meshes: tuple[str, ...] = QUANTITIES) -> dict:
+            samples: CfdSamples | None = None) -> dict:
     """Per scheme: relative RMS error of q and of the flow force, and the share of left-out
     samples inside the calibrated ±2σ bands (of ln C_d, i.e. of q at its Δp, and of the flow
     force); given the ``samples``, σ with the meshes' biases the errors carry
-    (:func:`meshes_in_errors`) for the quantities named in ``meshes``, as the calibration was
-    fitted."""
-    flow_std, force_std = (std if known is None else np.sqrt(std ** 2 + known)
-                           for std, known in zip(standard_deviations(errors, flow, force),
-                                                 _known(errors, samples, meshes)))
+    (:func:`meshes_in_errors`), as the calibration was fitted."""
+    flow_std, force_std = standard_deviations(errors, flow, force)
+    if samples is not None:
+        flow_known, force_known = meshes_in_errors(errors, samples)
+        flow_std, force_std = np.sqrt(flow_std ** 2 + flow_known), np.sqrt(force_std ** 2
+                                                                            + force_known)
     result = {}
     for scheme in SCHEMES:
         at = (errors["scheme"] == scheme).to_numpy()

@@ -601,18 +601,6 @@ def _used_samples(samples: CfdSamples, reference: float):
                                                atol=1e-3 * BAR)]
 
 
-#: the quantities whose calibration takes the CFD meshes' biases in a left-out opening's errors
-#: as known variance (:func:`.crossval.meshes_in_errors`), as the learned kinds' do: every map
-#: adds the CFD's error to σ by itself (:meth:`.base.ForceMap.cfd_error_at`), and a calibration
-#: that also learns it counts it twice. The flow force's: with the biases learned as
-#: interpolation error its ±2σ held 98.8 % of the virtual valves' flow force between openings
-#: (97.7 % with them known; ``eval/valve_coverage.py``). Not the flow's: taken out there, they
-#: left its σ across the unsampled gap too narrow for the virtual valves' q (80 % held, 99 % as
-#: is), where the grid's bridge (ln Δp linear in ln u) is 5.5 % from the learned kinds' and the
-#: σ the biases lend its growth with the span it bridges is what holds it (docs/maps.md)
-GRID_MESHES = ("force",)
-
-
 class GridUncertainty:
     """What the grid maps' calibrated uncertainty is made of.
 
@@ -662,9 +650,12 @@ class GridUncertainty:
     def fitted_calibrations(self) -> dict:
         """The calibrations fitted to this grid's cross-validated errors, never the shipped
         ones."""
+        # without the meshes' biases as known variance (crossval.meshes_in_errors), unlike the
+        # learned kinds: taken out, they left the grid's flow σ across the unsampled gap too
+        # narrow for the virtual valves' q there (docs/maps.md, "How the learned maps are
+        # built")
         errors = self.errors
-        flow, force = calibrate(errors[~toward_seat(errors)], use_spread=False,
-                                samples=self.samples, meshes=GRID_MESHES)
+        flow, force = calibrate(errors[~toward_seat(errors)], use_spread=False)
         seat = self.seat_slopes()
         return {"flow": replace(flow, seat=seat["flow"]),
                 "force": replace(force, seat=seat["force"])}
@@ -691,10 +682,8 @@ class GridUncertainty:
 
     def computed_summary(self) -> dict:
         """The cross-validation summary computed from this grid's errors, never the shipped
-        one (σ with the meshes' biases where the calibration took them as known,
-        :data:`GRID_MESHES`)."""
-        return summary(self.errors, self.calibrations["flow"], self.calibrations["force"],
-                       samples=self.samples, meshes=GRID_MESHES)
+        one."""
+        return summary(self.errors, self.calibrations["flow"], self.calibrations["force"])
 
 
 def toward_seat(errors) -> np.ndarray:

@@ -103,17 +103,15 @@ def _grid_coverage_off_the_seat(cfd_samples) -> dict:
     opening from farther ones. The grid's σ there is its own continuation's measured error
     (:meth:`GridUncertainty.seat_slopes`, from its nearest two openings, as it goes on toward
     the seat), which those folds, going on from 0.10-0.16 mm, exceed: the shipped summary's
-    k-fold flow-force coverage (86 %) counts them (docs/maps.md). σ with the meshes' biases
-    where the calibration took them as known (the flow force's, :data:`GRID_MESHES`)."""
+    k-fold flow-force coverage (86 %) counts them (docs/maps.md)."""
     from surrogate import load_valve
-    from surrogate.maps.grid import GRID_MESHES, GridUncertainty, toward_seat
+    from surrogate.maps.grid import GridUncertainty, toward_seat
 
     grid = GridUncertainty(cfd_samples, load_valve(None))
     errors, calibrations = grid.errors, grid.calibrations
     left = toward_seat(errors)
     assert left.any() and (errors.loc[left, "scheme"] == SCHEMES[0]).all()
-    return summary(errors[~left], calibrations["flow"], calibrations["force"],
-                   samples=cfd_samples, meshes=GRID_MESHES)
+    return summary(errors[~left], calibrations["flow"], calibrations["force"])
 
 
 @pytest.mark.slow
