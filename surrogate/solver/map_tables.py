@@ -308,6 +308,9 @@ class MapTables:
             if expansions:
                 covered &= self._expanded[np.clip(rows, 0, max(len(self._expanded) - 1, 0))] \
                     if len(self._expanded) else False
+            # what the rows being renewed hold now (rows are never rewritten, and a compaction
+            # below makes new buffers): their nodes' values are the maps' and are not asked again
+            before = [level.snapshot() for level in self.levels], self._at_stroke
         todo = np.flatnonzero(usable & ~covered)
         if not todo.size:
             return
@@ -315,6 +318,7 @@ class MapTables:
         keys = self._row_keys(points[todo])
         _, unique = np.unique(np.asarray(keys, dtype=object), return_index=True)
         todo, keys = todo[unique], [keys[i] for i in unique]
+        renewed = rows[todo]
         windows = [level.windows(x_low[todo], x_high[todo]) for level in self.levels]
         total = sum(int(count.sum()) for _, count in windows)
         if total > MAX_NODES:
@@ -329,9 +333,11 @@ class MapTables:
         for block in range(0, len(todo), _SAMPLES_AT_A_TIME):
             part = slice(block, block + _SAMPLES_AT_A_TIME)
             sub = points[todo[part]]
-            tables = [_tabulate(model, sub, level, begin[part], count[part], expansions)
-                      for level, (begin, count) in zip(self.levels, windows)]
-            at_stroke = _maps_at_stroke(model, sub, self.stroke)
+            tables = [_tabulate(model, sub, level, begin[part], count[part], expansions,
+                                _held_values(snapshot, renewed[part], begin[part], count[part]))
+                      for level, snapshot, (begin, count) in zip(self.levels, before[0],
+                                                                 windows)]
+            at_stroke = _maps_at_stroke(model, sub, self.stroke, before[1], renewed[part])
             with self._lock:
                 self._known = {}
                 start = self.levels[0].rows
@@ -408,17 +414,45 @@ class MapTables:
         self.generation += 1
 
 
+def _held_values(level: _Snapshot, rows: np.ndarray, begin: np.ndarray, count: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(held, (held.sum(), 2) ln Δp and r): which nodes of the new windows (``begin``,
+    ``count``) the points' current ``rows`` of ``level`` (−1: none) hold already, and their
+    values there. A row renewed for a moved band or for expansions keeps its sample's inputs,
+    and the nodes lie on the level's one grid, so a node both windows share has the same maps'
+    values: only the others are asked for."""
+    total = int(count.sum())
+    row = np.repeat(rows, count)
+    held = (row >= 0) & (row < len(level.first))
+    if not held.any():
+        return held, np.empty((0, 2))
+    position = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
+    safe = np.where(held, row, 0)
+    local = np.repeat(begin, count) + position - level.first[safe]
+    held &= (local >= 0) & (local < level.count[safe])
+    return held, level.values["value"][level.offset[safe[held]] + local[held]]
+
+
 def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, count,
-              expansions: bool):
+              expansions: bool, held=None):
     """The node records (count.sum(), :data:`_NODE`) of ``points``' windows of ``level``, and
     the expansions (expansion_nodes(count).sum(), :data:`_EXPANSIONS`; NaN without
-    ``expansions``) at every :data:`EXPANSION_EVERY`-th node of a window and its last."""
+    ``expansions``) at every :data:`EXPANSION_EVERY`-th node of a window and its last.
+    ``held``: the nodes whose values a row being renewed holds already, and those values
+    (:func:`_held_values`); the maps are asked for the others."""
     which = np.repeat(np.arange(len(points)), count)
     position = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     node = np.repeat(begin, count) + position
     u = np.exp(level.nodes[node])
-    log_dp, ratio = _maps_at(model, points, which, u, np.zeros(1))
-    values = np.vstack([log_dp[0], ratio[0]])
+    values = np.empty((2, u.size))
+    if held is None:
+        held = np.zeros(u.size, bool), np.empty((0, 2))
+    values[:, held[0]] = held[1].T
+    asked = np.flatnonzero(~held[0])
+    if asked.size:
+        log_dp, ratio = _maps_at(model, points, which[asked], u[asked], np.zeros(1))
+        values[0, asked], values[1, asked] = log_dp[0], ratio[0]
+    log_dp, ratio = values[:1], values[1:]
     slopes = _slopes(level.nodes, level.kink, values, begin, count)
     records = np.empty(u.size, _NODE)
     records["value"], records["right"], records["left"] = values.T, slopes[:2].T, slopes[2:].T
@@ -442,14 +476,26 @@ def _tabulate(model: ValveModel, points: OperatingPoints, level: _Level, begin, 
     return records, np.ascontiguousarray(expanded, np.float32)
 
 
-def _maps_at_stroke(model: ValveModel, points: OperatingPoints, stroke: float) -> np.ndarray:
+def _maps_at_stroke(model: ValveModel, points: OperatingPoints, stroke: float,
+                    held: np.ndarray | None = None, rows: np.ndarray | None = None
+                    ) -> np.ndarray:
     """(len(points), 2): Δp [Pa] at each (measured) point's flow with the piston on the stop
     (``stroke`` [m]), and the flow force [N] at that Δp, asked of the maps as
-    :class:`TabulatedMaps` asks them for a point no window holds: the same values."""
-    fluid = model.fluid(points)
-    u = np.full(len(points), stroke)
-    dp = model.flow_map.pressure_drop(points.q, points.p_B, u, fluid)
-    return np.column_stack([dp, model.flow_force(u, dp, points, fluid)])
+    :class:`TabulatedMaps` asks them for a point no window holds: the same values. A point
+    whose current row of ``held`` (the store's, ``rows``; −1: none) is being renewed keeps
+    them."""
+    found = np.empty((len(points), 2))
+    kept = (np.zeros(len(points), bool) if rows is None
+            else (rows >= 0) & (rows < len(held)))
+    found[kept] = held[rows[kept]]
+    asked = np.flatnonzero(~kept)
+    if asked.size:
+        sub = points[asked]
+        fluid = model.fluid(sub)
+        u = np.full(len(sub), stroke)
+        dp = model.flow_map.pressure_drop(sub.q, sub.p_B, u, fluid)
+        found[asked] = np.column_stack([dp, model.flow_force(u, dp, sub, fluid)])
+    return found
 
 
 def _maps_at(model: ValveModel, points: OperatingPoints, which: np.ndarray, u: np.ndarray,
