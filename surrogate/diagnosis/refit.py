@@ -23,7 +23,7 @@ import numpy as np
 from ..data.loaders import BenchLog
 from ..effects import Effect, PerRunEffect
 from ..fitting.heldout import Linearised
-from ..fitting.logfit import Column, ReadAlike, probe_column
+from ..fitting.logfit import Column, ReadAlike, probe_column, probe_runs
 from ..fitting.residuals import LogReplay, effective_samples, noise_floor, replay_log
 from ..fitting.leastsquares import Evaluation, FitProblem, Minimizer
 from ..model import ValveModel
@@ -49,8 +49,9 @@ def refit_candidates(model: ValveModel, classes: list[type[Effect]],
         trial.effects.append(cls.for_runs(problem.log.run_ids))
         # the model's own replay read from the tables, where it is also the trial's off
         alike = problem.alike and problem.alike.extended_by(trial.effect(cls.name))
-        columns = [problem.column_of(trial, f"{cls.name}.{name}", alike)
-                   for name, parameter in trial.effect(cls.name).params.items() if parameter.vary]
+        columns = problem.columns_of(trial, [f"{cls.name}.{name}" for name, parameter
+                                             in trial.effect(cls.name).params.items()
+                                             if parameter.vary], alike)
         # a parameter the data do not feel (a run's pilot offset while its piston sits on the
         # stop) stays where it is: an empty column leaves the linear step undetermined
         columns = [c for c in columns if c.felt]
@@ -133,6 +134,14 @@ class DiagnosisProblem(FitProblem):
         (:func:`~surrogate.fitting.logfit.probe_column`; ``alike``: ``model``'s replay read
         from the tables, if shared)."""
         return probe_column(model, key, self.log, self.base, self.ok, alike)
+
+    def columns_of(self, model: ValveModel, keys: list[str], alike: ReadAlike | None = None
+                   ) -> list[Column]:
+        """:meth:`column_of` of every parameter of ``keys``, those of one run each from one
+        replay of the log (:func:`~surrogate.fitting.logfit.probe_runs`)."""
+        shared = probe_runs(model, keys, self.log, self.base, self.ok)
+        return [shared[key] if key in shared else self.column_of(model, key, alike)
+                for key in keys]
 
 
 def front_runners(candidates: list[Candidate]) -> list[int]:

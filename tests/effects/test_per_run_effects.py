@@ -9,7 +9,7 @@ import pytest
 
 from surrogate.effects import LIBRARY, PilotZeroDrift
 from surrogate.core.errors import InputError
-from surrogate.fitting.logfit import fit_to_log
+from surrogate.fitting.logfit import fit_to_log, probe_column, probe_runs
 from surrogate.fitting.residuals import replay_log, run_rows
 from surrogate.description.modelfile import load_model, save_model
 from surrogate.points import OperatingPoints
@@ -54,6 +54,25 @@ def test_a_run_replays_alone_as_within_its_log_and_only_its_offset_moves_it(shor
     assert np.all(change[others] == 0.0)
     # the pilot acts on α_P = 2.72 times the load area: 0.4 bar reads as about 1 bar of Δp
     assert 0.5e5 < np.nanmean(change[rows]) < 1.5e5
+
+
+def test_every_runs_probe_from_one_replay_of_the_log_is_the_runs_own(short_log):
+    """A diagnosis probes a run's pilot zero in every run from one replay of the log with every
+    run's offset stepped (probe_runs), where probe_column replays each run alone: the same
+    step, the same column to the bit, the same verdict on whether the run feels it."""
+    model = load_model("cfda")
+    trial = model.with_effects([*model.effects, PilotZeroDrift.for_runs(short_log.run_ids)])
+    base = replay_log(model, short_log)
+    ok = np.isfinite(base.residual)
+    keys = [f"pilot_zero_drift.delta_{run}" for run in short_log.run_ids]
+    shared = probe_runs(trial, ["friction_constant.K1", *keys], short_log, base, ok)
+    assert list(shared) == keys  # a parameter of the whole log is probed on its own
+    for key in keys:
+        own = probe_column(trial, key, short_log, base, ok)
+        assert (shared[key].key, shared[key].step, shared[key].felt) == (key, own.step, own.felt)
+        np.testing.assert_array_equal(shared[key].change, own.change)
+    assert not shared["pilot_zero_drift.delta_R04"].felt  # the run on its stop
+    assert probe_runs(trial, keys[:1], short_log, base, ok) == {}  # one run: nothing to share
 
 
 def test_fit_recovers_offsets_of_the_sliding_runs_and_leaves_the_stop_run_alone(short_log):
