@@ -27,10 +27,15 @@ CONVERGED, SIGN_ERROR, NOT_CONVERGED, VALUE_ERROR, IN_PROGRESS = 0, -1, -2, -3, 
 
 def chandrupatla(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], x1: np.ndarray,
                  x2: np.ndarray, f1: np.ndarray, f2: np.ndarray, *, xatol: float,
-                 xrtol: float, fatol: float, maxiter: int) -> tuple[np.ndarray, np.ndarray]:
+                 xrtol: float, fatol: float, maxiter: int,
+                 f_first: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """(x, status) of the roots of ``fn(x, index)`` (the points ``index``, integer positions
     into ``x1``) in the brackets [x1, x2], whose ``fn`` values f1 and f2 are known; status as
-    SciPy's (:data:`CONVERGED` ...). The relative tolerance on ``fn`` is SciPy's default, 0."""
+    SciPy's (:data:`CONVERGED` ...). The relative tolerance on ``fn`` is SciPy's default, 0.
+    ``f_first``: (values, known), ``fn`` at the first step's point x1 + 0.5·(x2 − x1) (a
+    bisection) where ``known``, which the caller found with the ends' values; the same
+    iterations follow, one call of ``fn`` fewer."""
     n = x1.size
     x1, x2 = np.array(x1, float), np.array(x2, float)
     f1, f2 = np.array(f1, float), np.array(f2, float)
@@ -63,7 +68,8 @@ def chandrupatla(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], x1: np.ndar
             if nit >= maxiter:
                 break
             x = x1 + t * (x2 - x1)
-            f = np.asarray(fn(x, active), dtype=float)
+            f = (np.asarray(fn(x, active), dtype=float) if nit or f_first is None
+                 else _first_values(fn, x, active, *f_first))
             x3, f3 = x2.copy(), f2.copy()
             j = np.sign(f) == np.sign(f1)
             nj = ~j
@@ -76,6 +82,18 @@ def chandrupatla(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], x1: np.ndar
     # those still running at the iteration limit
     x_out[active], status_out[active] = xmin, NOT_CONVERGED
     return x_out, status_out
+
+
+def _first_values(fn, x: np.ndarray, active: np.ndarray, values: np.ndarray,
+                  known: np.ndarray) -> np.ndarray:
+    """``fn`` at the first step's points ``x`` of the points ``active``: the caller's
+    ``values`` where it ``known`` them (by position among all points), ``fn`` asked for the
+    rest."""
+    f = np.asarray(values, float)[active]
+    ask = ~np.asarray(known, bool)[active]
+    if ask.any():
+        f[ask] = np.asarray(fn(x[ask], active[ask]), dtype=float)
+    return f
 
 
 def _check(x1, f1, x2, f2, status, frtol, fatol: float, xatol: float, xrtol: float):

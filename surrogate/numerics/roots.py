@@ -28,7 +28,7 @@ class Roots:
 
 def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper, *,
                xatol: float, xrtol: float = 1e-13, fatol: float = 0.0,
-               maxiter: int = 200, f_lower=None, f_upper=None) -> Roots:
+               maxiter: int = 200, f_lower=None, f_upper=None, f_middle=None) -> Roots:
     """Solve ``fn(x, index) = 0`` for every point, with the root bracketed by [lower, upper].
 
     Parameters
@@ -45,6 +45,10 @@ def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper,
     f_lower, f_upper : numpy.ndarray, optional
         ``fn`` at the bracket ends, if the caller has them already (having checked the bracket):
         they then stand in for the method's first two evaluations.
+    f_middle : tuple of numpy.ndarray, optional
+        (values, known): ``fn`` at each bracket's middle, lower + 0.5·(upper − lower), where
+        the method's first step lands, for the points ``known`` (found beside the ends' values,
+        in the same call); the method asks ``fn`` for the others.
     """
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     if lower.ndim != 1 or lower.shape != upper.shape:
@@ -57,7 +61,7 @@ def find_roots(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], lower, upper,
     if f_lower is None or f_upper is None:
         f_lower, f_upper = fn(lower, index), fn(upper, index)
     x, status = chandrupatla(fn, lower, upper, f_lower, f_upper, xatol=xatol, xrtol=xrtol,
-                             fatol=fatol, maxiter=maxiter)
+                             fatol=fatol, maxiter=maxiter, f_first=f_middle)
     converged = status == CONVERGED
     return Roots(np.where(converged, x, np.nan), converged, status)
 

@@ -314,11 +314,12 @@ class _FlowingBalance:
         balance = self.rough_balance(u, i)
         return balance.net_force - self.sign[i] * balance.friction
 
-    def solve_in(self, lower, upper, which, h_lower, h_upper) -> None:
-        """Roots of the points ``which`` in brackets whose ends' values are known."""
+    def solve_in(self, lower, upper, which, h_lower, h_upper, f_middle=None) -> None:
+        """Roots of the points ``which`` in brackets whose ends' values are known (and the
+        middle's, where ``f_middle``'s mask says: :func:`.roots.find_roots`)."""
         roots = find_roots(lambda x, i: self(x, which[i]), lower, upper,
                            xatol=self.stroke * 1e-30, xrtol=_U_RTOL, f_lower=h_lower,
-                           f_upper=h_upper)
+                           f_upper=h_upper, f_middle=f_middle)
         self.u[which] = roots.x
         self.status[which] = np.where(roots.converged, Status.OK,
                                       np.where(roots.status == -3, Status.MAP_FAILURE,
@@ -356,7 +357,13 @@ def _solve_near_guess(h: _FlowingBalance, guess: np.ndarray) -> np.ndarray:
     centre = guess[usable]
     lower = np.maximum(h.floor, centre * (1 - _GUESS_WIDTHS[0]))
     upper = np.minimum(h.stroke, centre * (1 + _GUESS_WIDTHS[0]))
-    h_lower, h_upper = h(lower, usable), h(upper, usable)
+    # both ends, and the middle where the root finder's first step (a bisection) lands, in one
+    # call of the balance: a call's fixed cost is about its work on two thousand points, and a
+    # fit's tables are read point by point, so the values are those of separate calls
+    middle = lower + 0.5 * (upper - lower)
+    h_lower, h_upper, h_middle = np.split(h(np.concatenate([lower, upper, middle]),
+                                            np.tile(usable, 3)), 3)
+    first = np.ones(usable.size, bool)  # whose middle is still that of their bracket
     for width in _GUESS_WIDTHS[1:]:
         up = np.flatnonzero((h_upper > 0) & (upper < h.stroke))
         down = np.flatnonzero((h_lower <= 0) & ~(h_upper > 0) & (lower > h.floor))
@@ -365,6 +372,7 @@ def _solve_near_guess(h: _FlowingBalance, guess: np.ndarray) -> np.ndarray:
         upper[down], h_upper[down] = lower[down], h_lower[down]
         lower[down] = np.maximum(h.floor, centre[down] * (1 - width))
         moved = np.concatenate([up, down])
+        first[moved] = False
         if moved.size:
             ends = np.concatenate([upper[up], lower[down]])
             h_moved = h(ends, usable[moved])
@@ -373,7 +381,7 @@ def _solve_near_guess(h: _FlowingBalance, guess: np.ndarray) -> np.ndarray:
     inside = (h_lower > 0) & (h_upper < 0)
     if inside.any():
         h.solve_in(lower[inside], upper[inside], usable[inside], h_lower[inside],
-                   h_upper[inside])
+                   h_upper[inside], (h_middle[inside], first[inside]))
     return usable[inside]
 
 
