@@ -235,9 +235,11 @@ def probe_columns(model: ValveModel, keys, base: LogReplay, workers: int | None 
     alike = alike or ReadAlike(model, base.log, base)
     keys = list(keys)
     shared = probe_runs(model, keys, base.log, base, ok)
-    own = list(map_threads(lambda key: probe_column(model, key, base.log, base, ok, alike),
-                           [key for key in keys if key not in shared], workers=workers))
-    return [shared[key] if key in shared else own.pop(0) for key in keys]
+    alone = [key for key in keys if key not in shared]
+    found = list(map_threads(lambda key: probe_column(model, key, base.log, base, ok, alike),
+                             alone, workers=workers))
+    columns = {**shared, **dict(zip(alone, found))}
+    return [columns[key] for key in keys]
 
 
 def _scope(model: ValveModel, key: str) -> str | None:
