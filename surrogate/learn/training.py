@@ -18,6 +18,7 @@ from ..maps.learned import LearnedFlowMap, LearnedForceMap
 from ..maps.nn import NetworkEnsemble
 from ..maps.opening_offsets import OpeningOffsets
 from ..maps.sigma import SigmaCalibration
+from ..maps.cfd_error import flow_cfd_error
 from ..maps.coverage import Coverage
 from ..maps.domain import FeatureDomain
 from ..maps.package import seal, write_manifest
@@ -125,7 +126,8 @@ class TrainedSurrogate:
                          "feature_names": list(FEATURE_NAMES),
                          "constraints": kind.constraints["flow"],
                          "predictor": flow_entry, "domain": self.flow_map.domain.to_dict(),
-                         "calibration": self.flow_map.calibration.to_dict()},
+                         "calibration": self.flow_map.calibration.to_dict(),
+                         "cfd_error": self.flow_map.cfd_error},
                 "force": {"target": "alpha = f_ff/(A_L*dp) from (ln Re, ln(u/U), ln sigma"
                                     + (", ln(dp/p_atm))" if len(force_names) == 4 else ")"),
                           "feature_names": list(force_names),
@@ -158,6 +160,7 @@ def recalibrate(folder: str | Path, samples: CfdSamples
     errors = pd.read_csv(folder / CROSS_VALIDATION_FILE)
     flow, force = calibrate(errors, use_spread=True, samples=samples)
     manifest["flow"]["calibration"] = flow.to_dict()
+    manifest["flow"]["cfd_error"] = flow_cfd_error(samples.frame)  # the σ_CFD it was fitted with
     manifest["force"]["calibration"] = force.to_dict()
     manifest["metrics"]["cross_validation"] = summary(errors, flow, force, samples=samples)
     with atomic_directory(folder) as staging:  # replaced whole or not at all, in its own format
@@ -185,7 +188,7 @@ def train_surrogate(kind: str, samples: CfdSamples, valve: ValveParameters,
     seconds = time.perf_counter() - started
     coverage = Coverage.of_samples(frame[frame["q"] > 0])
     flow_map = LearnedFlowMap(spec, flow_predictor, FeatureDomain.fit(data.flow_features), kind,
-                              coverage=coverage)
+                              coverage=coverage, cfd_error=flow_cfd_error(frame))
     # a predictor reads the first few force features (FORCE_FEATURE_NAMES); its domain the same
     force_features = data.force_features[:, :force_predictor.feature_count]
     force_map = LearnedForceMap(spec, force_predictor, FeatureDomain.fit(force_features),

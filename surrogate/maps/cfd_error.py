@@ -21,6 +21,16 @@ calibration (:mod:`.sigma`, fitted on cross-validation), the second from here, a
 :attr:`~.base.FlowMap.cfd_error` and :attr:`~.base.ForceMap.cfd_error` in the calibrations' ln
 units. σ at a sampled opening is then never smaller than the CFD's own error there. The
 workbench's allowance for the maps' error (:mod:`surrogate.fitting.discrepancy`) reads the same σ.
+
+σ_CFD of the flow is the samples' own: a user's CFD of another valve, or of this one on other
+meshes, scatters as its own meshes do. Grid maps compute it from the samples they interpolate
+(:func:`flow_cfd_error`, :attr:`.grid.GridUncertainty.flow_cfd_error`); a learned kind's training
+computes it from the samples it learns and records it in the surrogate's manifest
+(``flow.cfd_error``), where its calibration took the meshes' biases out of its errors with it
+(:func:`.crossval.meshes_in_errors`). A map without a record of its own (the committed
+surrogates, written before the manifest kept it, were trained on the shipped samples) uses the
+shipped samples' (:data:`FLOW_CFD_ERROR`). The flow force's has no estimate from the samples
+and is the same for every map.
 """
 
 from __future__ import annotations
@@ -88,6 +98,13 @@ def opening_scatter(frame: pd.DataFrame) -> tuple[float, int]:
     return (squares / freedom, freedom) if freedom > 0 else (0.0, 0)
 
 
+def flow_cfd_error(frame: pd.DataFrame) -> float:
+    """σ_CFD of ln C_d that CFD samples ``frame`` (SI) estimate for their own meshes [1]: half
+    the pooled relative Δp error (:func:`pooled_dp_error`), as ln C_d = −ln Δp / 2 at a given
+    flow. For the shipped samples, :data:`FLOW_CFD_ERROR` to the bit."""
+    return pooled_dp_error(frame) / 2.0
+
+
 def dp_error_estimates(frame: pd.DataFrame) -> dict:
     """Both estimates of one mesh's relative Δp error, {"mesh study": …, "samples": …}, each
     {"sigma": s [1], "freedom": ν}, and {"pooled": σ [1]} (:func:`pooled_dp_error`)."""
@@ -145,7 +162,8 @@ def shipped_dp_error(path: str | Path = SHIPPED_CFD_ERROR) -> float:
 CFD_ERROR = {"dp": shipped_dp_error(), "flow force": 0.025}
 
 #: the same in the calibrations' units: ln C_d (= −ln Δp / 2 at a given flow) and the relative
-#: flow force
+#: flow force; a map built from other samples carries its samples' own of the flow
+#: (:func:`flow_cfd_error`)
 FLOW_CFD_ERROR = CFD_ERROR["dp"] / 2.0
 FORCE_CFD_ERROR = CFD_ERROR["flow force"]
 
@@ -251,6 +269,6 @@ def cavitation_error(central_back_pressure: float | None, p_B,
 __all__ = ["CAVITATION_FORCE_ERROR", "CFD_ERROR", "FLOW_CFD_ERROR", "FORCE_CFD_ERROR",
            "GAP_FLOW_ERROR", "MESH_STUDY_DP_CHANGE", "SEAT_EXPONENT_ERROR", "SEAT_FLOW_ERROR",
            "SEAT_FORCE_ERROR", "SHIPPED_CFD_ERROR", "TREND_DEGREE", "cavitation_error",
-           "dp_error_estimates", "gap_error", "mesh_bias_share", "mesh_study_variance",
-           "opening_scatter", "pooled_dp_error", "seat_error", "shipped_dp_error",
-           "write_dp_error"]
+           "dp_error_estimates", "flow_cfd_error", "gap_error", "mesh_bias_share",
+           "mesh_study_variance", "opening_scatter", "pooled_dp_error", "seat_error",
+           "shipped_dp_error", "write_dp_error"]

@@ -30,7 +30,7 @@ from ..fluid import FluidState
 from ..valve import ValveParameters
 from . import splits
 from .sigma import SigmaCalibration, coverage_of
-from .cfd_error import FLOW_CFD_ERROR, FORCE_CFD_ERROR, mesh_bias_share
+from .cfd_error import FORCE_CFD_ERROR, flow_cfd_error, mesh_bias_share
 from .registry import MAP_KINDS, cross_validation_summary, map_kind
 
 SCHEMES = ("k-fold by sweep", "leave one opening out", "leave one temperature out",
@@ -187,7 +187,9 @@ def meshes_in_errors(errors: pd.DataFrame, samples: CfdSamples) -> tuple[np.ndar
     """The variance [ln units²] the CFD meshes' own biases put into each cross-validated error
     (flow, force): at an opening left out, its mesh's bias and the bridged neighbours'
     (σ_CFD²·(1 + share²), :func:`.cfd_error.mesh_bias_share` of the openings left in); 0 where
-    the training kept the sample's mesh (a sweep, a temperature or the back-pressure set out)."""
+    the training kept the sample's mesh (a sweep, a temperature or the back-pressure set out).
+    σ_CFD of the flow is what the samples estimate of their own meshes
+    (:func:`.cfd_error.flow_cfd_error`)."""
     frame = samples.frame.set_index("case")
     u = frame.loc[errors["case"], "u"].to_numpy()
     openings = np.unique(frame["u"].round(12))
@@ -197,7 +199,7 @@ def meshes_in_errors(errors: pd.DataFrame, samples: CfdSamples) -> tuple[np.ndar
         kept = openings[~np.isclose(openings, u[index], rtol=0, atol=1e-12)]
         share[index] = mesh_bias_share(kept, np.array([u[index]]))[0]
     carried = np.where(left_out, 1.0 + share ** 2, 0.0)
-    return FLOW_CFD_ERROR ** 2 * carried, FORCE_CFD_ERROR ** 2 * carried
+    return flow_cfd_error(samples.frame) ** 2 * carried, FORCE_CFD_ERROR ** 2 * carried
 
 
 def standard_deviations(errors: pd.DataFrame, flow: SigmaCalibration, force: SigmaCalibration):

@@ -67,6 +67,7 @@ from ..core.units import BAR, from_si
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
 from .cavitation import CavitationLaw
+from .cfd_error import flow_cfd_error
 from .coverage import DP_OUTSIDE, Coverage
 from .crossval import calibrate, cross_validate, errors_on, summary
 from .curves import COMPARED_KNOTS, CurveSet
@@ -377,6 +378,14 @@ class GridFlowMap(_SweepGrid, FlowMap):
     kind = "grid"
     excess_slope = -2.0  # ln Δp per ln u at constant C_d
 
+    @property
+    def cfd_error(self) -> float:
+        """σ of ln C_d that the CFD adds [1]: what the samples interpolated estimate of their own
+        meshes (:attr:`GridUncertainty.flow_cfd_error`); the shipped samples' without them."""
+        if self.uncertainty is None:
+            return FlowMap.cfd_error
+        return self.uncertainty.flow_cfd_error
+
     @classmethod
     def from_samples(cls, samples: CfdSamples, *, reference_back_pressure: float | None = None,
                      sweeps=None) -> "GridFlowMap":
@@ -616,6 +625,16 @@ class GridUncertainty:
         self.samples, self.valve = samples, valve
         self._calibrations = None
         self._errors = None
+        self._flow_cfd_error = None
+
+    @property
+    def flow_cfd_error(self) -> float:
+        """σ of ln C_d that the samples' meshes put on them [1] (:func:`.cfd_error.
+        flow_cfd_error`: the paper's mesh study pooled with how these samples' openings scatter),
+        computed on first use."""
+        if self._flow_cfd_error is None:
+            self._flow_cfd_error = flow_cfd_error(self.samples.frame)
+        return self._flow_cfd_error
 
     @staticmethod
     def inputs(grid: "_SweepGrid", p_B, u, fluid):

@@ -58,7 +58,9 @@ class LearnedFlowMap(FlowMap):
 
     ``calibration`` turns the predictor's own spread into a calibrated standard deviation of
     ln C_d (:mod:`.sigma`; none, i.e. the spread itself, before one is fitted);
-    ``coverage`` says where the training samples are.
+    ``coverage`` says where the training samples are; ``cfd_error`` [1] is σ of ln C_d that the
+    training samples' meshes put on them (:func:`.cfd_error.flow_cfd_error`; default the shipped
+    samples', :data:`.cfd_error.FLOW_CFD_ERROR`).
     """
 
     # tanh networks and RBF kernels are C^∞ in the flow and Δp (but where a GP holds a feature at
@@ -66,13 +68,16 @@ class LearnedFlowMap(FlowMap):
     smooth = True
 
     def __init__(self, spec: FeatureSpec, predictor, domain: FeatureDomain, kind: str,
-                 calibration: SigmaCalibration | None = None, coverage: Coverage | None = None):
+                 calibration: SigmaCalibration | None = None, coverage: Coverage | None = None,
+                 cfd_error: float | None = None):
         self.spec = spec
         self.predictor = predictor
         self.domain = domain
         self.kind = kind
         self.calibration = calibration or SigmaCalibration()
         self.coverage = coverage
+        if cfd_error is not None:  # else the class's: the shipped samples'
+            self.cfd_error = float(cfd_error)
 
     def __repr__(self) -> str:
         return f"LearnedFlowMap({self.kind})"
@@ -231,9 +236,12 @@ def load_learned_maps(folder: str | Path) -> tuple[LearnedFlowMap, LearnedForceM
     for cls, name in ((LearnedFlowMap, "flow"), (LearnedForceMap, "force")):
         entry = manifest[name]
         count = len(package.feature_names(entry, name, f"{where}: {name}"))
+        # the flow's σ_CFD as its training recorded it (a manifest written before it was
+        # recorded: trained on the shipped samples, whose σ_CFD is the class's)
+        own = {"cfd_error": entry["cfd_error"]} if "cfd_error" in entry else {}
         maps.append(cls(spec, load(folder, entry["predictor"], count),
                         FeatureDomain.from_dict(entry["domain"]), manifest["kind"],
-                        SigmaCalibration.from_dict(entry.get("calibration")), coverage))
+                        SigmaCalibration.from_dict(entry.get("calibration")), coverage, **own))
     return tuple(maps)
 
 

@@ -248,6 +248,8 @@ def check_manifest(manifest: Mapping, path: str) -> dict:
         if len(points) == 0:
             raise InputError(f"{place(at, 'points')}: must hold at least one point")
         number(domain, "reach", at, low=0.0)
+        if name == "flow" and "cfd_error" in entry:  # σ of ln C_d: 1 would be a factor e
+            number(entry, "cfd_error", here, low=0.0, high=1.0)
         if entry.get("calibration") is not None:
             calibration = table(entry, "calibration", here)
             at = place(here, "calibration")

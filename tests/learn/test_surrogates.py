@@ -449,6 +449,7 @@ def test_training_writes_the_hashes_loading_checks(kind, tmp_path, valve, capsys
     for name in ("flow", "force"):
         entry = manifest[name]["predictor"]
         assert entry["sha256"] == file_hash(tmp_path / kind / entry["file"])
+    assert manifest["flow"]["cfd_error"] == flow.cfd_error  # σ_CFD of the samples it learned
     reloaded = load_learned_maps(tmp_path / kind)
     assert "not sealed" not in capsys.readouterr().err
     for fresh, committed in zip(_predictions(reloaded, valve), _predictions((flow, force), valve)):
@@ -548,3 +549,16 @@ def test_model_files_naming_a_surrogate_since_retrained_are_refused(kind, valve)
     with pytest.raises(InputError, match="refit the model on it"):
         build_maps(old, valve)
 
+
+
+def test_recalibrating_on_other_samples_records_their_meshes_error(tmp_path,
+                                                                   meshes_of_their_own):
+    """``train.py --calibrate-only`` on samples whose openings scatter more: the meshes' biases
+    taken out of the errors, and recorded as the map's σ_CFD, are theirs."""
+    from surrogate.learn.training import recalibrate
+    from surrogate.maps.cfd_error import FLOW_CFD_ERROR, flow_cfd_error
+
+    folder = _copy_of("nn", tmp_path / "nn")
+    recalibrate(folder, meshes_of_their_own)
+    flow, _ = load_learned_maps(folder)
+    assert flow.cfd_error == flow_cfd_error(meshes_of_their_own.frame) > 1.2 * FLOW_CFD_ERROR

@@ -97,3 +97,50 @@ def test_without_the_kept_file_the_error_is_computed_from_the_samples(tmp_path, 
     assert shipped_dp_error(tmp_path / "absent.json") == pytest.approx(CFD_ERROR["dp"], rel=1e-9)
     written = write_dp_error(tmp_path / "cfd" / "cfd_error.json", cfd_samples.frame, "0" * 64)
     assert shipped_dp_error(tmp_path / "cfd" / "cfd_error.json") == written["dp"]["pooled"]
+
+
+def test_grid_maps_of_other_samples_carry_their_own_meshes_error(cfd_samples, valve,
+                                                                 meshes_of_their_own):
+    """A user's CFD whose openings scatter three times as much (±3 % in Δp, opening by opening):
+    the grid built on it says so in σ, where the shipped samples' 0.65 % would call it
+    certain."""
+    from surrogate.maps.cfd_error import flow_cfd_error
+    from surrogate.maps.grid import grid_maps_on
+
+    shipped_flow, _ = grid_maps_on(cfd_samples, valve)
+    assert shipped_flow.cfd_error == FLOW_CFD_ERROR
+    theirs = meshes_of_their_own
+    flow, _ = grid_maps_on(theirs, valve)
+    assert flow.cfd_error == flow_cfd_error(theirs.frame)
+    assert flow.cfd_error > 1.2 * FLOW_CFD_ERROR
+    openings = np.unique(theirs.frame["u"])
+    assert np.all(flow.cfd_error_at(openings) >= flow.cfd_error * (1 - 1e-12))
+
+
+def test_learned_maps_read_the_meshes_error_their_training_recorded(tmp_path):
+    """A learned surrogate records σ_CFD of its training samples in its manifest; one written
+    before it did (trained on the shipped samples) has theirs; an absurd one is refused."""
+    import json
+
+    from surrogate.core.errors import InputError
+    from surrogate.maps.learned import load_learned_maps, trained_folder
+
+    folder = tmp_path / "gp"
+    folder.mkdir()
+    for path in trained_folder("gp").iterdir():
+        (folder / path.name).write_bytes(path.read_bytes())
+    manifest = json.loads((folder / "surrogate.json").read_text())
+    assert manifest["flow"]["cfd_error"] == pytest.approx(FLOW_CFD_ERROR, rel=1e-12)
+    for recorded, expected in ((0.02, 0.02), (None, FLOW_CFD_ERROR)):
+        if recorded is None:
+            del manifest["flow"]["cfd_error"]
+        else:
+            manifest["flow"]["cfd_error"] = recorded
+        (folder / "surrogate.json").write_text(json.dumps(manifest))
+        flow, force = load_learned_maps(folder)
+        assert flow.cfd_error == expected
+        assert force.cfd_error == force.__class__.cfd_error
+    manifest["flow"]["cfd_error"] = 5.0
+    (folder / "surrogate.json").write_text(json.dumps(manifest))
+    with pytest.raises(InputError, match=r"flow.*cfd_error.*must lie in \[0, 1\]"):
+        load_learned_maps(folder)
