@@ -30,10 +30,6 @@ from ..workbench.compare import Comparison
 from .png import png_from_rgba
 
 DPI = 110
-#: how :func:`write_figures` has Pillow write its PNGs: zlib at level 3, not Pillow's 6 (an
-#: off-library log's eight report figures: 1.53 instead of 1.63 CPU s drawn and written, 2 % larger
-#: files; the report's own go through :mod:`.png`)
-PNG_OPTIONS = {"compress_level": 3}
 # the paper's colours for 20, 40 and 60 °C, then more for logs with more temperatures
 TEMPERATURE_COLOURS = ("tab:blue", "tab:green", "tab:red", "tab:purple", "tab:orange",
                        "tab:brown", "tab:cyan", "tab:olive")
@@ -154,7 +150,8 @@ def extents(figure: Figure, *artists) -> list[tuple[float, float]]:
 
 
 def write_figures(comparison: Comparison, folder: str | Path) -> dict[str, Path]:
-    """Write every figure of ``comparison`` as ``folder/<name>.png`` (all or none).
+    """Write every figure of ``comparison`` as ``folder/<name>.png`` (all or none), the same
+    pixels as the report's (:func:`png_bytes`).
 
     Returns
     -------
@@ -164,7 +161,7 @@ def write_figures(comparison: Comparison, folder: str | Path) -> dict[str, Path]
     figures = all_figures(comparison)
     with atomic_directory(folder) as staging:
         for name, figure in figures.items():
-            figure.savefig(staging / f"{name}.png", dpi=DPI, pil_kwargs=PNG_OPTIONS)
+            (staging / f"{name}.png").write_bytes(png_bytes(figure))
     return {name: Path(folder) / f"{name}.png" for name in figures}
 
 

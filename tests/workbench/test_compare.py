@@ -134,6 +134,10 @@ def test_figures_are_written(comparison, tmp_path):
     for path in paths.values():
         data = path.read_bytes()
         assert data.startswith(b"\x89PNG") and 10_000 < len(data) < 2_000_000
+    # the report's figures, to the byte
+    from surrogate.reporting.report import figure_pngs
+
+    assert {name: path.read_bytes() for name, path in paths.items()} == figure_pngs(comparison)
 
 
 def test_text_tables_never_merge_columns_and_say_what_is_not_measured(bench_log, tmp_path):
