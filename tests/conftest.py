@@ -35,8 +35,9 @@ def cfd_samples():
 
 @pytest.fixture(scope="session")
 def meshes_of_their_own(cfd_samples):
-    """A user's CFD of the shipped valve whose meshes err three times as much: each opening's Δp
-    scaled by exp(+3 %, −3 %, 0, +3 %, …) in increasing order of the openings."""
+    """A user's CFD of the shipped valve whose meshes err more than the shipped ones (whose
+    openings scatter by 0.5 %): each opening's Δp scaled by exp(+3 %, −3 %, 0, +3 %, …) in
+    increasing order of the openings."""
     import numpy as np
 
     from surrogate.data.loaders import CfdSamples
