@@ -409,7 +409,7 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
         distances["opening"] = g.min(g.div(distance, reach), 1.0)  # Coverage.opening_distance
     for name, distance in distances.items():
         slope = calibration.slopes[name]
-        term = g.mul(g.op("Pow", distance, g.const(calibration.power)), slope)
+        term = g.mul(g.op("Pow", distance, g.const(calibration.power_of(name))), slope)
         variance = g.add(variance, g.square(term))
     std = g.sqrt(variance)
     if learned_map.coverage is None:

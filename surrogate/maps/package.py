@@ -263,6 +263,11 @@ def check_manifest(manifest: Mapping, path: str) -> dict:
                 raise InputError(f"{place(at, 'slopes')}: must be an object {{name: slope}}")
             for key in slopes:
                 number(slopes, key, place(at, "slopes"), low=0.0, high=CALIBRATION_MAX)
+            powers = calibration.get("powers", {})
+            if not isinstance(powers, Mapping):
+                raise InputError(f"{place(at, 'powers')}: must be an object {{name: power}}")
+            for key in powers:
+                number(powers, key, place(at, "powers"), low=0.0, high=10.0, above=True)
     return dict(manifest)
 
 

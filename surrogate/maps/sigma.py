@@ -29,7 +29,8 @@ with
     it the NN force band, leaving an opening out, sat at 90 % and could not be held within the
     band for the errors of a retrain that differed from it by float noise;
 
-* power: lets the error grow faster than the distance, as an interpolation's does;
+* power: lets the error grow faster than the distance, as an interpolation's does; one fitted
+  power serves every distance but those whose power the fit is given (``powers``);
 * floor: the error that remains next to the samples (the CFD's own scatter, the features'
   limits).
 
@@ -80,6 +81,12 @@ class SigmaCalibration:
     slopes: Mapping[str, float] = field(default_factory=dict)
     power: float = 1.0
     seat: float = 0.0
+    #: powers given per distance name, not fitted: ``power`` serves the other distances
+    powers: Mapping[str, float] = field(default_factory=dict)
+
+    def power_of(self, name: str) -> float:
+        """The power of the distance ``name``: its fixed one if any, else the fitted one."""
+        return self.powers.get(name, self.power)
 
     def std(self, spread, distances: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
         """σ [ln units] from the kind's own spread (None: none) and its distances from the
@@ -89,7 +96,8 @@ class SigmaCalibration:
         for name, distance in (distances or {}).items():
             slope = self.slopes.get(name, 0.0)
             if slope:
-                variance = variance + (slope * np.asarray(distance, float) ** self.power) ** 2
+                variance = variance + (slope * np.asarray(distance, float)
+                                       ** self.power_of(name)) ** 2
         std = np.sqrt(variance)
         below = (distances or {}).get("opening below")
         if self.seat and below is not None:
@@ -99,6 +107,8 @@ class SigmaCalibration:
     def to_dict(self) -> dict:
         data = {"scale": self.scale, "floor": self.floor, "slopes": dict(self.slopes),
                 "power": self.power}
+        if self.powers:
+            data["powers"] = dict(self.powers)
         return {**data, "seat": self.seat} if self.seat else data
 
     @classmethod
@@ -106,12 +116,14 @@ class SigmaCalibration:
         data = data or {}
         return cls(float(data.get("scale", 1.0)), float(data.get("floor", 0.0)),
                    {str(k): float(v) for k, v in data.get("slopes", {}).items()},
-                   float(data.get("power", 1.0)), float(data.get("seat", 0.0)))
+                   float(data.get("power", 1.0)), float(data.get("seat", 0.0)),
+                   {str(k): float(v) for k, v in data.get("powers", {}).items()})
 
     @classmethod
     def fit(cls, errors, spread, distances: Mapping[str, np.ndarray], *, weights=None,
             use_spread: bool = True, groups=None,
-            band: tuple[float, float] = COVERAGE_BAND, known=None) -> "SigmaCalibration":
+            band: tuple[float, float] = COVERAGE_BAND, known=None,
+            powers: Mapping[str, float] | None = None) -> "SigmaCalibration":
         """The constants that make ``errors`` (ln prediction − ln truth) most likely as zero-mean
         Gaussians of standard deviation σ, each error's log-likelihood weighted by ``weights``
         (default alike); ``use_spread=False`` for kinds without a spread of their own. A
@@ -119,7 +131,8 @@ class SigmaCalibration:
         0] is variance already in the errors that σ must not learn: each error is drawn with
         σ² + known, σ the map's own (the CFD meshes' biases that a left-out opening's errors
         carry, :func:`.crossval.meshes_in_errors`, since every map adds the CFD's error to σ on
-        its own and would otherwise count it twice).
+        its own and would otherwise count it twice). ``powers``: {distance name: power} for the
+        distances whose power is given, not fitted (default none).
 
         With ``groups`` (a label per error, e.g. its cross-validation scheme) the likelihood is
         maximised subject to ±2σ holding a share within ``band`` of each group's errors (as near
@@ -135,13 +148,15 @@ class SigmaCalibration:
         weights = np.ones_like(errors) if weights is None else np.asarray(weights, float)
         known = np.zeros_like(errors) if known is None else np.asarray(known, float)
         low, high = _POWER
+        fixed = {name: float(p) for name, p in (powers or {}).items() if name in names}
 
         def unpack(theta) -> "SigmaCalibration":
             scale, floor, *slopes = np.exp(theta[:-1])
             with np.errstate(over="ignore"):  # exp(−θ) → ∞ is the power's lower end
                 power = low + (high - low) / (1.0 + np.exp(-theta[-1]))
             return cls(float(scale) if spread is not None else 0.0, float(floor),
-                       {name: float(s) for name, s in zip(names, slopes)}, float(power))
+                       {name: float(s) for name, s in zip(names, slopes)}, float(power),
+                       powers=fixed)
 
         def negative_log_likelihood(theta):
             variance = unpack(theta).std(spread, distances) ** 2 + known

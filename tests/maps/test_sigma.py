@@ -73,6 +73,24 @@ def test_variance_known_to_be_in_the_errors_is_not_learned_again():
     assert untold.floor == pytest.approx(np.sqrt(own_sigma ** 2 + 0.02 ** 2), rel=0.05)
 
 
+def test_a_distance_given_its_power_keeps_it_and_the_rest_share_the_fitted_one():
+    """Errors that grow linearly along one distance and as its square along another: given the
+    first's power, the fit keeps it and fits the other's; the powers go through a file."""
+    rng = np.random.default_rng(3)
+    linear, square = rng.uniform(0.0, 1.0, (2, 600))
+    errors = rng.standard_normal(600) * np.hypot(0.05 * linear, 0.08 * square ** 2)
+    distances = {"linear": linear, "square": square}
+    calibration = SigmaCalibration.fit(errors, None, distances, use_spread=False,
+                                       powers={"linear": 1.0, "absent": 3.0})
+    assert calibration.powers == {"linear": 1.0}  # no power for a distance the errors lack
+    assert calibration.power_of("linear") == 1.0
+    assert calibration.power_of("square") == calibration.power
+    assert 1.4 < calibration.power < 2.8
+    again = SigmaCalibration.from_dict(calibration.to_dict())
+    assert np.allclose(again.std(None, distances), calibration.std(None, distances))
+    assert "powers" not in SigmaCalibration(slopes={"d": 1.0}).to_dict()  # files as before
+
+
 def test_the_meshes_biases_are_in_a_left_out_openings_errors_only(cfd_samples):
     """σ_CFD²·(1 + share²) at a left-out opening (its own mesh's bias and its neighbours' as the
     map bridges them: 1 + ½ halfway in ln u), nothing where the training kept the mesh."""
