@@ -18,7 +18,7 @@ honest, and the coverage per scheme says whether they are.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +29,7 @@ from ..features import FeatureSpec
 from ..fluid import FluidState
 from ..valve import ValveParameters
 from . import splits
-from .sigma import SigmaCalibration, coverage_of
+from .sigma import LEARNED_POWERS, SigmaCalibration, coverage_of
 from .cfd_error import FORCE_CFD_ERROR, flow_cfd_error, mesh_bias_share
 from .registry import MAP_KINDS, cross_validation_summary, map_kind
 
@@ -166,21 +166,25 @@ def _run_fold(job) -> pd.DataFrame:
     return result.assign(scheme=fold.scheme, fold=fold.label)
 
 
-def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None
+def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None,
+              powers: tuple[Mapping[str, float], Mapping[str, float]] = (LEARNED_POWERS,
+                                                                          LEARNED_POWERS)
               ) -> tuple[SigmaCalibration, SigmaCalibration]:
     """The flow and force calibrations that make the cross-validated errors most likely, each
     scheme weighted alike, with ±2σ holding 90-98 % of every scheme's errors
     (:meth:`~surrogate.maps.sigma.SigmaCalibration.fit`). Given the CFD ``samples`` the errors
     were made on, the meshes' biases they carry are known variance, not the map's
-    (:func:`meshes_in_errors`)."""
+    (:func:`meshes_in_errors`). ``powers``: the (flow, force) powers given per distance, not
+    fitted (default the learned kinds', :data:`~surrogate.maps.sigma.LEARNED_POWERS`)."""
     weights = 1.0 / errors.groupby("scheme")["case"].transform("size").to_numpy()
     known = (None, None) if samples is None else meshes_in_errors(errors, samples)
     return tuple(SigmaCalibration.fit(errors[error], errors[f"{name}_spread"],
                                  _distances(errors, name), weights=weights,
                                  use_spread=use_spread, groups=errors["scheme"].to_numpy(),
-                                 known=variance)
-                 for (name, error), variance in zip((("flow", "discharge_error"),
-                                                     ("force", "force_error")), known))
+                                 known=variance, powers=given)
+                 for (name, error), variance, given in zip((("flow", "discharge_error"),
+                                                            ("force", "force_error")), known,
+                                                           powers))
 
 
 def meshes_in_errors(errors: pd.DataFrame, samples: CfdSamples) -> tuple[np.ndarray, np.ndarray]:

@@ -673,8 +673,13 @@ class GridUncertainty:
         # learned kinds: taken out, they left the grid's flow σ across the unsampled gap too
         # narrow for the virtual valves' q there (docs/maps.md, "How the learned maps are
         # built")
+        # every power fitted (not the learned kinds' given one for the back pressure,
+        # sigma.LEARNED_POWERS): the grid does not read the back pressure as an input; its flow
+        # holds the reference back pressure's C_d, and its error away from it is the flow's
+        # cavitation, which sets in with the cavitation number rather than in proportion
         errors = self.errors
-        flow, force = calibrate(errors[~toward_seat(errors)], use_spread=False)
+        flow, force = calibrate(errors[~toward_seat(errors)], use_spread=False,
+                                powers=({}, {}))
         seat = self.seat_slopes()
         return {"flow": replace(flow, seat=seat["flow"]),
                 "force": replace(force, seat=seat["force"])}
