@@ -99,7 +99,8 @@ def main() -> int:
             path = args.out / "grid" / SHIPPED_GRID_CALIBRATION.name
             uncertainty = GridUncertainty(samples, valve)
             calibrations = uncertainty.fitted_calibrations()
-            accuracy = summary(uncertainty.errors, calibrations["flow"], calibrations["force"])
+            accuracy = summary(uncertainty.errors, calibrations["flow"], calibrations["force"],
+                               known=uncertainty.known_in_errors())
             write_calibrations(path, samples, valve, calibrations, accuracy)
             progress(f"GRID: calibration and cross-validation summary written to {path}")
             # the CFD's own Δp error pooled from these samples, which every map's σ carries

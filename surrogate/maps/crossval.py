@@ -168,16 +168,19 @@ def _run_fold(job) -> pd.DataFrame:
 
 def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None,
               powers: tuple[Mapping[str, float], Mapping[str, float]] = (LEARNED_POWERS,
-                                                                          LEARNED_POWERS)
-              ) -> tuple[SigmaCalibration, SigmaCalibration]:
+                                                                          LEARNED_POWERS),
+              known: tuple | None = None) -> tuple[SigmaCalibration, SigmaCalibration]:
     """The flow and force calibrations that make the cross-validated errors most likely, each
     scheme weighted alike, with ±2σ holding 90-98 % of every scheme's errors
     (:meth:`~surrogate.maps.sigma.SigmaCalibration.fit`). Given the CFD ``samples`` the errors
     were made on, the meshes' biases they carry are known variance, not the map's
     (:func:`meshes_in_errors`). ``powers``: the (flow, force) powers given per distance, not
-    fitted (default the learned kinds', :data:`~surrogate.maps.sigma.LEARNED_POWERS`)."""
+    fitted (default the learned kinds', :data:`~surrogate.maps.sigma.LEARNED_POWERS`).
+    ``known``: the (flow, force) known variance per error [ln units², None: none], in place of
+    :func:`meshes_in_errors`' (a grid's own account of the meshes it bridged)."""
     weights = 1.0 / errors.groupby("scheme")["case"].transform("size").to_numpy()
-    known = (None, None) if samples is None else meshes_in_errors(errors, samples)
+    if known is None:
+        known = (None, None) if samples is None else meshes_in_errors(errors, samples)
     return tuple(SigmaCalibration.fit(errors[error], errors[f"{name}_spread"],
                                  _distances(errors, name), weights=weights,
                                  use_spread=use_spread, groups=errors["scheme"].to_numpy(),
@@ -213,14 +216,18 @@ def standard_deviations(errors: pd.DataFrame, flow: SigmaCalibration, force: Sig
 
 
 def summary(errors: pd.DataFrame, flow: SigmaCalibration, force: SigmaCalibration, *,
-            samples: CfdSamples | None = None) -> dict:
+            samples: CfdSamples | None = None, known: tuple | None = None) -> dict:
     """Per scheme: relative RMS error of q and of the flow force, and the share of left-out
     samples inside the calibrated ±2σ bands (of ln C_d, i.e. of q at its Δp, and of the flow
     force); given the ``samples``, σ with the meshes' biases the errors carry
-    (:func:`meshes_in_errors`), as the calibration was fitted."""
+    (:func:`meshes_in_errors`), as the calibration was fitted, or with the (flow, force)
+    ``known`` variance the calibration was given instead (None: none)."""
     flow_std, force_std = standard_deviations(errors, flow, force)
-    if samples is not None:
-        flow_known, force_known = meshes_in_errors(errors, samples)
+    if known is None and samples is not None:
+        known = meshes_in_errors(errors, samples)
+    if known is not None:
+        flow_known, force_known = (np.zeros(len(errors)) if variance is None else variance
+                                   for variance in known)
         flow_std, force_std = np.sqrt(flow_std ** 2 + flow_known), np.sqrt(force_std ** 2
                                                                             + force_known)
     result = {}

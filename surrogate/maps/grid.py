@@ -69,6 +69,7 @@ from .base import FlowMap, ForceMap
 from .cavitation import CavitationLaw
 from .cfd_error import flow_cfd_error
 from .coverage import DP_OUTSIDE, Coverage
+from .cfd_error import FORCE_CFD_ERROR, mesh_bias_share
 from .crossval import calibrate, cross_validate, errors_on, summary
 from .curves import COMPARED_KNOTS, CurveSet
 from .grid_sigma import shipped_calibrations, shipped_summary
@@ -610,6 +611,43 @@ def _used_samples(samples: CfdSamples, reference: float):
                                                atol=1e-3 * BAR)]
 
 
+#: the power given to the back pressure's distance in the grid's flow-force calibration: away
+#: from the reference back pressure the grid's flow force follows its cavitation law
+#: (:class:`~.cavitation.CavitationLaw`), fitted to the back-pressure set, and a law off by a
+#: coefficient errs in proportion to the distance, as a learned map's input does
+#: (:data:`.sigma.LEARNED_POWERS`)
+GRID_FORCE_POWERS = {"back pressure": 1.0}
+
+
+def meshes_bridged_in_errors(errors, samples: CfdSamples) -> np.ndarray:
+    """The variance [1²] the CFD meshes' own biases put into each of the grid's cross-validated
+    flow-force errors (:func:`.crossval.errors_on` rows): FORCE_CFD_ERROR²·(1 + share²) wherever
+    the fold's grid lacked the sample's opening at the sample's fluid level and bridged (or held)
+    its neighbours instead, share their bridged bias (:func:`.cfd_error.mesh_bias_share`), 0
+    where the grid had it.
+
+    The learned kinds' calibrations take a left-out opening's meshes as known
+    (:func:`.crossval.meshes_in_errors`), since every map adds the CFD's error to σ by itself
+    (:meth:`.base.ForceMap.cfd_error_at`). The grid interpolates each fluid level on its own, so
+    a sweep left out (k-fold) also leaves its level without the opening's mesh: those errors
+    carry it as well (the grid's force errors there are one offset per opening, alternating in
+    sign between neighbours, as the meshes' biases would be: +4.1, -4.1, +4.4, -5.1 % at 0.10,
+    0.13, 0.16, 0.20 mm leaving the opening out). Learned as σ of the grid's own, they made its
+    fitted power sit at the range's lower end (0.5, errors flat in the distance) and its ±2σ
+    hold 98.8 % of the virtual valves' flow force between openings, 98.6 % at other back
+    pressures, 100 % across the gap (``eval/valve_coverage.py``)."""
+    frame = samples.frame.set_index("case")
+    u = frame.loc[errors["case"], "u"].to_numpy()
+    openings = np.unique(samples.frame["u"].round(12))
+    bridged = ((errors["force_distance:opening"] > 0)
+               | (errors["force_distance:opening beyond"] > 0)).to_numpy()
+    carried = np.zeros(len(errors))
+    for index in np.flatnonzero(bridged):
+        kept = openings[~np.isclose(openings, u[index], rtol=0, atol=1e-12)]
+        carried[index] = 1.0 + mesh_bias_share(kept, np.array([u[index]]))[0] ** 2
+    return FORCE_CFD_ERROR ** 2 * carried
+
+
 class GridUncertainty:
     """What the grid maps' calibrated uncertainty is made of.
 
@@ -673,13 +711,15 @@ class GridUncertainty:
         # learned kinds: taken out, they left the grid's flow σ across the unsampled gap too
         # narrow for the virtual valves' q there (docs/maps.md, "How the learned maps are
         # built")
-        # every power fitted (not the learned kinds' given one for the back pressure,
+        # the flow's powers all fitted (not the learned kinds' given one for the back pressure,
         # sigma.LEARNED_POWERS): the grid does not read the back pressure as an input; its flow
         # holds the reference back pressure's C_d, and its error away from it is the flow's
-        # cavitation, which sets in with the cavitation number rather than in proportion
-        errors = self.errors
-        flow, force = calibrate(errors[~toward_seat(errors)], use_spread=False,
-                                powers=({}, {}))
+        # cavitation, which sets in with the cavitation number rather than in proportion. The
+        # flow force's error there is its cavitation law's (GRID_FORCE_POWERS), and its
+        # errors carry the meshes it bridged as known variance (meshes_bridged_in_errors)
+        errors = self.errors[~toward_seat(self.errors)]
+        flow, force = calibrate(errors, use_spread=False, powers=({}, GRID_FORCE_POWERS),
+                                known=(None, meshes_bridged_in_errors(errors, self.samples)))
         seat = self.seat_slopes()
         return {"flow": replace(flow, seat=seat["flow"]),
                 "force": replace(force, seat=seat["force"])}
@@ -707,7 +747,13 @@ class GridUncertainty:
     def computed_summary(self) -> dict:
         """The cross-validation summary computed from this grid's errors, never the shipped
         one."""
-        return summary(self.errors, self.calibrations["flow"], self.calibrations["force"])
+        return summary(self.errors, self.calibrations["flow"], self.calibrations["force"],
+                       known=self.known_in_errors())
+
+    def known_in_errors(self) -> tuple:
+        """(flow, force) variance the calibration takes as already in the cross-validated
+        errors (:func:`meshes_bridged_in_errors`; none for the flow)."""
+        return None, meshes_bridged_in_errors(self.errors, self.samples)
 
 
 def toward_seat(errors) -> np.ndarray:
