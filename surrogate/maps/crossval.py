@@ -169,7 +169,8 @@ def _run_fold(job) -> pd.DataFrame:
 def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None,
               powers: tuple[Mapping[str, float], Mapping[str, float]] = (LEARNED_POWERS,
                                                                           LEARNED_POWERS),
-              known: tuple | None = None) -> tuple[SigmaCalibration, SigmaCalibration]:
+              known: tuple | None = None, each_power: tuple[bool, bool] = (False, False)
+              ) -> tuple[SigmaCalibration, SigmaCalibration]:
     """The flow and force calibrations that make the cross-validated errors most likely, each
     scheme weighted alike, with ±2σ holding 90-98 % of every scheme's errors
     (:meth:`~surrogate.maps.sigma.SigmaCalibration.fit`). Given the CFD ``samples`` the errors
@@ -177,17 +178,18 @@ def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | N
     (:func:`meshes_in_errors`). ``powers``: the (flow, force) powers given per distance, not
     fitted (default the learned kinds', :data:`~surrogate.maps.sigma.LEARNED_POWERS`).
     ``known``: the (flow, force) known variance per error [ln units², None: none], in place of
-    :func:`meshes_in_errors`' (a grid's own account of the meshes it bridged)."""
+    :func:`meshes_in_errors`' (a grid's own account of the meshes it bridged); ``each_power``:
+    (flow, force) True to fit each distance a power of its own."""
     weights = 1.0 / errors.groupby("scheme")["case"].transform("size").to_numpy()
     if known is None:
         known = (None, None) if samples is None else meshes_in_errors(errors, samples)
     return tuple(SigmaCalibration.fit(errors[error], errors[f"{name}_spread"],
                                  _distances(errors, name), weights=weights,
                                  use_spread=use_spread, groups=errors["scheme"].to_numpy(),
-                                 known=variance, powers=given)
-                 for (name, error), variance, given in zip((("flow", "discharge_error"),
-                                                            ("force", "force_error")), known,
-                                                           powers))
+                                 known=variance, powers=given, each_power=each)
+                 for (name, error), variance, given, each in zip(
+                     (("flow", "discharge_error"), ("force", "force_error")), known, powers,
+                     each_power))
 
 
 def meshes_in_errors(errors: pd.DataFrame, samples: CfdSamples) -> tuple[np.ndarray, np.ndarray]:

@@ -135,7 +135,8 @@ class SigmaCalibration:
     def fit(cls, errors, spread, distances: Mapping[str, np.ndarray], *, weights=None,
             use_spread: bool = True, groups=None,
             band: tuple[float, float] = COVERAGE_BAND, known=None,
-            powers: Mapping[str, float] | None = None) -> "SigmaCalibration":
+            powers: Mapping[str, float] | None = None,
+            each_power: bool = False) -> "SigmaCalibration":
         """The constants that make ``errors`` (ln prediction − ln truth) most likely as zero-mean
         Gaussians of standard deviation σ, each error's log-likelihood weighted by ``weights``
         (default alike); ``use_spread=False`` for kinds without a spread of their own. A
@@ -144,7 +145,8 @@ class SigmaCalibration:
         σ² + known, σ the map's own (the CFD meshes' biases that a left-out opening's errors
         carry, :func:`.crossval.meshes_in_errors`, since every map adds the CFD's error to σ on
         its own and would otherwise count it twice). ``powers``: {distance name: power} for the
-        distances whose power is given, not fitted (default none).
+        distances whose power is given, not fitted (default none); ``each_power``: every other
+        distance fits a power of its own (kept in ``powers``), instead of sharing one.
 
         With ``groups`` (a label per error, e.g. its cross-validation scheme) the likelihood is
         maximised subject to ±2σ holding a share within ``band`` of each group's errors (as near
@@ -161,21 +163,24 @@ class SigmaCalibration:
         known = np.zeros_like(errors) if known is None else np.asarray(known, float)
         low, high = _POWER
         fixed = {name: float(p) for name, p in (powers or {}).items() if name in names}
+        # with each_power, every distance not given one fits a power of its own
+        own = [name for name in names if name not in fixed] if each_power else []
+        count = max(len(own), 1)
 
         def unpack(theta) -> "SigmaCalibration":
-            scale, floor, *slopes = np.exp(theta[:-1])
+            scale, floor, *slopes = np.exp(theta[:2 + len(names)])
             with np.errstate(over="ignore"):  # exp(−θ) → ∞ is the power's lower end
-                power = low + (high - low) / (1.0 + np.exp(-theta[-1]))
+                fitted = low + (high - low) / (1.0 + np.exp(-theta[2 + len(names):]))
             return cls(float(scale) if spread is not None else 0.0, float(floor),
-                       {name: float(s) for name, s in zip(names, slopes)}, float(power),
-                       powers=fixed)
+                       {name: float(s) for name, s in zip(names, slopes)}, float(fitted[0]),
+                       powers={**fixed, **{name: float(p) for name, p in zip(own, fitted)}})
 
         def negative_log_likelihood(theta):
             variance = unpack(theta).std(spread, distances) ** 2 + known
             return float(weights @ (0.5 * np.log(variance) + 0.5 * errors**2 / variance))
 
         start = np.array([0.0, np.log(max(float(np.std(errors)) / 2, 1e-4))]
-                         + [np.log(0.1)] * len(names) + [-1.4])  # power 1 to start
+                         + [np.log(0.1)] * len(names) + [-1.4] * count)  # power 1 to start
         options = {"xatol": 1e-7, "fatol": 1e-10, "maxiter": 20000}
         best = minimize(negative_log_likelihood, start, method="Nelder-Mead", options=options)
         if groups is None:
