@@ -109,6 +109,42 @@ def test_the_meshes_biases_are_in_a_left_out_openings_errors_only(cfd_samples):
     assert force == pytest.approx([FORCE_CFD_ERROR ** 2 * (1 + share_squared), 0.0])
 
 
+def test_each_distance_may_fit_a_power_of_its_own():
+    """Errors linear along one distance and quadratic along another: with ``each_power`` the fit
+    finds a power near 1 for the first and near 2 for the second, where one shared power lies
+    between them."""
+    rng = np.random.default_rng(4)
+    linear, square = rng.uniform(0.0, 1.0, (2, 2000))
+    errors = rng.standard_normal(2000) * np.hypot(0.05 * linear, 0.08 * square ** 2)
+    distances = {"linear": linear, "square": square}
+    own = SigmaCalibration.fit(errors, None, distances, use_spread=False, each_power=True)
+    assert own.power_of("linear") == pytest.approx(1.0, abs=0.35)
+    assert own.power_of("square") == pytest.approx(2.0, abs=0.5)
+    shared = SigmaCalibration.fit(errors, None, distances, use_spread=False)
+    assert own.power_of("linear") < shared.power < own.power_of("square")
+
+
+def test_the_grid_force_errors_carry_the_meshes_their_folds_bridged(cfd_samples):
+    """A grid fold that left the sample's opening out at its fluid level (its distance along the
+    openings above 0: an opening left out, or a sweep) bridged the neighbours' meshes:
+    σ_CFD²·(1 + share²); a fold that kept it (a temperature left out), nothing."""
+    from surrogate.maps.cfd_error import FORCE_CFD_ERROR
+    from surrogate.maps.grid import meshes_bridged_in_errors
+
+    frame = cfd_samples.frame
+    openings = np.unique(frame["u"].round(12))
+    middle, smallest = (frame.loc[np.isclose(frame["u"], openings[i]), "case"].iloc[0]
+                        for i in (2, 0))
+    errors = pd.DataFrame({"case": [middle, smallest, middle],
+                           "force_distance:opening": [0.2, 0.0, 0.0],
+                           "force_distance:opening beyond": [0.0, 0.3, 0.0]})
+    low, high = np.log(openings[1]), np.log(openings[3])
+    t = (np.log(openings[2]) - low) / (high - low)
+    bridged = FORCE_CFD_ERROR ** 2 * (1 + (1 - t) ** 2 + t ** 2)
+    held = FORCE_CFD_ERROR ** 2 * 2  # beyond the end: the next opening's whole bias
+    assert meshes_bridged_in_errors(errors, cfd_samples) == pytest.approx([bridged, held, 0.0])
+
+
 def test_sixteen_errors_in_a_group_leave_one_outside():
     """Of 16 errors, 15 inside is the only count in 90-98 %; 16 of 16 is refused."""
     rng = np.random.default_rng(3)
