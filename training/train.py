@@ -41,6 +41,7 @@ from surrogate.maps.crossval import calibrate, cross_validate, summary
 from surrogate.maps.grid import GridUncertainty
 from surrogate.maps.grid_sigma import SHIPPED_GRID_CALIBRATION, write_calibrations
 from surrogate.maps.package import file_hash
+from surrogate.maps.registry import map_kind
 from surrogate.core.errors import InputError
 from surrogate.core.outputs import Output, check_outputs
 from surrogate.core.paths import (PROJECT_ROOT, SHIPPED_BENCH_LOG, SHIPPED_CFD_SAMPLES,
@@ -117,7 +118,8 @@ def main() -> int:
         started = time.perf_counter()
         errors = cross_validate(samples, valve, partial(learned_maps_on, kind, samples, valve),
                                 progress=progress, workers=args.workers)
-        flow, force = calibrate(errors, use_spread=True, samples=samples)
+        powers = map_kind(kind).calibration_powers
+        flow, force = calibrate(errors, use_spread=True, samples=samples, powers=(powers, powers))
         trained.calibrate(flow, force)
         metrics = {"cross_validation": summary(errors, flow, force, samples=samples),
                    "cross_validation_seconds": round(time.perf_counter() - started, 1)}

@@ -158,7 +158,8 @@ def recalibrate(folder: str | Path, samples: CfdSamples
     read_manifest(folder, learned_kinds())  # checked; rewritten below as it was, but for σ
     manifest = json.loads((folder / MANIFEST).read_text())
     errors = pd.read_csv(folder / CROSS_VALIDATION_FILE)
-    flow, force = calibrate(errors, use_spread=True, samples=samples)
+    powers = map_kind(manifest["kind"]).calibration_powers
+    flow, force = calibrate(errors, use_spread=True, samples=samples, powers=(powers, powers))
     manifest["flow"]["calibration"] = flow.to_dict()
     manifest["flow"]["cfd_error"] = flow_cfd_error(samples.frame)  # the σ_CFD it was fitted with
     manifest["force"]["calibration"] = force.to_dict()

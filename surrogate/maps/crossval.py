@@ -29,7 +29,7 @@ from ..features import FeatureSpec
 from ..fluid import FluidState
 from ..valve import ValveParameters
 from . import splits
-from .sigma import LEARNED_POWERS, SigmaCalibration, coverage_of
+from .sigma import SigmaCalibration, coverage_of
 from .cfd_error import FORCE_CFD_ERROR, flow_cfd_error, mesh_bias_share
 from .registry import MAP_KINDS, cross_validation_summary, map_kind
 
@@ -167,8 +167,7 @@ def _run_fold(job) -> pd.DataFrame:
 
 
 def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | None = None,
-              powers: tuple[Mapping[str, float], Mapping[str, float]] = (LEARNED_POWERS,
-                                                                          LEARNED_POWERS),
+              powers: tuple[Mapping[str, float], Mapping[str, float]] = ({}, {}),
               known: tuple | None = None, each_power: tuple[bool, bool] = (False, False)
               ) -> tuple[SigmaCalibration, SigmaCalibration]:
     """The flow and force calibrations that make the cross-validated errors most likely, each
@@ -176,7 +175,7 @@ def calibrate(errors: pd.DataFrame, *, use_spread: bool, samples: CfdSamples | N
     (:meth:`~surrogate.maps.sigma.SigmaCalibration.fit`). Given the CFD ``samples`` the errors
     were made on, the meshes' biases they carry are known variance, not the map's
     (:func:`meshes_in_errors`). ``powers``: the (flow, force) powers given per distance, not
-    fitted (default the learned kinds', :data:`~surrogate.maps.sigma.LEARNED_POWERS`).
+    fitted (default none: a kind's :attr:`~.registry.MapKind.calibration_powers`).
     ``known``: the (flow, force) known variance per error [ln units², None: none], in place of
     :func:`meshes_in_errors`' (a grid's own account of the meshes it bridged); ``each_power``:
     (flow, force) True to fit each distance a power of its own."""

@@ -714,19 +714,18 @@ class GridUncertainty:
     def fitted_calibrations(self) -> dict:
         """The calibrations fitted to this grid's cross-validated errors, never the shipped
         ones."""
-        # without the meshes' biases as known variance (crossval.meshes_in_errors), unlike the
-        # learned kinds: taken out, they left the grid's flow σ across the unsampled gap too
-        # narrow for the virtual valves' q there (docs/maps.md, "How the learned maps are
-        # built")
-        # the powers all fitted (not the learned kinds' given one for the back pressure,
-        # sigma.LEARNED_POWERS): the grid does not read the back pressure as an input; its flow
-        # holds the reference back pressure's C_d, and its error away from it is the flow's
-        # cavitation, which sets in with the cavitation number rather than in proportion.
-        # The flow force's errors carry the meshes the folds bridged as known variance
-        # (meshes_bridged_in_errors), and each of its distances fits a power of its own
-        # (FORCE_EACH_POWER)
+        # the flow's errors without the meshes' biases as known variance, unlike the learned
+        # kinds': taken out, they left the grid's flow σ across the unsampled gap too narrow
+        # for the virtual valves' q there (docs/maps.md, "How the learned maps are built"); its
+        # powers all one fitted power (not the networks' given one for the back pressure,
+        # sigma.BACK_PRESSURE_LINEAR): the grid does not read the back pressure as an input;
+        # its flow holds the reference back pressure's C_d, and its error away from it is the
+        # flow's cavitation, which sets in with the cavitation number rather than in
+        # proportion. The flow force's errors carry the meshes the folds bridged as known
+        # variance (meshes_bridged_in_errors), and each of its distances fits a power of its
+        # own (FORCE_EACH_POWER)
         errors = self.errors[~toward_seat(self.errors)]
-        flow, force = calibrate(errors, use_spread=False, powers=({}, {}),
+        flow, force = calibrate(errors, use_spread=False,
                                 known=(None, meshes_bridged_in_errors(errors, self.samples)),
                                 each_power=(False, FORCE_EACH_POWER))
         seat = self.seat_slopes()

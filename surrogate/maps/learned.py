@@ -253,12 +253,15 @@ def trained_folder(kind: str) -> Path:
 
 
 def learned_kind(name: str, description: str, *, trainer: str, save_predictor: Callable,
-                 load_predictor: Callable, constraints: Mapping[str, str]) -> MapKind:
+                 load_predictor: Callable, constraints: Mapping[str, str],
+                 calibration_powers: Mapping[str, float] | None = None) -> MapKind:
     """The map kind of a learned predictor (:class:`~.registry.MapKind`, to register): maps
     loaded from the folder of a trained surrogate (``folder``, default the committed one), built
-    on the manifest whose SHA-256 a model records (``surrogate_sha256``)."""
+    on the manifest whose SHA-256 a model records (``surrogate_sha256``); its calibration given
+    ``calibration_powers`` (:attr:`~.registry.MapKind.calibration_powers`)."""
     return MapKind(name, description, _learned_builder(name),
                    (_folder_option(name), _SURROGATE_HASH), trainer=trainer,
+                   calibration_powers=dict(calibration_powers or {}),
                    data=_learned_data(name), accuracy=_learned_accuracy(name),
                    save_predictor=save_predictor, load_predictor=load_predictor,
                    constraints=constraints)

@@ -21,6 +21,7 @@ from .learned import learned_kind
 from .network import architecture_from_dict, network
 from .opening_offsets import OpeningOffsets
 from .registry import register
+from .sigma import BACK_PRESSURE_LINEAR
 
 MANIFEST = package.MANIFEST
 
@@ -204,6 +205,7 @@ register(learned_kind(
           "force network bridged across openings",
     trainer="surrogate.learn.training:train_networks",
     save_predictor=save_ensemble, load_predictor=load_ensemble,
+    calibration_powers=BACK_PRESSURE_LINEAR,
     constraints={
         "flow": "q non-decreasing in p_L and in u by construction: |dlnCd/dlnRe_q| <= 0.98, "
                 "|dlnCd/dln(u/U)| <= 0.98, dlnCd/dln(sigma_q) >= 0",

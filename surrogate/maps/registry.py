@@ -111,6 +111,10 @@ class MapKind:
     accuracy : callable or None
         ``accuracy(options, valve, base)`` -> the maps' cross-validation summary per scheme
         (:func:`.crossval.summary`); None for kinds without data.
+    calibration_powers : mapping
+        {distance name: power} that a learned kind's calibration is given rather than fits
+        (:meth:`.sigma.SigmaCalibration.fit`, ``powers``), for its flow and its force map alike;
+        none by default.
     """
 
     name: str
@@ -123,6 +127,7 @@ class MapKind:
     constraints: Mapping[str, str] = field(default_factory=dict)
     data: Callable[..., dict] | None = None
     accuracy: Callable[..., dict] | None = None
+    calibration_powers: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def learned(self) -> bool:

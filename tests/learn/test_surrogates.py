@@ -562,3 +562,18 @@ def test_recalibrating_on_other_samples_records_their_meshes_error(tmp_path,
     recalibrate(folder, meshes_of_their_own)
     flow, _ = load_learned_maps(folder)
     assert flow.cfd_error == flow_cfd_error(meshes_of_their_own.frame) > 1.2 * FLOW_CFD_ERROR
+
+
+def test_the_networks_calibration_is_given_a_linear_back_pressure():
+    """The NN kind's calibrations keep power 1 along the back pressure (a smooth function of
+    ln p_B errs in proportion to the distance, sigma.BACK_PRESSURE_LINEAR), which its committed
+    manifest records; the GP's fit one power for every distance."""
+    from surrogate.maps.sigma import BACK_PRESSURE_LINEAR
+
+    assert map_kind("nn").calibration_powers == BACK_PRESSURE_LINEAR
+    assert map_kind("gp").calibration_powers == {}
+    nn_flow, nn_force = load_learned_maps(trained_folder("nn"))
+    for calibration in (nn_flow.calibration, nn_force.calibration):
+        assert calibration.power_of("back pressure") == 1.0
+    gp_flow, _ = load_learned_maps(trained_folder("gp"))
+    assert gp_flow.calibration.powers == {}
