@@ -111,7 +111,7 @@ def dp_error_estimates(frame: pd.DataFrame) -> dict:
     estimates = {"mesh study": mesh_study_variance(), "samples": opening_scatter(frame)}
     record = {name: {"sigma": float(np.sqrt(s2)), "freedom": int(nu)}
               for name, (s2, nu) in estimates.items()}
-    return {**record, "pooled": pooled_dp_error(frame)}
+    return {**record, "pooled": _pooled(estimates.values())}
 
 
 def pooled_dp_error(frame: pd.DataFrame) -> float:
@@ -121,7 +121,12 @@ def pooled_dp_error(frame: pd.DataFrame) -> float:
     √((ν₁s₁² + ν₂s₂²)/(ν₁ + ν₂)). Two views of one bias: refining one opening's mesh, and how
     the meshes of many openings scatter about a trend no mesh bias would bend (the samples
     cannot see a bias that all meshes share, nor can a virtual valve or any map)."""
-    estimates = [mesh_study_variance(), opening_scatter(frame)]
+    return _pooled([mesh_study_variance(), opening_scatter(frame)])
+
+
+def _pooled(estimates) -> float:
+    """√(Σν·s² / Σν) of (s², ν) estimates of one variance."""
+    estimates = list(estimates)
     freedom = sum(nu for _, nu in estimates)
     return float(np.sqrt(sum(nu * s2 for s2, nu in estimates) / freedom))
 

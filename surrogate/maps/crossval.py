@@ -198,16 +198,24 @@ def meshes_in_errors(errors: pd.DataFrame, samples: CfdSamples) -> tuple[np.ndar
     the training kept the sample's mesh (a sweep, a temperature or the back-pressure set out).
     σ_CFD of the flow is what the samples estimate of their own meshes
     (:func:`.cfd_error.flow_cfd_error`)."""
+    carried = meshes_carried(errors, samples, (errors["scheme"] == SCHEMES[1]).to_numpy())
+    return flow_cfd_error(samples.frame) ** 2 * carried, FORCE_CFD_ERROR ** 2 * carried
+
+
+def meshes_carried(errors: pd.DataFrame, samples: CfdSamples, without: np.ndarray
+                   ) -> np.ndarray:
+    """How many meshes' biases (in units of one's variance) each cross-validated error carries
+    where its fold's map lacked the sample's opening (``without``, a mask over ``errors``): its
+    own mesh's and the bridged neighbours', 1 + share² (:func:`.cfd_error.mesh_bias_share` of
+    the openings left in); 0 elsewhere."""
     frame = samples.frame.set_index("case")
     u = frame.loc[errors["case"], "u"].to_numpy()
     openings = np.unique(frame["u"].round(12))
-    left_out = (errors["scheme"] == SCHEMES[1]).to_numpy()
-    share = np.ones(len(errors))
-    for index in np.flatnonzero(left_out):
+    carried = np.zeros(len(errors))
+    for index in np.flatnonzero(without):
         kept = openings[~np.isclose(openings, u[index], rtol=0, atol=1e-12)]
-        share[index] = mesh_bias_share(kept, np.array([u[index]]))[0]
-    carried = np.where(left_out, 1.0 + share ** 2, 0.0)
-    return flow_cfd_error(samples.frame) ** 2 * carried, FORCE_CFD_ERROR ** 2 * carried
+        carried[index] = 1.0 + mesh_bias_share(kept, np.array([u[index]]))[0] ** 2
+    return carried
 
 
 def standard_deviations(errors: pd.DataFrame, flow: SigmaCalibration, force: SigmaCalibration):

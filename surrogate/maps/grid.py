@@ -67,9 +67,9 @@ from ..core.units import BAR, from_si
 from ..valve import ValveParameters
 from .base import FlowMap, ForceMap
 from .cavitation import CavitationLaw
-from .cfd_error import FORCE_CFD_ERROR, flow_cfd_error, mesh_bias_share
+from .cfd_error import FORCE_CFD_ERROR, flow_cfd_error
 from .coverage import DP_OUTSIDE, Coverage
-from .crossval import calibrate, cross_validate, errors_on, summary
+from .crossval import calibrate, cross_validate, errors_on, meshes_carried, summary
 from .curves import COMPARED_KNOTS, CurveSet
 from .grid_sigma import shipped_calibrations, shipped_summary
 from .package import file_hash
@@ -644,16 +644,9 @@ def meshes_bridged_in_errors(errors, samples: CfdSamples) -> np.ndarray:
     pressures (97.8 and 96.9 % taken as known; ``eval/valve_coverage.py``). Across the
     unsampled gap it holds all of it either way: there the gap's own term of the CFD's error
     (:data:`.cfd_error.GAP_FORCE_ERROR`) adds to the span the grid bridges."""
-    frame = samples.frame.set_index("case")
-    u = frame.loc[errors["case"], "u"].to_numpy()
-    openings = np.unique(samples.frame["u"].round(12))
     bridged = ((errors["force_distance:opening"] > 0)
                | (errors["force_distance:opening beyond"] > 0)).to_numpy()
-    carried = np.zeros(len(errors))
-    for index in np.flatnonzero(bridged):
-        kept = openings[~np.isclose(openings, u[index], rtol=0, atol=1e-12)]
-        carried[index] = 1.0 + mesh_bias_share(kept, np.array([u[index]]))[0] ** 2
-    return FORCE_CFD_ERROR ** 2 * carried
+    return FORCE_CFD_ERROR ** 2 * meshes_carried(errors, samples, bridged)
 
 
 class GridUncertainty:
