@@ -13,7 +13,9 @@ Measures, in one run on this machine:
 * under map mismatch (a virtual valve that differs from its CFD, :mod:`surrogate.workbench.
   mismatch`; the model under test on the shipped maps): the share of randomised hidden-effect
   cases the workflow finds cleanly (the hidden effect or its group, no other physics or sensor
-  effect) and the physics or sensor effects it adds where nothing is hidden, over the stress
+  effect), or that leave nothing to find (nothing added or withheld, and the log ends as its
+  twin with nothing hidden does, :mod:`surrogate.synthetic.visibility`; counted apart), and the
+  physics or sensor effects it adds where nothing is hidden, over the stress
   suite of :func:`surrogate.synthetic.simulate.stress_suite` (``--mismatch-cases`` cases and
   ``--controls`` controls for each of its two settings seeds), with weak leakages (at most
   1.2x their realistic size, the suite's usual misses) counted apart.
@@ -50,8 +52,9 @@ from surrogate.reporting.prose import summarise
 from surrogate.solver import replay
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import (STRESS_SETTINGS, WEAK_LEAKAGE, hidden_effect_case,
-                                          identified, noise_free_sequence, random_settings,
-                                          run_stress_case, stress_suite, withheld_claims)
+                                          identified, noise_free_sequence, over_floor,
+                                          random_settings, run_stress_case, stress_suite,
+                                          withheld_claims)
 from surrogate.core.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
@@ -132,18 +135,29 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
                   f" {chosen_in or ''}")
             continue
         ok = outcome.clean
+        twin = None if outcome.twin is None else round(over_floor(outcome.twin), 3)
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
                                 "seed": case.seed, "added": added, "chosen_in": chosen_in,
                                 "shapes_beside_library": outcome.shapes_beside_library,
                                 "withheld": withheld_claims(workflow),
                                 "final_summary": summarise(workflow.final_diagnosis),
+                                "rms_over_floor": round(over_floor(workflow), 3),
+                                "twin_over_floor": twin, "found": outcome.found,
+                                "invisible": outcome.invisible,
                                 "clean": ok, "seconds": round(outcome.seconds, 1)})
+        verdict = ("clean" if outcome.found else "invisible" if outcome.invisible
+                   else "NOT CLEAN")
         line = (f"  mismatch case {case.seed}: {case.hidden:<28} x{case.factor:.2f} -> "
-                f"{', '.join(added) or 'nothing':<50} {'clean' if ok else 'NOT CLEAN'} "
+                f"{', '.join(added) or 'nothing':<50} {verdict} "
                 f"{chosen_in or ''}").rstrip()
+        if twin is not None:
+            line += (f"; {over_floor(workflow):.2f}x the floor, its twin (nothing hidden) "
+                     f"{twin:.2f}x")
         print(line + "".join(f"; withheld {claim}" for claim in record["cases"][-1]["withheld"]))
     record["clean_rate"] = (float(np.mean([c["clean"] for c in record["cases"]]))
                             if record["cases"] else None)
+    # clean for having nothing to find: nothing added or withheld, the log ends as its twin
+    record["invisible"] = sum(c["invisible"] for c in record["cases"])
     record["false_additions"] = sum(len(c["invented"]) for c in record["controls"])
     # shape-free terms added after the hidden library effect already explained the log
     record["shapes_beside_library"] = sum(len(c["shapes_beside_library"])
@@ -154,8 +168,9 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
         1 for c in record["cases"] if not c["clean"]
         and any(claim.split(" ")[0] == c["hidden"] for claim in c["withheld"]))
     rate = "" if record["clean_rate"] is None else f"{record['clean_rate']:.0%} of "
-    print(f"under map mismatch ({kind} maps): {rate}{len(record['cases'])} cases found "
-          f"cleanly; {record['false_additions']} physics or sensor effects added over "
+    print(f"under map mismatch ({kind} maps): {rate}{len(record['cases'])} cases clean "
+          f"(found, or nothing added where the effect left nothing to find: "
+          f"{record['invisible']}); {record['false_additions']} physics or sensor effects added over "
           f"{len(record['controls'])} nothing-hidden logs; "
           f"{record['shapes_beside_library']} shape-free term(s) added beside a library effect "
           "that already explained its log")

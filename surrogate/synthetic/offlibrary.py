@@ -34,6 +34,7 @@ import numpy as np
 from ..effects import BalanceState, Effect, EffectLibrary, FlowState, Parameter
 from ..effects.shapes import ShapeFreeEffect
 from ..core.units import BAR, CST, LPM
+from .visibility import RMS_RATIO, TWIN_RATIO, left_nothing_to_find
 
 
 class OffLibraryEffect(Effect):
@@ -301,6 +302,8 @@ class OffLibraryOutcome:
     invented: tuple[str, ...]  # physics or sensor terms beyond those (map corrections allowed)
     rms_over_floor: float
     twin_over_floor: float = float("nan")
+    #: the physics claims the loop named and withheld for their look-alikes of other kinds
+    withheld: tuple[str, ...] = ()
 
     @property
     def right_term(self) -> bool:
@@ -324,12 +327,11 @@ class OffLibraryOutcome:
 
     @property
     def invisible(self) -> bool:
-        """Nothing added and nothing left to find: the log ends within the floor's
-        :data:`RMS_RATIO` and within :data:`TWIN_RATIO` of its nothing-hidden twin, so the
-        hidden effect (a leak of 0.05 L/min, say) moved nothing the bench can see."""
-        return (self.hidden is not None and not self.added and self.within_floor
-                and np.isfinite(self.twin_over_floor)
-                and self.rms_over_floor <= TWIN_RATIO * self.twin_over_floor)
+        """Nothing added, nothing withheld and nothing left to find
+        (:func:`.visibility.left_nothing_to_find`): the hidden effect (a leak of 0.05 L/min,
+        say) moved nothing the bench can see."""
+        return (self.hidden is not None and not self.added and not self.withheld
+                and left_nothing_to_find(self.rms_over_floor, self.twin_over_floor))
 
     @property
     def clean(self) -> bool:
@@ -352,12 +354,6 @@ class OffLibraryOutcome:
                 "clean": self.clean}
 
 
-#: the final RMS over the noise floor within which an off-library case counts as explained
-RMS_RATIO = 1.3
-#: or within this factor of what the same virtual valve with nothing hidden ends at
-TWIN_RATIO = 1.1
-
-
 def off_library_outcome(workflow, hidden: str | None, twin=None) -> OffLibraryOutcome:
     """Judge a workflow run on a log with off-library effect ``hidden`` (None: nothing hidden);
     ``twin`` is the workflow on the same virtual valve with nothing hidden, if run."""
@@ -377,7 +373,8 @@ def off_library_outcome(workflow, hidden: str | None, twin=None) -> OffLibraryOu
                 invented.append(name)
     twin_ratio = float("nan") if twin is None else float(twin.final.rms / twin.noise_floor)
     return OffLibraryOutcome(hidden, tuple(added), tuple(matching), tuple(invented),
-                             float(workflow.final.rms / workflow.noise_floor), twin_ratio)
+                             float(workflow.final.rms / workflow.noise_floor), twin_ratio,
+                             tuple(declined.claim.name for declined in workflow.declined))
 
 
 def explanation_shapes(diagnosis, name: str) -> set[tuple[str, str]]:

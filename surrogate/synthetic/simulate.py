@@ -40,6 +40,7 @@ from ..description.spec import EffectSpec, ModelSpec, ValveSource
 from ..core.units import to_si
 from ..workbench.workflow import Workflow, run_workflow
 from .mismatch import MapMismatch, mismatched_truth
+from .visibility import left_nothing_to_find
 
 #: a magnitude an engineer could meet on a real valve, per library effect (display units). The
 #: pilot-pressure frictions are set where they stand out from the K1 + K2·p_L friction the model
@@ -338,11 +339,13 @@ def stress_suite(cases: int = 20, controls: int = 5,
 
 @dataclass(frozen=True)
 class StressOutcome:
-    """What the workflow made of one stress case's log."""
+    """What the workflow made of one stress case's log, and of its twin's where that was run
+    (the same virtual valve with nothing hidden, :func:`run_stress_case`)."""
 
     case: StressCase
     workflow: Workflow
     seconds: float
+    twin: Workflow | None = None
 
     @property
     def added(self) -> list[str]:
@@ -350,9 +353,24 @@ class StressOutcome:
         return [name for step in self.workflow.steps[1:] for name in step.added]
 
     @property
-    def clean(self) -> bool:
+    def found(self) -> bool:
         """Whether the hidden effect was found and nothing invented (:func:`cleanly_identified`)."""
         return cleanly_identified(self.workflow, self.case.hidden)
+
+    @property
+    def invisible(self) -> bool:
+        """Whether the hidden effect left the log nothing to find: the diagnosis added nothing
+        and withheld nothing, and the log ends as its twin does
+        (:func:`.visibility.left_nothing_to_find`)."""
+        if self.case.hidden is None or self.twin is None or not quiet(self.workflow):
+            return False
+        return left_nothing_to_find(over_floor(self.workflow), over_floor(self.twin))
+
+    @property
+    def clean(self) -> bool:
+        """Whether the hidden effect was found, or left nothing to find, and nothing was
+        invented (the off-library suite's judgement, :mod:`.visibility`)."""
+        return self.found or self.invisible
 
     @property
     def invented(self) -> list[str]:
@@ -380,13 +398,33 @@ def run_stress_case(case: StressCase, sequence: BenchLog, maps_under_test: MapsS
     """The workflow on the log of one stress case: the virtual valve on ``valve_maps`` (default:
     the model's own) with ``mismatch`` (default: the suite's, :class:`MapMismatch`), the model
     under test on ``maps_under_test``, at most ``max_additions`` effects added (the stress
-    tests' and the evaluations' one loop)."""
+    tests' and the evaluations' one loop). Where a hidden effect's log ends with nothing
+    diagnosed, its twin (the same valve, map mismatch and noise, nothing hidden) is run too,
+    to tell an effect the log does not show from one the loop missed."""
     began = time.perf_counter()
-    made = hidden_effect_case(case.hidden, case.values, sequence=sequence, seed=case.seed,
-                              mismatch=MapMismatch() if mismatch is None else mismatch,
-                              maps_under_test=maps_under_test, valve_maps=valve_maps)
-    workflow = run_workflow(made.log, start=made.start, max_additions=max_additions)
-    return StressOutcome(case, workflow, time.perf_counter() - began)
+    mismatch = MapMismatch() if mismatch is None else mismatch
+
+    def workflow_of(hidden: str | None, values: dict[str, float] | None) -> Workflow:
+        made = hidden_effect_case(hidden, values, sequence=sequence, seed=case.seed,
+                                  mismatch=mismatch, maps_under_test=maps_under_test,
+                                  valve_maps=valve_maps)
+        return run_workflow(made.log, start=made.start, max_additions=max_additions)
+
+    workflow = workflow_of(case.hidden, case.values)
+    twin = workflow_of(None, None) if case.hidden is not None and quiet(workflow) else None
+    return StressOutcome(case, workflow, time.perf_counter() - began, twin)
+
+
+def quiet(workflow: Workflow) -> bool:
+    """Whether no diagnosis of ``workflow`` added a term or withheld a claim (the paper's steps
+    aside)."""
+    return not workflow.declined and not any(
+        step.added for step in workflow.steps[1:] if step.diagnosis is not None)
+
+
+def over_floor(workflow: Workflow) -> float:
+    """The final RMS of ``workflow`` over its noise floor."""
+    return float(workflow.final.rms / workflow.noise_floor)
 
 
 def identified(diagnosis, hidden: str, library: EffectLibrary = LIBRARY) -> bool:

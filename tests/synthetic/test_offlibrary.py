@@ -148,3 +148,6 @@ def test_a_case_is_invisible_only_when_nothing_was_added_and_nothing_is_left():
                               ("shape_force_of_opening",), 1.05, 1.05)
     assert not wrong.invisible and not wrong.clean
     assert not OffLibraryOutcome("turbulent_leakage", (), (), (), 1.06).invisible  # no twin run
+    # a claim named and withheld for a look-alike: the log showed something
+    named = OffLibraryOutcome("turbulent_leakage", (), (), (), 1.06, 1.05, ("laminar_leakage",))
+    assert not named.invisible and not named.clean
