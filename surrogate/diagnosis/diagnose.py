@@ -213,8 +213,15 @@ class Diagnoser:
             results = together
         else:  # reported, behind the library's finding, never added
             behind = [c.scored(significant=False) for c in together if c.shape_free]
-            results = joined(results + behind, finding.name, alike_shapes(
-                finding, behind, ground.problem.rms_before, ground.floor, judge.heldout, rule))
+            # every share shown comes from the one bootstrap competition all of them were in,
+            # so that a group's share counts each resample once: the finding's from the
+            # library's alone beside a shape's from both summed to 102-107 % of resamples
+            # where a look-alike shape joined its group (stress cases 216-218)
+            shares = {c.name: c.inclusion for c in together}
+            results = joined([c.scored(inclusion=shares[c.name]) for c in results] + behind,
+                             finding.name, alike_shapes(finding, behind,
+                                                        ground.problem.rms_before, ground.floor,
+                                                        judge.heldout, rule))
         beside_maps = {c.name: judge.maps_error_heldout(c.linearised)
                        for c in results if c.shape_free}
         rivals += [rival_of(c, beside_maps[c.name]) for c in results if c.shape_free]

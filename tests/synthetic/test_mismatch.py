@@ -28,7 +28,7 @@ from surrogate.fluid import FluidState
 from surrogate.core.paths import SHIPPED_CFD_SAMPLES
 from surrogate.model import ValveModel
 from surrogate.description.presets import cfda, maps
-from surrogate.reporting.prose import sensor_check_text, summarise
+from surrogate.reporting.prose import finding_document, sensor_check_text, summarise
 from surrogate.synthetic.mismatch import (CavitationFlowForce, MapMismatch, PerturbedFlowMap,
                                           PerturbedForceMap, mismatched_samples)
 from surrogate.synthetic.simulate import (hidden_effect_case, noise_free_sequence,
@@ -248,3 +248,21 @@ def test_a_weak_true_effect_is_judged_beside_the_maps_error_not_withheld_for_it(
     best = diagnosis.best
     assert best is not None and case.hidden in best.group, summarise(diagnosis)
     assert diagnosis.declined is None
+
+
+@pytest.mark.slow
+def test_a_findings_share_of_resamples_counts_each_resample_once(sequence):
+    """Stress case 217 (grid maps): a pilot-pressure friction, found as its look-alike the
+    pilot-differential friction, with a friction of free shape of p_P named beside them. The
+    group's share of resamples over runs is at most all of them, and its members' shares come
+    from one competition: the library's finding's share from the library alone beside the
+    shape's from the library and the shapes summed to 102 %."""
+    case = next(c for c in stress_suite(CASES, CONTROLS, settings=SETTINGS) if c.seed == 217)
+    made = hidden_effect_case(case.hidden, case.values, sequence=sequence, seed=case.seed,
+                              mismatch=MapMismatch(), maps_under_test=maps("grid"))
+    diagnosis = diagnose(fit_to_log(made.start, made.log).model, made.log)
+    best = diagnosis.best
+    assert best is not None and case.hidden in best.group
+    assert any(name.startswith("shape_") for name in best.group), best.group
+    assert 0.5 <= diagnosis.group_inclusion(best) <= 1.0
+    assert finding_document(diagnosis)["chosen_in"] <= 1.0
