@@ -52,9 +52,9 @@ from surrogate.reporting.prose import summarise
 from surrogate.solver import replay
 from surrogate.synthetic.mismatch import MapMismatch
 from surrogate.synthetic.simulate import (STRESS_SETTINGS, WEAK_LEAKAGE, hidden_effect_case,
-                                          identified, noise_free_sequence, over_floor,
-                                          random_settings, run_stress_case, stress_suite,
-                                          withheld_claims)
+                                          identified, noise_free_sequence, random_settings,
+                                          run_stress_case, stress_suite, withheld_claims)
+from surrogate.synthetic.visibility import over_floor
 from surrogate.core.units import from_si
 from surrogate.workbench.workflow import run_workflow
 
@@ -170,8 +170,8 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
     rate = "" if record["clean_rate"] is None else f"{record['clean_rate']:.0%} of "
     print(f"under map mismatch ({kind} maps): {rate}{len(record['cases'])} cases clean "
           f"(found, or nothing added where the effect left nothing to find: "
-          f"{record['invisible']}); {record['false_additions']} physics or sensor effects added over "
-          f"{len(record['controls'])} nothing-hidden logs; "
+          f"{record['invisible']}); {record['false_additions']} physics or sensor effects "
+          f"added over {len(record['controls'])} nothing-hidden logs; "
           f"{record['shapes_beside_library']} shape-free term(s) added beside a library effect "
           "that already explained its log")
     for group, (clean, total) in record["by_group"].items():

@@ -34,7 +34,7 @@ import numpy as np
 from ..effects import BalanceState, Effect, EffectLibrary, FlowState, Parameter
 from ..effects.shapes import ShapeFreeEffect
 from ..core.units import BAR, CST, LPM
-from .visibility import RMS_RATIO, TWIN_RATIO, left_nothing_to_find
+from .visibility import RMS_RATIO, TWIN_RATIO, left_nothing_to_find, over_floor
 
 
 class OffLibraryEffect(Effect):
@@ -371,9 +371,9 @@ def off_library_outcome(workflow, hidden: str | None, twin=None) -> OffLibraryOu
                 matching.append(name)
             elif _category(name, model) != "map correction":
                 invented.append(name)
-    twin_ratio = float("nan") if twin is None else float(twin.final.rms / twin.noise_floor)
+    twin_ratio = float("nan") if twin is None else over_floor(twin)
     return OffLibraryOutcome(hidden, tuple(added), tuple(matching), tuple(invented),
-                             float(workflow.final.rms / workflow.noise_floor), twin_ratio,
+                             over_floor(workflow), twin_ratio,
                              tuple(declined.claim.name for declined in workflow.declined))
 
 

@@ -40,7 +40,7 @@ from ..description.spec import EffectSpec, ModelSpec, ValveSource
 from ..core.units import to_si
 from ..workbench.workflow import Workflow, run_workflow
 from .mismatch import MapMismatch, mismatched_truth
-from .visibility import left_nothing_to_find
+from .visibility import left_nothing_to_find, over_floor
 
 #: a magnitude an engineer could meet on a real valve, per library effect (display units). The
 #: pilot-pressure frictions are set where they stand out from the K1 + K2·p_L friction the model
@@ -420,11 +420,6 @@ def quiet(workflow: Workflow) -> bool:
     aside)."""
     return not workflow.declined and not any(
         step.added for step in workflow.steps[1:] if step.diagnosis is not None)
-
-
-def over_floor(workflow: Workflow) -> float:
-    """The final RMS of ``workflow`` over its noise floor."""
-    return float(workflow.final.rms / workflow.noise_floor)
 
 
 def identified(diagnosis, hidden: str, library: EffectLibrary = LIBRARY) -> bool:

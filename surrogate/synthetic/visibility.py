@@ -25,6 +25,11 @@ RMS_RATIO = 1.3
 TWIN_RATIO = 1.1
 
 
+def over_floor(workflow) -> float:
+    """The final RMS of a finished ``workflow`` over its noise floor."""
+    return float(workflow.final.rms / workflow.noise_floor)
+
+
 def left_nothing_to_find(rms_over_floor: float, twin_over_floor: float) -> bool:
     """Whether a log that ends at ``rms_over_floor`` times its noise floor, with nothing added
     and nothing withheld, is as its twin, which ends at ``twin_over_floor`` (nan: no twin run,
