@@ -135,13 +135,14 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
                   f" {chosen_in or ''}")
             continue
         ok = outcome.clean
+        ratio = over_floor(workflow)
         twin = None if outcome.twin is None else round(over_floor(outcome.twin), 3)
         record["cases"].append({"hidden": case.hidden, "factor": round(case.factor, 2),
                                 "seed": case.seed, "added": added, "chosen_in": chosen_in,
                                 "shapes_beside_library": outcome.shapes_beside_library,
                                 "withheld": withheld_claims(workflow),
                                 "final_summary": summarise(workflow.final_diagnosis),
-                                "rms_over_floor": round(over_floor(workflow), 3),
+                                "rms_over_floor": round(ratio, 3),
                                 "twin_over_floor": twin, "found": outcome.found,
                                 "invisible": outcome.invisible,
                                 "clean": ok, "seconds": round(outcome.seconds, 1)})
@@ -151,7 +152,7 @@ def mismatch_record(log, cases: int, controls: int, kind: str, every: int,
                 f"{', '.join(added) or 'nothing':<50} {verdict} "
                 f"{chosen_in or ''}").rstrip()
         if twin is not None:
-            line += (f"; {over_floor(workflow):.2f}x the floor, its twin (nothing hidden) "
+            line += (f"; {ratio:.2f}x the floor, its twin (nothing hidden) "
                      f"{twin:.2f}x")
         print(line + "".join(f"; withheld {claim}" for claim in record["cases"][-1]["withheld"]))
     record["clean_rate"] = (float(np.mean([c["clean"] for c in record["cases"]]))
