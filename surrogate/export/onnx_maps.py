@@ -349,11 +349,28 @@ def _process(g: Graph, predictor: GaussianProcessPredictor, features: str
     mean = g.add(g.add(g.mul(g.matmul(total, training.dual), output.std),
                        output.mean + output.trend[0]),
                  g.matmul(z, output.trend[1:]))
+    if len(output.opening_trend):
+        mean = g.add(mean, _opening_polynomial(g, g.column(z, output.opening_column), output))
     inverse = solve_triangular(training.cholesky, np.eye(len(training.cholesky)), lower=True)
     v = g.matmul(total, inverse.T.copy())
     prior_vector = prior if isinstance(prior, str) else g.add(g.mul(mean, 0.0), prior)
     variance = g.sub(prior_vector, g.sum_rows(g.square(v)))
     return mean, g.mul(g.sqrt(g.max(variance, 0.0)), output.std)
+
+
+def _opening_polynomial(g: Graph, x: str, output) -> str:
+    """Σ c_k·x^(k+2) inside the opening's training range and its tangent beyond
+    (:func:`surrogate.maps.gp.opening_polynomial`)."""
+    low, high = (float(bound) for bound in output.opening_range)
+    inside = g.op("Clip", x, g.const(low), g.const(high))
+    value, slope, power = None, None, inside  # power: inside^(k+1) for the k-th coefficient
+    for k, coefficient in enumerate(output.opening_trend):
+        term = g.mul(g.mul(power, inside), float(coefficient))
+        rate = g.mul(power, float((k + 2) * coefficient))
+        value = term if value is None else g.add(value, term)
+        slope = rate if slope is None else g.add(slope, rate)
+        power = g.mul(power, inside)
+    return g.add(value, g.mul(slope, g.sub(x, inside)))
 
 
 def _latent(g: Graph, predictor, features: str) -> tuple[str, str]:

@@ -6,8 +6,9 @@ The kernel mirrors the additive structure of :mod:`surrogate.features`,
 
 each RBF anisotropic over its two standardised features, with a learned noise term (the CFD's mesh
 error is about 1 %). Targets are standardised (``normalize_y``); optionally a linear mean in the
-features is fitted first by least squares and the GP models the residual (a physics trend that
-the GP reverts to far from the data). Inputs are standardised and everything is float64; the
+features (optionally a polynomial in the opening) is fitted first by least squares and the GP
+models the residual (a physics trend that the GP reverts to far from the data, and between
+distant openings). Inputs are standardised and everything is float64; the
 condition number of the training covariance is recorded, because GPs on gridded data are prone
 to ill-conditioning.
 
@@ -107,13 +108,17 @@ class BridgeKernel(Kernel):
 
 
 def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool,
-           restarts: int = 3, seed: int = 0, held: tuple[int, ...] = (),
-           held_margin: float = 0.0) -> GPArrays:
+           opening_degree: int = 1, opening_column: int = 1, restarts: int = 3, seed: int = 0,
+           held: tuple[int, ...] = (), held_margin: float = 0.0) -> GPArrays:
     """Fit an additive GP to ``target`` and return its arrays.
 
     ``parts``: the kernel's additive parts, each ``("rbf", columns)`` or ``("bridge", columns)``
     (the first column the opening, linearly bridged; the others in an RBF factor); a bare tuple of
     columns is an RBF part. Each part has its own amplitude; a white-noise term is learned too.
+    ``linear_mean``: fit a trend linear in the features first, by least squares, and the GP to
+    what it leaves; with ``opening_degree`` above 1 the trend is a polynomial of that degree in
+    column ``opening_column`` (the opening), carried on beyond the training range as its tangent
+    (:func:`surrogate.maps.gp.opening_polynomial`).
     ``held``: feature columns clamped to their training range, widened by ``held_margin``
     standard deviations, when predicting (:mod:`surrogate.maps.gp`).
     """
@@ -122,12 +127,15 @@ def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool
     feature_mean = features.mean(axis=0)
     feature_std = np.where(features.std(axis=0) > 0, features.std(axis=0), 1.0)
     z = (features - feature_mean) / feature_std
-    design = np.column_stack([np.ones(len(z)), z])
+    powers = np.arange(2, opening_degree + 1) if linear_mean else np.zeros(0, int)
+    opening = z[:, opening_column] if len(powers) else np.zeros(len(z))
+    design = np.column_stack([np.ones(len(z)), z, np.power.outer(opening, powers)])
     if linear_mean:
-        trend = np.linalg.lstsq(design, target, rcond=None)[0]
+        coefficients = np.linalg.lstsq(design, target, rcond=None)[0]
     else:
-        trend = np.zeros(design.shape[1])
-    residual = target - design @ trend
+        coefficients = np.zeros(design.shape[1])
+    residual = target - design @ coefficients
+    trend, higher = coefficients[: z.shape[1] + 1], coefficients[z.shape[1] + 1:]
     kernel, span, origin = additive_kernel(parts, z)
     regressor = GaussianProcessRegressor(kernel, normalize_y=True, n_restarts_optimizer=restarts,
                                          random_state=seed)
@@ -152,7 +160,8 @@ def fit_gp(features: np.ndarray, target: np.ndarray, parts, *, linear_mean: bool
     return GPArrays(FeatureScaling(feature_mean, feature_std, np.asarray(held, int), held_range),
                     kernel_parts, training,
                     OutputScaling(trend, float(regressor._y_train_mean),
-                                  float(regressor._y_train_std)))
+                                  float(regressor._y_train_std), higher, opening_column,
+                                  np.array([opening.min(), opening.max()])))
 
 
 def additive_kernel(parts, z: np.ndarray) -> tuple[Kernel, np.ndarray, float]:

@@ -105,11 +105,36 @@ class TrainingFit:
 @dataclass(frozen=True)
 class OutputScaling:
     """The latent target from the GP's normalised output f: ``mean`` + ``std``·f, plus the
-    linear ``trend`` (intercept, then one coefficient per standardised feature)."""
+    ``trend`` (intercept, then one coefficient per standardised feature) and, optionally, the
+    trend's higher powers of one feature, the opening: ``opening_trend`` holds the coefficients
+    of z², z³, … of column ``opening_column``, a polynomial inside ``opening_range`` (its
+    standardised training range) and its tangent beyond (:func:`opening_polynomial`)."""
 
     trend: np.ndarray
     mean: float
     std: float
+    opening_trend: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    opening_column: int = 1
+    opening_range: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    def trend_at(self, z: np.ndarray) -> np.ndarray:
+        """The trend at standardised features ``z`` (rows)."""
+        linear = self.trend[0] + z @ self.trend[1:]
+        if not len(self.opening_trend):
+            return linear
+        return linear + opening_polynomial(z[:, self.opening_column], self.opening_trend,
+                                           self.opening_range)
+
+
+def opening_polynomial(z: np.ndarray, coefficients: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """Σ c_k·z^(k+2) over ``coefficients`` c inside ``span`` (low, high), and beyond it the
+    tangent at the nearer end: a power law in the opening carried on at the end openings' slope,
+    where the polynomial, fitted between them, would turn wherever its terms take it."""
+    inside = np.clip(z, span[0], span[1])
+    powers = np.arange(2, len(coefficients) + 2)
+    value = np.power.outer(inside, powers) @ coefficients
+    slope = np.power.outer(inside, powers - 1) @ (powers * coefficients)
+    return value + slope * (z - inside)
 
 
 #: the arrays of a GP file (.npz), each with the record and field that hold it, in the file's
@@ -124,9 +149,16 @@ NPZ_KEYS = {"part_kinds": ("kernel", "kinds"), "part_dims": ("kernel", "dims"),
             "bridge_origin": ("kernel", "bridge_origin"),
             "bridge_range": ("kernel", "bridge_range"),
             "held_columns": ("features", "held_columns"),
-            "held_range": ("features", "held_range")}
+            "held_range": ("features", "held_range"),
+            "opening_trend": ("output", "opening_trend"),
+            "opening_trend_column": ("output", "opening_column"),
+            "opening_trend_range": ("output", "opening_range")}
 #: the file's single numbers
 NPZ_SCALARS = ("noise", "y_mean", "y_std", "condition_number", "bridge_origin")
+#: arrays a file holds only when the GP has them (columns held; a trend beyond linear in the
+#: opening), each group written and read together
+OPTIONAL_KEYS = (("held_columns", "held_range"),
+                 ("opening_trend", "opening_trend_column", "opening_trend_range"))
 
 
 @dataclass(frozen=True)
@@ -141,17 +173,23 @@ class GPArrays:
     output: OutputScaling
 
     def to_npz(self) -> dict[str, np.ndarray]:
+        optional = {key for group in OPTIONAL_KEYS for key in group}
         arrays = {key: np.asarray(getattr(getattr(self, record), name))
-                  for key, (record, name) in NPZ_KEYS.items() if not key.startswith("held_")}
+                  for key, (record, name) in NPZ_KEYS.items() if key not in optional}
         if len(self.features.held_columns):
             arrays["held_columns"] = np.asarray(self.features.held_columns, int)
             arrays["held_range"] = np.asarray(self.features.held_range, float)
+        if len(self.output.opening_trend):
+            arrays["opening_trend"] = np.asarray(self.output.opening_trend, float)
+            arrays["opening_trend_column"] = np.asarray(self.output.opening_column, int)
+            arrays["opening_trend_range"] = np.asarray(self.output.opening_range, float)
         return arrays
 
     @classmethod
     def from_npz(cls, data) -> "GPArrays":
         """The arrays of a GP file, read in the file's order (a missing one raises KeyError)."""
-        plain = [key for key in NPZ_KEYS if not key.startswith(("part_", "bridge_", "held_"))]
+        plain = [key for key in NPZ_KEYS
+                 if not key.startswith(("part_", "bridge_", "held_", "opening_"))]
         if "part_kinds" not in data:  # format 1: additive RBF parts over "groups"
             groups = np.asarray(data["groups"], int)
             read = {"part_kinds": np.full(len(groups), RBF), "part_dims": groups}
@@ -164,6 +202,10 @@ class GPArrays:
         if "held_columns" in data and "part_kinds" in data:  # none before columns could be held
             read["held_columns"] = np.asarray(data["held_columns"], int)
             read["held_range"] = np.asarray(data["held_range"], float)
+        if "opening_trend" in data:  # none before the trend could bend with the opening
+            read["opening_trend"] = np.asarray(data["opening_trend"], float)
+            read["opening_trend_column"] = int(data["opening_trend_column"])
+            read["opening_trend_range"] = np.asarray(data["opening_trend_range"], float)
         return cls.of(read)
 
     @classmethod
@@ -283,7 +325,7 @@ class NumpyGP:
             cross, *work = _WORK.take(len(block), len(training.inputs))
             prior = self._cross(block, cross, *work)
             mean[start:start + _BLOCK] = (output.mean + output.std * (cross @ training.dual)
-                                          + output.trend[0] + block @ output.trend[1:])
+                                          + output.trend_at(block))
             if return_std:
                 v = np.matmul(cross, self._inverse_cholesky_t, out=work[0])  # (L⁻¹·k*)ᵀ
                 variance = prior - np.einsum("ij,ij->i", v, v)
@@ -425,7 +467,10 @@ class GaussianProcessPredictor:
                 "training_points": len(a.training.inputs),
                 "held_columns": a.features.held_columns.tolist(),
                 "feature_mean": a.features.mean.tolist(),
-                "feature_std": a.features.std.tolist(), "trend": a.output.trend.tolist()}
+                "feature_std": a.features.std.tolist(), "trend": a.output.trend.tolist(),
+                **({"opening_trend": a.output.opening_trend.tolist(),
+                    "opening_trend_column": a.output.opening_column}
+                   if len(a.output.opening_trend) else {})}
 
 
 def save_predictor(folder: Path, name: str, predictor: GaussianProcessPredictor) -> dict:
@@ -444,7 +489,8 @@ def load_predictor(folder: Path, entry: dict, features: int) -> GaussianProcessP
     try:
         arrays = GPArrays.from_npz(data)
     except KeyError as error:
-        required = [key for key in NPZ_KEYS if not key.startswith("held_")]
+        optional = {key for group in OPTIONAL_KEYS for key in group}
+        required = [key for key in NPZ_KEYS if key not in optional]
         raise InputError(f"{path}: missing array {error.args[0]!r}; a GP holds "
                          f"{', '.join(required[:-1])} and {required[-1]}") from None
     except (TypeError, ValueError):
@@ -500,6 +546,15 @@ def check_arrays(a: GPArrays, where: str, d: int) -> None:
     ranges = check(features.held_range, f"{where}, array 'held_range'", (len(held), 2))
     if np.any(ranges[:, 0] > ranges[:, 1]):
         raise InputError(f"{where}, array 'held_range': one (low, high) row per held column")
+    output = a.output
+    check(output.opening_trend, f"{where}, array 'opening_trend'", (None,))
+    if len(output.opening_trend):
+        if not 0 <= output.opening_column < d:
+            raise InputError(f"{where}, array 'opening_trend_column': a feature column 0 to "
+                             f"{d - 1}")
+        span = check(output.opening_range, f"{where}, array 'opening_trend_range'", (2,))
+        if span[0] > span[1]:
+            raise InputError(f"{where}, array 'opening_trend_range': must be (low, high)")
 
 
 _KIND_NAMES = {value: name for name, value in PART_KINDS.items()}

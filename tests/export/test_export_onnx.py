@@ -52,14 +52,16 @@ def test_the_gp_graph_holds_its_inputs_beyond_the_data_as_the_package_does():
 def test_below_the_smallest_opening_the_graphs_are_the_package(kind):
     """Toward the seat σ never falls below what no mesh says there
     (:func:`surrogate.maps.cfd_error.seat_error`) and a network's flow force goes on as the power
-    of u its two smallest openings give (:meth:`LearnedForceMap.toward_seat`): the graphs' f_sim
-    and σ are the package's, down to a fifth of the smallest opening."""
+    of u its two smallest openings give (:meth:`LearnedForceMap.toward_seat`), and the GP's
+    flow trend goes on as its tangent in the opening (:func:`surrogate.maps.gp.
+    opening_polynomial`): the graphs' q, f_sim and their σ are the package's, down to a fifth
+    of the smallest opening."""
     flow, force = load_learned_maps(trained_folder(kind))
     states = random_states(flow.coverage, count=2_000, seed=3)
     shares = np.exp(np.random.default_rng(3).uniform(np.log(0.2), 0.0, 2_000))
     states["u"] = flow.coverage.openings[0] * shares
     compared = parity(flow, force, states)
-    for name in ("q_std", "f_sim", "f_sim_std"):
+    for name in ("q", "q_std", "f_sim", "f_sim_std"):
         found, value = compared[name]
         assert np.max(np.abs(found - value) / np.abs(value)) < 1e-6, name
 
