@@ -35,7 +35,8 @@ from pathlib import Path
 from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.learn.reproducibility import environment
-from surrogate.learn.training import KINDS, learned_maps_on, recalibrate, train_surrogate
+from surrogate.learn.training import (KINDS, kept_errors, learned_maps_on, recalibrate,
+                                      train_surrogate)
 from surrogate.maps.cfd_error import SHIPPED_CFD_ERROR, write_dp_error
 from surrogate.maps.crossval import calibrate, cross_validate, summary
 from surrogate.maps.grid import GridUncertainty
@@ -116,8 +117,9 @@ def main() -> int:
         progress(f"{kind.upper()}: trained in {trained.seconds:.1f} s; cross-validating with "
                  f"{args.workers} worker(s)")
         started = time.perf_counter()
-        errors = cross_validate(samples, valve, partial(learned_maps_on, kind, samples, valve),
-                                progress=progress, workers=args.workers)
+        errors = kept_errors(cross_validate(samples, valve,
+                                            partial(learned_maps_on, kind, samples, valve),
+                                            progress=progress, workers=args.workers))
         powers = map_kind(kind).calibration_powers
         flow, force = calibrate(errors, use_spread=True, samples=samples, powers=(powers, powers))
         trained.calibrate(flow, force)
