@@ -418,12 +418,10 @@ def next_steps(workflow) -> list[str]:
     final, diagnosis = workflow.final, workflow.final_diagnosis
     steps = []
     if diagnosis.best is not None:
-        end = workflow.loop_end
-        why = ("it came to light once the maps were calibrated, after the loop's last addition"
-               if end is not None and end.best is None else
-               "the loop stopped before adding it")
         steps.append(f"The final diagnosis still finds {diagnosis.best.title} "
-                     f"({diagnosis.best.name}): {why}; run the workflow again with a larger "
+                     f"({diagnosis.best.name}): the loop stopped before adding it (it adds "
+                     "--max-additions terms at most, and stops at a term of another kind "
+                     "after refusing one on held-out runs); run the workflow again with a larger "
                      "--max-additions, or fit it with fit --model final_model.toml --add "
                      f"{diagnosis.best.name}.")
     if workflow.dropped:

@@ -13,9 +13,10 @@ Steps
 6. ``calibrated maps``: what the maps' own error explains of the rest, fitted as map corrections
    per opening within the maps' uncertainty (:mod:`.bench_calibration`), kept only if it
    predicts the held-out runs better.
-7. The final model diagnosed: when the calibration was kept, the final model is not the one the
-   loop's last diagnosis saw, so it is diagnosed again (the same call, nothing added); that is
-   the workflow's final diagnosis, of the model its report and model file hold.
+7. The calibrated model diagnosed, as in 5.: when the calibration was kept, the model is not the
+   one the loop's last diagnosis saw. A finding the maps' error hid until the maps were
+   calibrated is added as any other, while additions are left; the last diagnosis is the
+   workflow's final diagnosis, of the model its report and model file hold.
 
 Every step refits all free parameters against every sample of the log
 (:func:`~surrogate.fitting.logfit.fit_to_log`);
@@ -123,8 +124,8 @@ class Step:
 @dataclass(frozen=True)
 class Workflow:
     """The staircase and the final diagnosis: the final model's (the last step's), whether the
-    loop's last diagnosis or one made after a step that followed the loop (the maps'
-    calibration)."""
+    loop's last diagnosis or one made after the maps' calibration followed the loop (and what
+    the loop added after it)."""
 
     log: BenchLog
     steps: tuple[Step, ...]
@@ -194,6 +195,7 @@ class _Staircase:
         self.steps: list[Step] = []
         self.schemes = run_groups(log)
         self.dropped = ""
+        self.additions = 0  # effects added by diagnosis so far
 
     @property
     def last(self) -> Step:
@@ -255,17 +257,20 @@ class _Staircase:
 
     def add_diagnosed(self, max_additions: int) -> Diagnosis:
         """Diagnose the last step and add its best significant candidate, until none is left
-        or ``max_additions`` were added; return the last diagnosis. A candidate whose full refit
+        or ``max_additions`` were added in all (:attr:`additions` counts them across calls);
+        return the last diagnosis. A candidate whose full refit
         predicts the held-out runs worse is refused, and the step diagnosed again without it
         (at most :data:`REFUSALS` times a step) for another explanation of the same finding:
         a term of the same kind (a laminar leakage for a leakage of free shape). A term of
         another kind is another finding, which the first outranked: the loop stops there."""
-        additions, refused, dropped, kinds = 0, [], [], set()
+        refused, kinds = [], set()
+        dropped = [self.dropped] if self.dropped else []  # an earlier call's refusals stay said
         while True:
             current = self.last
             diagnosis = self.diagnose_last(refused)
             best = diagnosis.best
-            if best is None or additions == max_additions or (kinds and best.kind not in kinds):
+            if (best is None or self.additions >= max_additions
+                    or (kinds and best.kind not in kinds)):
                 return diagnosis
             # the diagnosis already refitted every parameter with the effect added: polish that
             categories = dict.fromkeys(c.category for c in diagnosis.explanations)
@@ -290,7 +295,7 @@ class _Staircase:
                 if len(refused) > REFUSALS:
                     return diagnosis
                 continue
-            additions += 1
+            self.additions += 1
             refused, kinds = [], set()
 
     def calibrate(self) -> bool:
@@ -364,8 +369,12 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
         staircase.record(start, [], "", f"the starting model {start.name!r}")
     diagnosis = loop_end = staircase.add_diagnosed(max_additions)
     if calibrate and staircase.calibrate():
-        # the final diagnosis is the final model's: what is left after the calibration too
-        diagnosis = staircase.diagnose_last()
+        # the final diagnosis is the final model's: what is left after the calibration too. A
+        # finding there, which the maps' error hid until the maps were calibrated, is added as
+        # any other (the calibration's factors refitted with it) while additions are left: the
+        # loop stopped before the calibration, and its summary named a leak it had not added
+        # (off-library case 4550, a leak growing with the temperature, on both kinds of maps)
+        diagnosis = staircase.add_diagnosed(max_additions)
     else:
         loop_end = None
     steps = staircase.steps
