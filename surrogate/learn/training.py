@@ -82,13 +82,19 @@ FORCE_HOLD_MARGIN = 0.5
 # level; plus an RBF of (Re, u) and one of σ. Chosen by the four-scheme cross-validation
 # (eval/force_gp_structures.py).
 FORCE_GP_PARTS = (("bridge", (1, 0, 3)), ("rbf", (0, 1)), ("rbf", (2,)))
-# The GP's flow map: ln C_d from (ln Re_q, ln(u/U), ln σ_q) as a linear trend plus a Matérn 3/2 in
+# The GP's flow map: ln C_d from (ln Re_q, ln(u/U), ln σ_q) as a trend (below) plus a Matérn 3/2 in
 # the opening times an RBF of Re, plus an RBF of (u, σ). The Matérn's rougher correlation in the
 # opening predicts a left-out opening from its neighbours instead of reverting toward the mean
 # between them; the trend carries the coldest oil. Chosen by the four-scheme cross-validation
 # (eval/force_gp_structures.py --flow).
 FLOW_GP_PARTS = (("matern", (1, 0)), ("rbf", (1, 2)))
 FLOW_GP_TREND = True
+# The trend is a quadratic in the opening, ln(u/U), not a line: between distant openings (the
+# 0.20-0.63 mm gap) the Matérn reverts to the trend, and a line there bent the flow 3.5 % below
+# the NN's. Quadratic, because it predicts a left-out temperature far better than a line for a
+# little more error leaving an opening out; a cubic loses a left-out temperature and a quartic
+# a left-out opening (eval/force_gp_structures.py --flow; docs/maps.md).
+FLOW_GP_TREND_DEGREE = 2
 GP_RESTARTS = 10
 
 
@@ -321,7 +327,7 @@ def train_processes(data: Targets, progress) -> tuple[GaussianProcessPredictor, 
     """The additive Gaussian processes of the ``gp`` kind (flow: ln C_d; force: α or ln(−α))."""
     flow = GaussianProcessPredictor(
         fit_gp(data.flow_features, data.log_discharge, FLOW_GP_PARTS, linear_mean=FLOW_GP_TREND,
-               restarts=GP_RESTARTS), "log_discharge")
+               opening_degree=FLOW_GP_TREND_DEGREE, restarts=GP_RESTARTS), "log_discharge")
     progress("GP flow (ln C_d): fitted, condition number "
              f"{flow.arrays.training.condition_number:.1e}")
     target, name = force_target(data)

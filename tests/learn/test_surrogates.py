@@ -250,6 +250,41 @@ def test_gp_predictor_reproduces_scikit_learn(cfd_samples, valve, parts):
     np.testing.assert_allclose(std**2 + noise, ref_std**2, rtol=1e-6, atol=1e-14)
 
 
+def test_a_gp_trend_bends_with_the_opening_and_goes_on_as_its_tangent():
+    """With ``opening_degree`` 2 the trend is a quadratic in the opening column, fitted with the
+    linear terms by least squares: a target that is one is the trend (the GP left nothing), and
+    beyond the training range the prediction goes on along the tangent at the end, not the
+    parabola."""
+    rng = np.random.default_rng(0)
+    features = np.column_stack([rng.uniform(-1, 1, 60), rng.uniform(-2, 0, 60)])
+    target = 0.3 * features[:, 0] + 0.5 * features[:, 1] - 0.8 * features[:, 1] ** 2
+    arrays = fit_gp(features, target, [(0,)], linear_mean=True, opening_degree=2, restarts=0)
+    assert len(arrays.output.opening_trend) == 1 and arrays.output.opening_column == 1
+    predictor = NumpyGP(arrays)
+    inside = np.column_stack([np.zeros(5), np.linspace(-1.9, -0.1, 5)])
+    truth = 0.5 * inside[:, 1] - 0.8 * inside[:, 1] ** 2
+    np.testing.assert_allclose(predictor.predict(inside), truth, atol=1e-6)
+    low = features[:, 1].min()
+    beyond = np.array([[0.0, low - 1.0]])  # a unit below the smallest opening
+    tangent = 0.5 * low - 0.8 * low ** 2 - (0.5 - 1.6 * low)
+    assert predictor.predict(beyond)[0] == pytest.approx(tangent, abs=1e-5)
+
+
+def test_a_gp_file_keeps_its_trend_in_the_opening():
+    """The shipped flow GP's trend in the opening survives its file: written and read back, the
+    arrays predict the same bits (and a GP without one writes none of its arrays)."""
+    from surrogate.maps.gp import GPArrays
+
+    arrays = GPArrays.from_npz(np.load(trained_folder("gp") / "flow.npz"))
+    assert len(arrays.output.opening_trend) == 1  # training.FLOW_GP_TREND_DEGREE = 2
+    again = GPArrays.from_npz(arrays.to_npz())
+    query = np.random.default_rng(1).normal(size=(50, len(arrays.features.mean)))
+    query = arrays.features.mean + 2.0 * arrays.features.std * query
+    np.testing.assert_array_equal(NumpyGP(again).predict(query), NumpyGP(arrays).predict(query))
+    force = GPArrays.from_npz(np.load(trained_folder("gp") / "force.npz"))
+    assert not any(key.startswith("opening_trend") for key in force.to_npz())
+
+
 @pytest.mark.parametrize("name", ["flow", "force"])
 def test_a_gp_factor_made_per_distinct_value_is_the_per_row_one_to_the_bit(name, monkeypatch):
     """A kernel factor of one feature column made once per distinct value of a block and copied
