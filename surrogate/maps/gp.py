@@ -159,6 +159,7 @@ NPZ_SCALARS = ("noise", "y_mean", "y_std", "condition_number", "bridge_origin")
 #: opening), each group written and read together
 OPTIONAL_KEYS = (("held_columns", "held_range"),
                  ("opening_trend", "opening_trend_column", "opening_trend_range"))
+_OPTIONAL = frozenset(key for group in OPTIONAL_KEYS for key in group)
 
 
 @dataclass(frozen=True)
@@ -173,9 +174,8 @@ class GPArrays:
     output: OutputScaling
 
     def to_npz(self) -> dict[str, np.ndarray]:
-        optional = {key for group in OPTIONAL_KEYS for key in group}
         arrays = {key: np.asarray(getattr(getattr(self, record), name))
-                  for key, (record, name) in NPZ_KEYS.items() if key not in optional}
+                  for key, (record, name) in NPZ_KEYS.items() if key not in _OPTIONAL}
         if len(self.features.held_columns):
             arrays["held_columns"] = np.asarray(self.features.held_columns, int)
             arrays["held_range"] = np.asarray(self.features.held_range, float)
@@ -489,8 +489,7 @@ def load_predictor(folder: Path, entry: dict, features: int) -> GaussianProcessP
     try:
         arrays = GPArrays.from_npz(data)
     except KeyError as error:
-        optional = {key for group in OPTIONAL_KEYS for key in group}
-        required = [key for key in NPZ_KEYS if key not in optional]
+        required = [key for key in NPZ_KEYS if key not in _OPTIONAL]
         raise InputError(f"{path}: missing array {error.args[0]!r}; a GP holds "
                          f"{', '.join(required[:-1])} and {required[-1]}") from None
     except (TypeError, ValueError):
