@@ -189,7 +189,7 @@ class GPArrays:
     def from_npz(cls, data) -> "GPArrays":
         """The arrays of a GP file, read in the file's order (a missing one raises KeyError)."""
         plain = [key for key in NPZ_KEYS
-                 if not key.startswith(("part_", "bridge_", "held_", "opening_"))]
+                 if key not in _OPTIONAL and not key.startswith(("part_", "bridge_"))]
         if "part_kinds" not in data:  # format 1: additive RBF parts over "groups"
             groups = np.asarray(data["groups"], int)
             read = {"part_kinds": np.full(len(groups), RBF), "part_dims": groups}

@@ -194,7 +194,7 @@ class _Staircase:
         self.diagnoser = replace(diagnoser, progress=lambda message: progress(f"  {message}"))
         self.steps: list[Step] = []
         self.schemes = run_groups(log)
-        self.dropped = ""
+        self.refusals: list[str] = []  # why each refused candidate was not kept
         self.additions = 0  # effects added by diagnosis so far
 
     @property
@@ -264,7 +264,6 @@ class _Staircase:
         a term of the same kind (a laminar leakage for a leakage of free shape). A term of
         another kind is another finding, which the first outranked: the loop stops there."""
         refused, kinds = [], set()
-        dropped = [self.dropped] if self.dropped else []  # an earlier call's refusals stay said
         while True:
             current = self.last
             diagnosis = self.diagnose_last(refused)
@@ -286,12 +285,11 @@ class _Staircase:
                 self.steps.pop()
                 refused.append(best.name)
                 kinds.add(best.kind)
-                dropped.append(f"{best.name} was not kept: after the full refit its RMS on "
-                               f"held-out runs rose from "
-                               f"{from_si(current.heldout_check, 'bar'):.3f} to "
-                               f"{from_si(step.heldout_check, 'bar'):.3f} bar")
-                self.dropped = "; ".join(dropped)
-                self.progress(f"  {dropped[-1]}")
+                self.refusals.append(f"{best.name} was not kept: after the full refit its RMS "
+                                     f"on held-out runs rose from "
+                                     f"{from_si(current.heldout_check, 'bar'):.3f} to "
+                                     f"{from_si(step.heldout_check, 'bar'):.3f} bar")
+                self.progress(f"  {self.refusals[-1]}")
                 if len(refused) > REFUSALS:
                     return diagnosis
                 continue
@@ -385,5 +383,5 @@ def run_workflow(log: BenchLog, *, start: ValveModel | None = None,
     return Workflow(log=log, steps=tuple(steps), final_diagnosis=diagnosis, noise_floor=floor,
                     seconds=time.perf_counter() - began,
                     maps=maps_spec.flow.kind if start is None else "",
-                    dropped=staircase.dropped, loop_end=loop_end)
+                    dropped="; ".join(staircase.refusals), loop_end=loop_end)
 
