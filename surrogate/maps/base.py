@@ -32,7 +32,7 @@ from ..fluid import FluidState, broadcast_query
 from ..numerics.roots import invert_increasing
 from ..core.units import BAR, LPM
 from .cfd_error import (FLOW_CFD_ERROR, FORCE_CFD_ERROR, GAP_FORCE_ERROR, SEAT_FORCE_ERROR,
-                        cavitation_error, gap_error, mesh_bias_share, seat_error)
+                        cavitation_error, gap_error, mesh_bias_share, seat_error, valve_sigma)
 
 
 @dataclass(frozen=True)
@@ -69,6 +69,10 @@ class FlowMap(ABC):
     calibration = None
     #: σ of ln C_d that the CFD itself adds, each opening's mesh biased its own way [1]
     cfd_error = FLOW_CFD_ERROR
+    #: True for a map whose calibrated σ was measured across spans as wide as an unsampled gap
+    #: (the grid's: its calibration leaves openings out of the bridge it draws): the gap's prior
+    #: is then a floor under σ, not a term beside it (:func:`.cfd_error.valve_sigma`)
+    calibration_spans_gaps = False
     #: True for a map smooth (C⁴ or better) in the flow at a fixed opening: a fit's tables may
     #: then read it at another flow than a sample's own from a polynomial about it
     #: (:mod:`surrogate.solver.map_tables`)
@@ -164,25 +168,35 @@ class FlowMap(ABC):
     def log_discharge_std(self, q, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of ln C_d at flow ``q`` [m^3/s] against the valve: the relative
         uncertainty of the flow the restriction passes at a given pressure drop [-], the
-        calibrated one and :attr:`cfd_error` in quadrature; None if the map has none."""
+        calibrated one and the CFD's own error (:func:`.cfd_error.valve_sigma`); None if the map
+        has none."""
         if self.calibration is None:
             return None
         q, p_B, u, fluid = broadcast_query(q, p_B, u, fluid)
         calibrated = self.calibration.std(*self.calibration_inputs(q, p_B, u, fluid))
-        std = np.hypot(calibrated, self.cfd_error_at(u))
-        if self.coverage is not None:  # toward the seat a floor, not a term
-            std = np.maximum(std, seat_error(self.coverage.openings, u))
+        if self.coverage is None:
+            return np.reshape(np.hypot(calibrated, self.cfd_error), q.shape)
+        std = valve_sigma(calibrated, self.mesh_error_at(u), gap_error(self.coverage.gaps(), u),
+                          gap_is_floor=self.calibration_spans_gaps)
+        std = np.maximum(std, seat_error(self.coverage.openings, u))  # a floor toward the seat
         return np.reshape(std, q.shape)
 
-    def cfd_error_at(self, u) -> np.ndarray:
-        """σ of ln C_d [1] that the CFD adds at openings ``u`` [m]: :attr:`cfd_error`, the
-        meshes' biases as the map bridges them (:func:`.cfd_error.mesh_bias_share`); across an
-        unsampled gap between openings never less than what no mesh says there
-        (:func:`.cfd_error.gap_error`), as the flow force's (:meth:`ForceMap.cfd_error_at`)."""
+    def mesh_error_at(self, u) -> np.ndarray:
+        """σ of ln C_d [1] that the CFD's meshes put on the map at openings ``u`` [m]:
+        :attr:`cfd_error`, the meshes' biases as the map bridges them
+        (:func:`.cfd_error.mesh_bias_share`)."""
         if self.coverage is None:
             return np.full(np.shape(u), self.cfd_error)
-        return np.maximum(self.cfd_error * mesh_bias_share(self.coverage.openings, u),
-                          gap_error(self.coverage.gaps(), u))
+        return self.cfd_error * mesh_bias_share(self.coverage.openings, u)
+
+    def cfd_error_at(self, u) -> np.ndarray:
+        """σ of ln C_d [1] that the CFD adds at openings ``u`` [m] where the map itself is
+        exact: its meshes' (:meth:`mesh_error_at`), across an unsampled gap between openings
+        never less than what no mesh says there (:func:`.cfd_error.gap_error`), as the flow
+        force's (:meth:`ForceMap.cfd_error_at`)."""
+        if self.coverage is None:
+            return self.mesh_error_at(u)
+        return np.maximum(self.mesh_error_at(u), gap_error(self.coverage.gaps(), u))
 
     def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of the flow [m^3/s] at load pressure ``p_L``, or None.
@@ -217,6 +231,8 @@ class ForceMap(ABC):
     calibration = None
     #: relative σ of the flow force that the CFD itself adds (:mod:`.cfd_error`) [1]
     cfd_error = FORCE_CFD_ERROR
+    #: as :attr:`FlowMap.calibration_spans_gaps`
+    calibration_spans_gaps = False
     #: True for a map smooth (C⁴ or better) in Δp at a fixed opening (as :attr:`FlowMap.smooth`)
     smooth = False
 
@@ -262,28 +278,38 @@ class ForceMap(ABC):
 
     def against_valve(self, calibrated, p_B, u) -> np.ndarray:
         """Relative σ of the flow force against the valve [1] (flat) from the ``calibrated`` one
-        at back pressures ``p_B`` [Pa] and openings ``u`` [m]: with the CFD's own error in
-        quadrature, and never below what no mesh says below the smallest opening (a floor, as
-        the flow's)."""
-        std = np.hypot(calibrated, self.cfd_error_at(p_B, u))
+        at back pressures ``p_B`` [Pa] and openings ``u`` [m]: with the CFD's own error
+        (:func:`.cfd_error.valve_sigma`), and never below what no mesh says below the smallest
+        opening (a floor, as the flow's)."""
         if self.coverage is None:
-            return std
-        return np.maximum(std, seat_error(self.coverage.openings, np.ravel(u), SEAT_FORCE_ERROR))
+            return np.hypot(calibrated, self.cfd_error)
+        u = np.ravel(u)
+        std = valve_sigma(calibrated, self.mesh_error_at(p_B, u),
+                          gap_error(self.coverage.gaps(), u, GAP_FORCE_ERROR),
+                          gap_is_floor=self.calibration_spans_gaps)
+        return np.maximum(std, seat_error(self.coverage.openings, u, SEAT_FORCE_ERROR))
 
-    def cfd_error_at(self, p_B, u) -> np.ndarray:
-        """Relative σ of the flow force [1] that the CFD adds at back pressures ``p_B`` [Pa] and
-        openings ``u`` [m] (flat): :attr:`cfd_error`, the meshes' biases as the map bridges them
-        (:func:`.cfd_error.mesh_bias_share`), and away from the samples' central back pressure
-        what the cavitation model may miss (:func:`.cfd_error.cavitation_error`); across an
-        unsampled gap never less than what no mesh says there (:data:`.cfd_error.GAP_FORCE_ERROR`,
-        a half sine in ln u)."""
+    def mesh_error_at(self, p_B, u) -> np.ndarray:
+        """Relative σ of the flow force [1] that the CFD's meshes and cavitation model put on
+        the map at back pressures ``p_B`` [Pa] and openings ``u`` [m] (flat): :attr:`cfd_error`,
+        the meshes' biases as the map bridges them (:func:`.cfd_error.mesh_bias_share`), and
+        away from the samples' central back pressure what the cavitation model may miss
+        (:func:`.cfd_error.cavitation_error`)."""
         p_B, u = np.ravel(p_B), np.ravel(u)
         if self.coverage is None:
             return np.full(p_B.shape, self.cfd_error)
         bias = self.cfd_error * mesh_bias_share(self.coverage.openings, u)
-        return np.maximum(np.hypot(bias, cavitation_error(self.coverage.central_back_pressure,
-                                                          p_B)),
-                          gap_error(self.coverage.gaps(), u, GAP_FORCE_ERROR))
+        return np.hypot(bias, cavitation_error(self.coverage.central_back_pressure, p_B))
+
+    def cfd_error_at(self, p_B, u) -> np.ndarray:
+        """Relative σ of the flow force [1] that the CFD adds at back pressures ``p_B`` [Pa] and
+        openings ``u`` [m] (flat) where the map itself is exact: its meshes' and cavitation
+        model's (:meth:`mesh_error_at`), across an unsampled gap never less than what no mesh
+        says there (:data:`.cfd_error.GAP_FORCE_ERROR`, a half sine in ln u)."""
+        if self.coverage is None:
+            return self.mesh_error_at(p_B, u)
+        return np.maximum(self.mesh_error_at(p_B, u),
+                          gap_error(self.coverage.gaps(), np.ravel(u), GAP_FORCE_ERROR))
 
     def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of f_sim [N] against the valve (that of its flow force), or None if

@@ -179,21 +179,19 @@ FORCE_CFD_ERROR = CFD_ERROR["flow force"]
 #: far the smooth bridges through the samples differ at the shipped 0.20–0.63 mm gap's middle:
 #: the NN's and the GP's by 2.0–2.4 %, two draws of a σ of 2.2/√2 = 1.6 %. In quadrature,
 #: 2.2 %. The grid's bridge (a power law, 6–7 % below both there) is an interpolation rule whose
-#: error its own calibration measures and carries: its σ grows with the span it bridges. A term
-#: of the CFD's error (the larger of it and the meshes' biases, :meth:`~.base.FlowMap.
-#: cfd_error_at`), in quadrature with the calibrated σ, as the flow force's; it was 3 % while
-#: the GP's bridge lay 3.5 % below the NN's (docs/maps.md)
+#: error its own calibration measures and carries: its σ grows with the span it bridges. How it
+#: joins a map's σ, :func:`valve_sigma` says; it was 3 % while the GP's bridge lay 3.5 % below
+#: the NN's (docs/maps.md)
 GAP_FLOW_ERROR = 0.022
 
-#: one σ of the relative flow-force error at the middle of an unsampled gap [1]: what the valve's
-#: flow force may do where no mesh ran, the same prior as the virtual valves' gap bump
-#: (:attr:`surrogate.synthetic.mismatch.MapMismatch.gap_force`). The kinds' force bridges across
-#: the shipped gap differ by 1.1 to 4.5 % (median; 4 to 6.6 % at the 90th percentile) besides.
-#: A term of the CFD's error (the larger of it and the meshes' biases,
-#: :meth:`~.base.ForceMap.cfd_error_at`), in quadrature with the calibrated σ: no learned kind's
-#: force calibration grows across the gap by itself (the GP's and the networks' held 60-70 % of
-#: the virtual valves' flow force there without it)
-GAP_FORCE_ERROR = 0.05
+#: one σ of the relative flow-force error at the middle of an unsampled gap [1], as the flow's
+#: (:data:`GAP_FLOW_ERROR`): what the valve's flow force may do where no mesh ran, the virtual
+#: valves' own prior for the gap (a bump of 5 %, :attr:`surrogate.synthetic.mismatch.
+#: MapMismatch.gap_force`), and which smooth bridge is the valve's: the NN's and the GP's flow
+#: forces differ by 5.2 % (median; 7.6 % at the 90th percentile) at the shipped gap's middle, two
+#: draws of a σ of 3.7 %. In quadrature, 6.2 %. With 5 % alone the GP's ±2σ held 82 % of the
+#: virtual valves' flow force there and the NN's 88 % (over 60 valves; ``eval/valve_coverage.py``)
+GAP_FORCE_ERROR = float(np.hypot(0.05, 0.052 / np.sqrt(2.0)))
 
 #: one σ per unit of ln(u₀/u) of the exponent k by which the valve's Δp at a flow, and its
 #: flow-force fraction, may change as (u/u₀)^k below the smallest sampled opening u₀ [1]. No mesh
@@ -223,6 +221,25 @@ SEAT_FORCE_ERROR = SEAT_EXPONENT_ERROR
 #: pressures inherits the model's error at each, growing away from the central one
 #: (:class:`surrogate.synthetic.mismatch.CavitationFlowForce` is the virtual valve's version)
 CAVITATION_FORCE_ERROR = 0.03
+
+
+def valve_sigma(calibrated, meshes, gap, *, gap_is_floor: bool = False) -> np.ndarray:
+    """σ of a map against the valve [ln units] from its ``calibrated`` σ (its error against the
+    CFD), the CFD meshes' own error as the map carries them (``meshes``) and what no mesh says
+    across an unsampled gap (``gap``, :func:`gap_error`), all in ln units.
+
+    The meshes' error and the calibrated σ are independent and add in quadrature. Across a gap,
+    the map's error against the valve is how far the valve strays from the map's bridge where no
+    mesh ran. For a map whose calibration never bridged a span that wide (the learned kinds',
+    whose distances are to the nearest sample in their features), the gap's prior says it: a
+    term beside the calibrated σ, never less than the meshes' own. A map whose calibration was
+    measured across such spans (``gap_is_floor``: the grid's, fitted to openings left out of its
+    bridge, up to 0.9 in ln u) already holds an estimate of that, its own: the prior is then a
+    floor under it, not a second count of one error (in quadrature, the grid's ±2σ held 99 % of
+    the virtual valves' flow force across the gap; ``eval/valve_coverage.py``)."""
+    if gap_is_floor:
+        return np.maximum(np.hypot(calibrated, meshes), gap)
+    return np.hypot(calibrated, np.maximum(meshes, gap))
 
 
 def gap_error(gaps: list[tuple[float, float]], u, size: float = GAP_FLOW_ERROR) -> np.ndarray:
@@ -282,4 +299,4 @@ __all__ = ["CAVITATION_FORCE_ERROR", "CFD_ERROR", "FLOW_CFD_ERROR", "FORCE_CFD_E
            "SEAT_FORCE_ERROR", "SHIPPED_CFD_ERROR", "TREND_DEGREE", "cavitation_error",
            "dp_error_estimates", "flow_cfd_error", "gap_error", "mesh_bias_share",
            "mesh_study_variance", "opening_scatter", "pooled_dp_error", "seat_error",
-           "shipped_dp_error", "write_dp_error"]
+           "shipped_dp_error", "valve_sigma", "write_dp_error"]

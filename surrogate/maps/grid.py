@@ -107,6 +107,9 @@ class _SweepGrid:
     """
 
     excess_slope = 0.0
+    #: the grid's calibration bridged openings left out of it, across spans as wide as the
+    #: unsampled gap: there the gap's prior is a floor under its σ (:func:`.cfd_error.valve_sigma`)
+    calibration_spans_gaps = True
     #: below the smallest opening, continue the value as a power of u (the force grid's flow-force
     #: fraction) instead of ``excess_slope``'s linear continuation
     power_below = False

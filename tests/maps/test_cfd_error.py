@@ -144,3 +144,45 @@ def test_learned_maps_read_the_meshes_error_their_training_recorded(tmp_path):
     (folder / "surrogate.json").write_text(json.dumps(manifest))
     with pytest.raises(InputError, match=r"flow.*cfd_error.*must lie in \[0, 1\]"):
         load_learned_maps(folder)
+
+
+def test_the_gaps_prior_is_a_floor_under_a_calibration_that_bridged_such_spans():
+    """Two estimates of one error (the grid's own, from openings left out of its bridge, and the
+    prior of what no mesh says) do not add; a calibration that never bridged a gap gets the
+    prior beside it."""
+    from surrogate.maps.cfd_error import valve_sigma
+
+    calibrated, meshes, gap = np.array([0.06, 0.01, 0.0]), 0.02, np.array([0.05, 0.05, 0.0])
+    assert np.allclose(valve_sigma(calibrated, meshes, gap, gap_is_floor=True),
+                       [np.hypot(0.06, 0.02), 0.05, 0.02])
+    assert np.allclose(valve_sigma(calibrated, meshes, gap),
+                       [np.hypot(0.06, 0.05), np.hypot(0.01, 0.05), 0.02])
+
+
+def test_grid_maps_take_the_gaps_prior_as_a_floor_and_learned_ones_beside_their_own(
+        cfd_samples, valve):
+    """At the middle of the shipped 0.20–0.63 mm gap: the grid's σ is the larger of its own
+    (with its meshes') and the gap's prior; the GP's its own and the prior in quadrature."""
+    from surrogate.fluid import FluidState
+    from surrogate.maps.cfd_error import GAP_FLOW_ERROR, GAP_FORCE_ERROR
+    from surrogate.maps.grid import grid_maps_on
+    from surrogate.maps.registry import build_maps
+
+    u = np.full(3, np.sqrt(0.20 * 0.63) * 1e-3)
+    p_B, p_L = np.full(3, 5e5), np.array([40e5, 100e5, 200e5])
+    fluid = FluidState(np.full(3, 4.6e-5), np.full(3, 870.0))
+    grid_flow, grid_force = grid_maps_on(cfd_samples, valve)
+    gp_flow, gp_force = build_maps("gp", valve)
+    for flow, floor in ((grid_flow, True), (gp_flow, False)):
+        q = flow.flow(p_L, p_B, u, fluid)
+        own = flow.calibration.std(*flow.calibration_inputs(q, p_B, u, fluid))
+        meshes = flow.mesh_error_at(u)
+        expected = (np.maximum(np.hypot(own, meshes), GAP_FLOW_ERROR) if floor
+                    else np.hypot(own, np.maximum(meshes, GAP_FLOW_ERROR)))
+        assert np.allclose(flow.log_discharge_std(q, p_B, u, fluid), expected, rtol=1e-9)
+    for force, floor in ((grid_force, True), (gp_force, False)):
+        own = force.calibration.std(*force.calibration_inputs(p_L, p_B, u, fluid))
+        meshes = force.mesh_error_at(p_B, u)
+        expected = (np.maximum(np.hypot(own, meshes), GAP_FORCE_ERROR) if floor
+                    else np.hypot(own, np.maximum(meshes, GAP_FORCE_ERROR)))
+        assert np.allclose(force.relative_force_std(p_L, p_B, u, fluid), expected, rtol=1e-9)
