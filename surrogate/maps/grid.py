@@ -628,6 +628,17 @@ def _used_samples(samples: CfdSamples, reference: float):
 FORCE_EACH_POWER = True
 
 
+#: powers of the grid's flow calibration given per distance, not fitted. Linear interpolation
+#: between two fluid levels errs by f''·(x−a)(b−x)/2, the square of the viscosity distance
+#: (:meth:`_SweepGrid.sweep_distances`), so its power is 2. The folds cannot say otherwise: the
+#: only errors along ν are a left-out temperature's, all at one distance (0.82: 40 °C bridged
+#: from 20 and 60 °C), and the one power the opening's distances fit (2.7) set how σ fell toward
+#: the levels; at 30 and 50 °C and in the other oils, half that span, the grid's ±2σ held 88 and
+#: 84 % of the virtual valves' q over 120 valves (with power 2, 96 and 94 %;
+#: ``eval/valve_coverage.py --seeds``)
+FLOW_POWERS = {"viscosity": 2.0}
+
+
 def meshes_bridged_in_errors(errors, samples: CfdSamples) -> np.ndarray:
     """The variance [1²] the CFD meshes' own biases put into each of the grid's cross-validated
     flow-force errors (:func:`.crossval.errors_on` rows): FORCE_CFD_ERROR²·(1 + share²) wherever
@@ -714,15 +725,16 @@ class GridUncertainty:
         # the flow's errors without the meshes' biases as known variance, unlike the learned
         # kinds': taken out, they left the grid's flow σ across the unsampled gap too narrow
         # for the virtual valves' q there (docs/maps.md, "How the learned maps are built"); its
-        # powers all one fitted power (not the networks' given one for the back pressure,
-        # sigma.BACK_PRESSURE_LINEAR): the grid does not read the back pressure as an input;
+        # powers one fitted power but the viscosity's, the interpolation's (FLOW_POWERS), which
+        # its folds cannot fit. Not the networks' given one for the back pressure
+        # (sigma.BACK_PRESSURE_LINEAR): the grid does not read the back pressure as an input;
         # its flow holds the reference back pressure's C_d, and its error away from it is the
         # flow's cavitation, which sets in with the cavitation number rather than in
         # proportion. The flow force's errors carry the meshes the folds bridged as known
         # variance (meshes_bridged_in_errors), and each of its distances fits a power of its
         # own (FORCE_EACH_POWER)
         errors = self.errors[~toward_seat(self.errors)]
-        flow, force = calibrate(errors, use_spread=False,
+        flow, force = calibrate(errors, use_spread=False, powers=(FLOW_POWERS, {}),
                                 known=(None, meshes_bridged_in_errors(errors, self.samples)),
                                 each_power=(False, FORCE_EACH_POWER))
         seat = self.seat_slopes()
