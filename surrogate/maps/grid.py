@@ -656,8 +656,8 @@ def meshes_bridged_in_errors(errors, samples: CfdSamples) -> np.ndarray:
     fitted power sit at the range's lower end (0.5, errors flat in the distance) and its ±2σ
     hold 98.8 % of the virtual valves' flow force between openings and 98.6 % at other back
     pressures (97.8 and 96.9 % taken as known; ``eval/valve_coverage.py``). Across the
-    unsampled gap it holds all of it either way: there the gap's own term of the CFD's error
-    (:data:`.cfd_error.GAP_FORCE_ERROR`) adds to the span the grid bridges."""
+    unsampled gap the gap's own prior (:data:`.cfd_error.GAP_FORCE_ERROR`) is a floor under
+    that σ (:func:`.cfd_error.valve_sigma`)."""
     bridged = ((errors["force_distance:opening"] > 0)
                | (errors["force_distance:opening beyond"] > 0)).to_numpy()
     return FORCE_CFD_ERROR ** 2 * meshes_carried(errors, samples, bridged)
