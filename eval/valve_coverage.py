@@ -79,12 +79,12 @@ SEEDS = tuple(range(1, 61))
 
 def constant_cfd_error() -> None:
     """Take the region terms of the CFD's error out of every map's σ in this process
-    (:mod:`surrogate.maps.cfd_error`: one mesh's whole bias everywhere, no gap floor, no
+    (:mod:`surrogate.maps.cfd_error`: one mesh's whole bias everywhere, no gap term, no
     cavitation term)."""
     import surrogate.maps.base as base
 
     base.mesh_bias_share = lambda openings, u: np.ones(np.shape(u))
-    base.gap_error = lambda gaps, u: np.zeros(np.shape(u))
+    base.gap_error = lambda gaps, u, size=None: np.zeros(np.shape(u))
     base.cavitation_error = lambda central, p_B: np.zeros(np.shape(p_B))
 
 
