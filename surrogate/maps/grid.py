@@ -830,6 +830,9 @@ def _grid_accuracy(options, valve, base):
     shipped = shipped_summary(samples, valve)
     if shipped:
         return shipped
+    # through the maps' cache, not grid_maps_on(samples): the cross-validation behind the
+    # summary (seconds) is then the one the workflow's own grid maps use, at the cost of
+    # reading the samples' file once more
     flow, _ = build_maps(MapSource.of("grid", **options), valve, base)
     return flow.uncertainty.summary()
 
