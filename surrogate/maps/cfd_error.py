@@ -234,7 +234,8 @@ def valve_sigma(calibrated, meshes, gap, *, gap_is_floor: bool = False) -> np.nd
     whose distances are to the nearest sample in their features), the gap's prior says it: a
     term beside the calibrated σ, never less than the meshes' own. A map whose calibration was
     measured across such spans (``gap_is_floor``: the grid's, fitted to openings left out of its
-    bridge, up to 0.9 in ln u) already holds an estimate of that, its own: the prior is then a
+    bridge, √((x − a)(b − x)) up to 0.89 in ln u where the gap's middle is 0.57) already holds an
+    estimate of that, its own: the prior is then a
     floor under it, not a second count of one error (in quadrature, the grid's ±2σ held 99 % of
     the virtual valves' flow force across the gap; ``eval/valve_coverage.py``)."""
     if gap_is_floor:
