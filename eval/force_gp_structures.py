@@ -15,9 +15,9 @@ ships within 0.01 % of its row here.
 
 ``--flow`` asks the same of the flow map's GP instead (``surrogate/learn/training.py``:
 ``FLOW_GP_PARTS``, ``FLOW_GP_TREND_DEGREE``: ln C_d from (ln Re_q, ln u/U, ln σ_q) as a trend, a
-cubic in the opening and linear in the rest, plus a Matérn 3/2 in the opening times an RBF of
-Re, plus RBF(u, σ); or other parts, or the trend a line, a quadratic or a quartic in the
-opening, or none), scored by the relative error of C_d at each left-out sample (the flow at its
+quadratic in the opening and linear in the rest, plus a Matérn 3/2 in the opening times an RBF
+of Re, plus RBF(u, σ); or other parts, or the trend of another degree in the opening, 1 to 4,
+or none), scored by the relative error of C_d at each left-out sample (the flow at its
 pressure drop): whether another structure would carry q better between openings without losing
 elsewhere. Leaving one opening out also asks what the trend does across the 0.20-0.63 mm gap,
 where the Matérn reverts to it: the row prints each left-out opening's error too.
@@ -38,6 +38,7 @@ from surrogate import load_valve
 from surrogate.data import load_cfd_samples
 from surrogate.features import FeatureSpec, targets
 from surrogate.learn.gaussian_process import fit_gp
+from surrogate.learn.training import FLOW_GP_PARTS, FLOW_GP_TREND_DEGREE
 from surrogate.maps.crossval import SCHEMES, folds
 from surrogate.maps.gp import NumpyGP
 from surrogate.core.outputs import atomic_directory
@@ -56,12 +57,14 @@ STRUCTURES = {
 
 #: input columns of the flow map: 0 ln Re_q, 1 ln(u/U), 2 ln σ_q; a structure's trend
 #: (the degree of its polynomial in the opening) follows its parts where it has one
-_MATERN_PAIR = (("matern", (1, 0)), ("rbf", (1, 2)))
+_MATERN_PAIR = FLOW_GP_PARTS  # Matérn(u)·RBF(Re) + RBF(u, σ)
+_DEGREES = {1: "linear", 2: "quadratic", 3: "cubic", 4: "quartic"}
+#: the trends in the opening, the shipped degree first
+_TRENDS = sorted(_DEGREES, key=lambda degree: degree != FLOW_GP_TREND_DEGREE)
 FLOW_STRUCTURES = {
-    "shipped: cubic trend + Matérn(u)·RBF(Re) + RBF(u, σ)": (_MATERN_PAIR, 3),
-    "quartic trend + Matérn(u)·RBF(Re) + RBF(u, σ)": (_MATERN_PAIR, 4),
-    "quadratic trend + Matérn(u)·RBF(Re) + RBF(u, σ)": (_MATERN_PAIR, 2),
-    "linear trend + Matérn(u)·RBF(Re) + RBF(u, σ)": (_MATERN_PAIR, 1),
+    **{("shipped: " if degree == FLOW_GP_TREND_DEGREE else "")
+       + f"{_DEGREES[degree]} trend + Matérn(u)·RBF(Re) + RBF(u, σ)": (_MATERN_PAIR, degree)
+       for degree in _TRENDS},
     "RBF(Re, u) + RBF(u, σ)": (("rbf", (0, 1)), ("rbf", (1, 2))),
     "Matérn(u)·RBF(Re) + RBF(u, σ)": _MATERN_PAIR,
     "Matérn(u)·RBF(Re) + Matérn(u)·RBF(σ)": (("matern", (1, 0)), ("matern", (1, 2))),
