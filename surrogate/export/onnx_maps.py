@@ -437,9 +437,11 @@ def _calibrated(g: Graph, learned_map, features: str, spread: str, p_B: str, u: 
 
 
 def _cfd_error(g: Graph, learned_map, p_B: str, u: str) -> str:
-    """The CFD's own σ [ln units] as :meth:`FlowMap.cfd_error_at` and :meth:`ForceMap.cfd_error_at`
-    compute it: each mesh's bias as the map bridges it, and for the flow force the cavitation
-    model's share, in the clip-and-sum form of :mod:`..maps.cfd_error`."""
+    """The CFD's own σ [ln units] beside a learned map's calibrated one, as
+    :func:`..maps.cfd_error.valve_sigma` joins them for a map whose calibration never bridged a
+    gap: each mesh's bias as the map bridges it (:meth:`FlowMap.mesh_error_at`,
+    :meth:`ForceMap.mesh_error_at`; for the flow force with the cavitation model's share), never
+    less than the gap's prior, in the clip-and-sum form of :mod:`..maps.cfd_error`."""
     coverage = learned_map.coverage
     if coverage is None:
         return g.add(g.mul(u, 0.0), learned_map.cfd_error)

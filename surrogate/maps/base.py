@@ -189,15 +189,6 @@ class FlowMap(ABC):
             return np.full(np.shape(u), self.cfd_error)
         return self.cfd_error * mesh_bias_share(self.coverage.openings, u)
 
-    def cfd_error_at(self, u) -> np.ndarray:
-        """σ of ln C_d [1] that the CFD adds at openings ``u`` [m] where the map itself is
-        exact: its meshes' (:meth:`mesh_error_at`), across an unsampled gap between openings
-        never less than what no mesh says there (:func:`.cfd_error.gap_error`), as the flow
-        force's (:meth:`ForceMap.cfd_error_at`)."""
-        if self.coverage is None:
-            return self.mesh_error_at(u)
-        return np.maximum(self.mesh_error_at(u), gap_error(self.coverage.gaps(), u))
-
     def flow_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of the flow [m^3/s] at load pressure ``p_L``, or None.
 
@@ -300,16 +291,6 @@ class ForceMap(ABC):
             return np.full(p_B.shape, self.cfd_error)
         bias = self.cfd_error * mesh_bias_share(self.coverage.openings, u)
         return np.hypot(bias, cavitation_error(self.coverage.central_back_pressure, p_B))
-
-    def cfd_error_at(self, p_B, u) -> np.ndarray:
-        """Relative σ of the flow force [1] that the CFD adds at back pressures ``p_B`` [Pa] and
-        openings ``u`` [m] (flat) where the map itself is exact: its meshes' and cavitation
-        model's (:meth:`mesh_error_at`), across an unsampled gap never less than what no mesh
-        says there (:data:`.cfd_error.GAP_FORCE_ERROR`, a half sine in ln u)."""
-        if self.coverage is None:
-            return self.mesh_error_at(p_B, u)
-        return np.maximum(self.mesh_error_at(p_B, u),
-                          gap_error(self.coverage.gaps(), np.ravel(u), GAP_FORCE_ERROR))
 
     def force_std(self, p_L, p_B, u, fluid: FluidState) -> np.ndarray | None:
         """Standard deviation of f_sim [N] against the valve (that of its flow force), or None if

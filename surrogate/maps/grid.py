@@ -648,7 +648,7 @@ def meshes_bridged_in_errors(errors, samples: CfdSamples) -> np.ndarray:
 
     The learned kinds' calibrations take a left-out opening's meshes as known
     (:func:`.crossval.meshes_in_errors`), since every map adds the CFD's error to σ by itself
-    (:meth:`.base.ForceMap.cfd_error_at`). The grid interpolates each fluid level on its own, so
+    (:meth:`.base.ForceMap.mesh_error_at`). The grid interpolates each fluid level on its own, so
     a sweep left out (k-fold) also leaves its level without the opening's mesh: those errors
     carry it as well (the grid's force errors there are one offset per opening, alternating in
     sign between neighbours, as the meshes' biases would be: +4.1, -4.1, +4.4, -5.1 % at 0.10,

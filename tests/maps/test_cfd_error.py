@@ -114,7 +114,7 @@ def test_grid_maps_of_other_samples_carry_their_own_meshes_error(cfd_samples, va
     assert flow.cfd_error == flow_cfd_error(theirs.frame)
     assert flow.cfd_error > 1.2 * FLOW_CFD_ERROR
     openings = np.unique(theirs.frame["u"])
-    assert np.all(flow.cfd_error_at(openings) >= flow.cfd_error * (1 - 1e-12))
+    assert np.all(flow.mesh_error_at(openings) >= flow.cfd_error * (1 - 1e-12))
 
 
 def test_learned_maps_read_the_meshes_error_their_training_recorded(tmp_path):
